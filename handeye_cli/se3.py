@@ -1,0 +1,87 @@
+"""Batched rigid transforms as 4x4 homogeneous matrices.
+
+Conventions used throughout handeye:
+
+* ``T_a_b`` is the pose of frame b expressed in frame a; it maps points from b to a,
+  ``p_a = T_a_b @ p_b``.
+* Quaternions are Hamilton, ordered **x, y, z, w** (as ROS and ``scipy.spatial.transform``).
+* Translations are in metres, angles in radians.
+
+All functions accept a single transform of shape (4, 4) or a stack of shape (N, 4, 4).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+__all__ = [
+    "from_xyz_quat",
+    "to_xyz_quat",
+    "inverse",
+    "relative",
+    "rotation_angle",
+    "is_rotation",
+]
+
+
+def from_xyz_quat(xyz: np.ndarray, quat_xyzw: np.ndarray) -> np.ndarray:
+    """Build homogeneous transforms from translations (…, 3) [m] and x-y-z-w quaternions (…, 4).
+
+    Quaternions need not be unit length; they are normalised.
+    """
+    xyz = np.asarray(xyz, dtype=float)
+    quat = np.asarray(quat_xyzw, dtype=float)
+    single = xyz.ndim == 1
+    xyz2, quat2 = np.atleast_2d(xyz), np.atleast_2d(quat)
+    out = np.zeros((len(xyz2), 4, 4))
+    out[:, :3, :3] = Rotation.from_quat(quat2).as_matrix()
+    out[:, :3, 3] = xyz2
+    out[:, 3, 3] = 1.0
+    return out[0] if single else out
+
+
+def to_xyz_quat(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split transforms into translations (…, 3) [m] and x-y-z-w quaternions (…, 4), w ≥ 0."""
+    T = np.asarray(T, dtype=float)
+    single = T.ndim == 2
+    T2 = T[None] if single else T
+    quat = Rotation.from_matrix(T2[:, :3, :3]).as_quat(canonical=True)
+    xyz = T2[:, :3, 3].copy()
+    return (xyz[0], quat[0]) if single else (xyz, quat)
+
+
+def inverse(T: np.ndarray) -> np.ndarray:
+    """Invert rigid transforms exactly (transpose the rotation, no general matrix inverse)."""
+    T = np.asarray(T, dtype=float)
+    R = T[..., :3, :3]
+    Rt = np.swapaxes(R, -1, -2)
+    out = np.zeros_like(T)
+    out[..., :3, :3] = Rt
+    out[..., :3, 3] = -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3])
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def relative(T_w_i: np.ndarray, T_w_j: np.ndarray) -> np.ndarray:
+    """Relative motions ``T_i_j = T_w_i⁻¹ · T_w_j`` (the pose of j expressed in i)."""
+    return inverse(T_w_i) @ np.asarray(T_w_j, dtype=float)
+
+
+def rotation_angle(T_or_R: np.ndarray) -> np.ndarray:
+    """Rotation angle [rad] of transforms (…, 4, 4) or rotation matrices (…, 3, 3).
+
+    Uses the numerically robust ``atan2(|skew|, trace-1)`` form, exact near 0 and π.
+    """
+    R = np.asarray(T_or_R, dtype=float)[..., :3, :3]
+    skew = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
+                     R[..., 1, 0] - R[..., 0, 1]], axis=-1)
+    trace = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
+    return np.arctan2(np.linalg.norm(skew, axis=-1), trace - 1.0)
+
+
+def is_rotation(R: np.ndarray, tol: float = 1e-6) -> np.ndarray:
+    """Boolean mask: which (…, 3, 3) matrices are proper rotations within ``tol``."""
+    R = np.asarray(R, dtype=float)
+    eye = np.eye(3)
+    ortho = np.abs(np.swapaxes(R, -1, -2) @ R - eye).max(axis=(-1, -2)) <= tol
+    return ortho & (np.abs(np.linalg.det(R) - 1.0) <= tol)

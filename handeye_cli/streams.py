@@ -1,0 +1,80 @@
+"""The pose stream: what every reader returns and every later stage consumes."""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from . import se3
+
+__all__ = ["PoseStream"]
+
+
+@dataclass(frozen=True, eq=False)
+class PoseStream:
+    """A time series of poses ``T_frame_child(t)`` of one sensor.
+
+    Attributes
+    ----------
+    stamps_ns:
+        int64[N] timestamps in nanoseconds (``header.stamp`` by default, see ``time_source``).
+    xyz:
+        float64[N, 3] positions of ``child_frame_id`` in ``frame_id`` [m].
+    quat_xyzw:
+        float64[N, 4] unit orientations, Hamilton, order x, y, z, w.
+    frame_id, child_frame_id:
+        The frames: each sample is ``T_frame_child``.
+    source:
+        Where it came from, e.g. ``"log.mcap:/cam0/pose"``; used in messages.
+    time_source:
+        ``"header"`` or ``"log"``.
+    duplicates_dropped:
+        How many exact duplicate stamps the reader removed.
+    """
+
+    stamps_ns: np.ndarray
+    xyz: np.ndarray
+    quat_xyzw: np.ndarray
+    frame_id: str = ""
+    child_frame_id: str = ""
+    source: str = ""
+    time_source: str = "header"
+    duplicates_dropped: int = 0
+
+    def __post_init__(self) -> None:
+        stamps = np.ascontiguousarray(self.stamps_ns, dtype=np.int64)
+        xyz = np.ascontiguousarray(self.xyz, dtype=np.float64).reshape(-1, 3)
+        quat = np.ascontiguousarray(self.quat_xyzw, dtype=np.float64).reshape(-1, 4)
+        if not (len(stamps) == len(xyz) == len(quat)):
+            raise ValueError(f"PoseStream arrays differ in length: {len(stamps)}, {len(xyz)}, {len(quat)}")
+        object.__setattr__(self, "stamps_ns", stamps)
+        object.__setattr__(self, "xyz", xyz)
+        object.__setattr__(self, "quat_xyzw", quat)
+
+    def __len__(self) -> int:
+        return len(self.stamps_ns)
+
+    @classmethod
+    def from_matrices(cls, stamps_ns: np.ndarray, T: np.ndarray, **kw) -> "PoseStream":
+        """Build a stream from (N, 4, 4) transforms ``T_frame_child``."""
+        xyz, quat = se3.to_xyz_quat(np.asarray(T).reshape(-1, 4, 4))
+        return cls(stamps_ns, xyz, quat, **kw)
+
+    def matrices(self) -> np.ndarray:
+        """(N, 4, 4) homogeneous transforms ``T_frame_child``."""
+        return se3.from_xyz_quat(self.xyz, self.quat_xyzw).reshape(-1, 4, 4)
+
+    def inverted(self) -> "PoseStream":
+        """The stream of inverse poses ``T_child_frame`` (e.g. camera-observes-target → target-in-camera)."""
+        xyz, quat = se3.to_xyz_quat(se3.inverse(self.matrices()))
+        return replace(self, xyz=xyz, quat_xyzw=quat, frame_id=self.child_frame_id,
+                       child_frame_id=self.frame_id)
+
+    def select(self, mask_or_index: np.ndarray) -> "PoseStream":
+        """A stream with only the samples selected by a boolean mask or index array."""
+        return replace(self, stamps_ns=self.stamps_ns[mask_or_index], xyz=self.xyz[mask_or_index],
+                       quat_xyzw=self.quat_xyzw[mask_or_index])
+
+    def shifted(self, offset_ns: int) -> "PoseStream":
+        """The same stream with ``offset_ns`` added to every stamp."""
+        return replace(self, stamps_ns=self.stamps_ns + np.int64(offset_ns))
