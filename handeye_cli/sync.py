@@ -1,0 +1,150 @@
+"""Associate stream b to stream a's stamps: interpolation or nearest sample, with the timestamp gate.
+
+Conventions (see :mod:`handeye_cli.se3`): each stream holds absolute poses ``T_w_sensor(t)``;
+stamps are int64 nanoseconds. The result :class:`Synced` holds both streams at a's stamps.
+
+Time offset sign: ``time_offset_ns`` is how far b's clock is **ahead** of a's. b's sample
+stamped ``s`` was taken at a's time ``s - time_offset_ns``. This matches
+:class:`handeye_cli.synthetic.Rig`'s ``time_offset_ns`` (b's clock reads ``t + offset``), so
+passing the rig's true offset aligns the streams.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from . import se3
+from .errors import HandEyeError
+from .streams import PoseStream
+
+__all__ = ["Synced", "associate", "interpolate", "METHODS"]
+
+METHODS = ("interpolate", "nearest")
+
+
+@dataclass(frozen=True, eq=False)
+class Synced:
+    """Both streams at common stamps (a's stamps, in a's clock).
+
+    Attributes
+    ----------
+    stamps_ns: int64[N] stamps [ns] in a's clock.
+    T_a: (N, 4, 4) poses ``T_wa_a`` of sensor a at the stamps.
+    T_b: (N, 4, 4) poses ``T_wb_b`` of sensor b at the stamps (interpolated or nearest).
+    dt_ns: int64[N] the gap used: the largest distance [ns] from a stamp to a b sample used.
+    segment: int64[N] tracking segment of each sample (0 unless the pose-jump gate accepted a
+        new tracking level); motions are only formed within a segment.
+    """
+
+    stamps_ns: np.ndarray
+    T_a: np.ndarray
+    T_b: np.ndarray
+    dt_ns: np.ndarray
+    segment: np.ndarray = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.segment is None:
+            object.__setattr__(self, "segment", np.zeros(len(self.stamps_ns), dtype=np.int64))
+
+    def __len__(self) -> int:
+        return len(self.stamps_ns)
+
+    def select(self, mask_or_index: np.ndarray) -> "Synced":
+        """The samples selected by a boolean mask or an index array."""
+        m = mask_or_index
+        return Synced(self.stamps_ns[m], self.T_a[m], self.T_b[m], self.dt_ns[m], self.segment[m])
+
+
+def _slerp(q_lo: np.ndarray, q_hi: np.ndarray, frac: np.ndarray) -> Rotation:
+    """Per-row SLERP between x-y-z-w quaternions ``q_lo`` and ``q_hi`` at fractions ``frac`` ∈ [0, 1]."""
+    r_lo = Rotation.from_quat(q_lo)
+    step = (r_lo.inv() * Rotation.from_quat(q_hi)).as_rotvec()
+    return r_lo * Rotation.from_rotvec(step * frac[:, None])
+
+
+def interpolate(stream: PoseStream, query_ns: np.ndarray, *, method: str = "interpolate"
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Sample ``stream`` at the stamps ``query_ns`` (int64 ns, same clock as the stream).
+
+    ``"interpolate"``: linear position and SLERP between the bracketing samples; the gap is the
+    larger distance to the two. ``"nearest"``: the closer sample; the gap is its distance.
+    Queries outside the stream's span are not sampled.
+
+    Returns ``(inside, xyz, quat_xyzw, gap_ns)``: ``inside`` is a bool mask over ``query_ns``; the
+    other arrays hold only the inside queries.
+    """
+    if method not in METHODS:
+        raise HandEyeError(f"unknown association method {method!r}", "sync", f"use one of {', '.join(METHODS)}")
+    stamps = stream.stamps_ns
+    query = np.asarray(query_ns, dtype=np.int64)
+    n = len(stamps)
+    after = np.searchsorted(stamps, query, side="right")   # first sample strictly after the query
+    lo = after - 1
+    exact = (lo >= 0) & (stamps[np.clip(lo, 0, n - 1)] == query)
+    inside = exact | ((lo >= 0) & (after < n))
+    lo, q, exact = lo[inside], query[inside], exact[inside]
+    hi = np.where(exact, lo, np.minimum(lo + 1, n - 1))
+    d_lo, d_hi = q - stamps[lo], stamps[hi] - q
+    if method == "nearest":
+        pick = np.where(d_hi < d_lo, hi, lo)
+        return inside, stream.xyz[pick], stream.quat_xyzw[pick], np.minimum(d_lo, d_hi)
+    span = np.maximum(stamps[hi] - stamps[lo], 1)
+    frac = np.where(exact, 0.0, d_lo / span)
+    xyz = stream.xyz[lo] + frac[:, None] * (stream.xyz[hi] - stream.xyz[lo])
+    quat = _slerp(stream.quat_xyzw[lo], stream.quat_xyzw[hi], frac).as_quat()
+    return inside, xyz, quat, np.maximum(d_lo, d_hi)
+
+
+def _span(stream: PoseStream) -> str:
+    return f"{stream.stamps_ns[0] / 1e9:.3f}–{stream.stamps_ns[-1] / 1e9:.3f} s"
+
+
+def associate(a: PoseStream, b: PoseStream, *, method: str = "interpolate", max_dt_ns: int = 100_000_000,
+              time_offset_ns: int = 0) -> tuple[Synced, dict]:
+    """Sample stream b at stream a's stamps, keeping only samples that pass the timestamp gate.
+
+    Parameters
+    ----------
+    a, b: poses ``T_wa_a(t)`` and ``T_wb_b(t)``; stamps int64 ns, sorted.
+    method: ``"interpolate"`` (linear position + SLERP between the bracketing b samples) or
+        ``"nearest"`` (the closest b sample).
+    max_dt_ns: the timestamp gate [ns]: a sample is kept only when every b sample used lies within
+        this distance of the a stamp (the paper's 0.1 s).
+    time_offset_ns: how far b's clock is ahead of a's [ns]: b's sample stamped ``s`` belongs to
+        a's time ``s - time_offset_ns`` (the convention of ``synthetic.Rig.time_offset_ns``).
+
+    Returns
+    -------
+    (Synced at a's stamps, counts ``{"read_a", "read_b", "synced", "dropped_outside_span",
+    "dropped_timestamp_gate"}``).
+
+    Raises
+    ------
+    HandEyeError: when the streams do not overlap in time or no sample passes the gate.
+    """
+    if len(a) == 0 or len(b) == 0:
+        raise HandEyeError("empty pose stream", a.source if len(a) == 0 else b.source,
+                           "check the topic / frames selected for both streams")
+    b = b.shifted(-int(time_offset_ns))
+    counts = {"read_a": len(a), "read_b": len(b), "synced": 0, "dropped_outside_span": 0,
+              "dropped_timestamp_gate": 0}
+    if a.stamps_ns[-1] < b.stamps_ns[0] or b.stamps_ns[-1] < a.stamps_ns[0]:
+        raise HandEyeError(
+            "the two pose streams do not overlap in time",
+            f"a spans {_span(a)}, b spans {_span(b)} after a time offset of {time_offset_ns / 1e9:.6f} s",
+            "use --time-offset auto to estimate the clock offset, or give a fixed --time-offset")
+    inside, xyz, quat, gap = interpolate(b, a.stamps_ns, method=method)
+    keep = gap <= max_dt_ns
+    counts["dropped_outside_span"] = int(len(a) - inside.sum())
+    counts["dropped_timestamp_gate"] = int((~keep).sum())
+    counts["synced"] = int(keep.sum())
+    if not keep.any():
+        raise HandEyeError(
+            "no sample passed the timestamp gate",
+            f"max_dt {max_dt_ns / 1e9:.3f} s; smallest gap {gap.min() / 1e9:.3f} s" if len(gap) else "sync",
+            "raise max_dt, or fix the time offset between the streams (--time-offset auto)")
+    idx = np.flatnonzero(inside)[keep]
+    T_b = se3.from_xyz_quat(xyz[keep], quat[keep]).reshape(-1, 4, 4)
+    return Synced(a.stamps_ns[idx], a.matrices()[idx], T_b, gap[keep].astype(np.int64)), counts
