@@ -1,0 +1,94 @@
+"""Readers: any supported log or trajectory file → :class:`~handeye_cli.streams.PoseStream`.
+
+Formats (detected by content, see :func:`detect_format`): MCAP (ROS 2 CDR, ROS 1, Foxglove
+JSON channels), ROS 1 ``.bag`` (several split files read as one), ROS 2 bags (directory or bare
+``.db3``), TUM, EuRoC CSV and generic CSV. Every stream is ``T_frame_child(t)``: int64 ns
+stamps sorted ascending, positions [m], unit quaternions x-y-z-w.
+"""
+from __future__ import annotations
+
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator, Sequence
+
+from ..errors import HandEyeError
+from ..streams import PoseStream
+from .detect import LOG_FORMATS, detect_format, existing
+from .logs import inspect_source, read_frames, read_topic
+from .mcap_reader import McapSource
+from .rosbag_reader import BagSource
+from .source import LogSource
+from .text import read_text
+
+__all__ = ["read_stream", "inspect_log", "detect_format"]
+
+_TIME_SOURCES = ("header", "log")
+
+
+@contextmanager
+def _open_log(paths: list[Path], fmts: list[str]) -> Iterator[LogSource]:
+    if len(paths) > 1 and (len(set(fmts)) > 1 or fmts[0] != "rosbag1"):
+        raise HandEyeError("several files are read as one log only when all are ROS 1 .bag files",
+                           ", ".join(map(str, paths)), "pass one file, or the split .bag files of one recording")
+    source = McapSource(paths[0]) if fmts[0] == "mcap" else BagSource(paths, fmts[0])
+    with source:
+        yield source
+
+
+def read_stream(paths: str | Path | Sequence[str | Path], *, topic: str | None = None,
+                frames: tuple[str, str] | None = None, time_source: str = "header",
+                columns: dict | None = None, quiet: bool = True) -> PoseStream:
+    """Read one pose stream ``T_frame_child(t)``.
+
+    Logs (MCAP, ROS bags): give exactly one of ``topic`` (a pose-carrying topic: PoseStamped,
+    PoseWithCovarianceStamped, TransformStamped, Odometry, TFMessage/FrameTransform(s) of one
+    frame pair, Foxglove PoseInFrame/PosesInFrame) or ``frames=(parent, child)``, resolved
+    through ``/tf`` + ``/tf_static`` into ``T_parent_child``. Several paths = split ROS 1 bags.
+    Text files (TUM, EuRoC, CSV): one path, no topic/frames; ``columns`` maps generic CSV
+    columns (keys ``t, t_unit, x, y, z, qx, qy, qz, qw``).
+
+    ``time_source``: ``"header"`` (header.stamp / each transform's stamp) or ``"log"`` (the
+    recorder's log time; logs only). Stamps come back sorted, exact duplicates dropped and
+    counted in ``duplicates_dropped``. Raises HandEyeError on any bad input.
+    """
+    plist = [paths] if isinstance(paths, (str, Path)) else list(paths)
+    if not plist:
+        raise HandEyeError("no input file given", "read_stream", "pass a path")
+    if time_source not in _TIME_SOURCES:
+        raise HandEyeError(f"unknown time source {time_source!r}", "time_source", "use 'header' or 'log'")
+    plist = [existing(p) for p in plist]
+    fmts = [detect_format(p) for p in plist]
+    if fmts[0] not in LOG_FORMATS:
+        if len(plist) > 1 or topic is not None or frames is not None:
+            raise HandEyeError(f"a {fmts[0].upper()} text file holds one stream: no topic/frames and one "
+                               "file per stream", ", ".join(map(str, plist)),
+                               "drop --topic/--frames and pass one text file per stream")
+        return read_text(plist[0], fmts[0], columns)
+    if (topic is None) == (frames is None):
+        raise HandEyeError("give exactly one of a topic or a (parent, child) frame pair",
+                           ", ".join(map(str, plist)), "use --topic-a/--topic-b or --frames-a/--frames-b")
+    with _open_log(plist, fmts) as src:
+        if topic is not None:
+            return read_topic(src, topic, time_source=time_source, quiet=quiet)
+        parent, child = frames
+        return read_frames(src, parent, child, time_source=time_source, quiet=quiet)
+
+
+def inspect_log(path: str | Path, *, quiet: bool = True) -> dict:
+    """A JSON-able overview of one file.
+
+    Logs: ``format``, ``path``, ``start_ns``/``end_ns``/``duration_ns`` (log time),
+    ``topics`` [{topic, type, encoding, count, rate_hz (mean over the log), pose}],
+    ``tf_frames`` [{parent, child, static, count}]. Text files: ``format``, ``path``,
+    ``rows``, ``start_ns``, ``end_ns``, ``duration_ns``, ``rate_hz``.
+    """
+    p = existing(path)
+    fmt = detect_format(p)
+    if fmt not in LOG_FORMATS:
+        s = read_text(p, fmt)
+        span = int(s.stamps_ns[-1] - s.stamps_ns[0])
+        return {"format": fmt, "path": str(p), "rows": len(s) + s.duplicates_dropped,
+                "start_ns": int(s.stamps_ns[0]), "end_ns": int(s.stamps_ns[-1]), "duration_ns": span,
+                "rate_hz": round((len(s) - 1) / span * 1e9, 3) if span else 0.0}
+    with _open_log([p], [fmt]) as src:
+        return {"format": fmt, "path": str(p), **inspect_source(src, quiet)}

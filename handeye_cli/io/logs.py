@@ -1,0 +1,103 @@
+"""Format-independent reading of an open log: one pose topic, a TF frame pair, or an overview."""
+from __future__ import annotations
+
+from typing import Iterator
+
+from ..errors import HandEyeError
+from ..streams import PoseStream
+from .common import DECODE_ERRORS, PoseBuffer, make_stream
+from .messages import POSE_TYPES, TF_TYPES, PoseRecord
+from .progress import progress
+from .source import LogSource, TopicInfo
+from .tf import TfTree
+
+__all__ = ["read_topic", "read_frames", "inspect_source", "is_static_topic"]
+
+_BATCH = 4096   # messages between progress-bar updates
+
+
+def is_static_topic(topic: str) -> bool:
+    """``/tf_static`` (or ``…/tf_static``) carries time-invariant transforms."""
+    return topic.rsplit("/", 1)[-1] == "tf_static"
+
+
+def _pose_topics(infos: list[TopicInfo]) -> str:
+    rows = [f"{t.topic} ({t.msgtype})" for t in infos if t.msgtype in POSE_TYPES]
+    return ", ".join(rows) or "none"
+
+
+def _records(src: LogSource, infos: list[TopicInfo], label: str, time_source: str,
+             quiet: bool) -> Iterator[tuple[str, list[PoseRecord]]]:
+    """(topic, pose records) per message of ``infos``; stamps replaced by log time if asked."""
+    counts = {t.topic: 0 for t in infos}
+    with progress(sum(t.count for t in infos), label, quiet=quiet) as bar:
+        for topic, log_ns, raw, decode in src.read(list(counts)):
+            i = counts[topic]
+            counts[topic] = i + 1
+            try:
+                recs = decode(raw)
+            except DECODE_ERRORS as exc:
+                raise HandEyeError(f"cannot decode message: {type(exc).__name__}: {exc}",
+                                   f"{src.name}:{topic}, message {i}",
+                                   "the message is corrupt or not of its declared type") from exc
+            if time_source == "log":
+                recs = [(log_ns, *r[1:]) for r in recs]
+            yield topic, recs
+            if i % _BATCH == _BATCH - 1:
+                bar.update(_BATCH)
+
+
+def read_topic(src: LogSource, topic: str, *, time_source: str = "header",
+               quiet: bool = True) -> PoseStream:
+    """The poses ``T_frame_child`` on ``topic`` (child = child_frame_id, else the topic name)."""
+    infos = src.topics()
+    info = next((t for t in infos if t.topic == topic), None)
+    if info is None:
+        raise HandEyeError(f"unknown topic {topic!r}", src.name, f"pose topics in this file: {_pose_topics(infos)}")
+    if info.msgtype not in POSE_TYPES:
+        raise HandEyeError(f"unsupported message type {info.msgtype!r}", f"{src.name}:{topic}",
+                           f"supported types: {', '.join(sorted(POSE_TYPES))}; "
+                           f"pose topics in this file: {_pose_topics(infos)}")
+    buf = PoseBuffer()
+    for _, recs in _records(src, [info], f"reading {topic}", time_source, quiet):
+        buf.add(recs)
+    source = f"{src.name}:{topic}"
+    if len(buf.pairs) > 1:
+        pairs = ", ".join(f"{p or '?'}->{c or '?'}" for p, c in list(buf.pairs)[:8])
+        raise HandEyeError(f"topic carries poses of several frame pairs ({pairs})", source,
+                           "select one pair with frames=(PARENT, CHILD) / --frames-a PARENT CHILD")
+    frame, child = next(iter(buf.pairs), ("", ""))
+    stamps, xyz, quat = buf.arrays()
+    return make_stream(stamps, xyz, quat, source=source, frame_id=frame, child_frame_id=child or topic,
+                       time_source=time_source, where=lambda i: f"message {i}")
+
+
+def _tf_tree(src: LogSource, infos: list[TopicInfo], time_source: str, quiet: bool) -> TfTree:
+    tree = TfTree(src.name)
+    tf_infos = [t for t in infos if t.msgtype in TF_TYPES]
+    for topic, recs in _records(src, tf_infos, "reading TF", time_source, quiet):
+        tree.add(recs, static=is_static_topic(topic))
+    return tree
+
+
+def read_frames(src: LogSource, parent: str, child: str, *, time_source: str = "header",
+                quiet: bool = True) -> PoseStream:
+    """``T_parent_child(t)`` resolved through the TF topics (TFMessage, Foxglove FrameTransform(s))."""
+    infos = src.topics()
+    if not any(t.msgtype in TF_TYPES for t in infos):
+        raise HandEyeError("no TF topics (/tf, /tf_static) in this file", src.name,
+                           f"read a pose topic instead; pose topics: {_pose_topics(infos)}")
+    return _tf_tree(src, infos, time_source, quiet).lookup(parent, child, time_source=time_source)
+
+
+def inspect_source(src: LogSource, quiet: bool = True) -> dict:
+    """Topics (type, encoding, count, mean rate over the log's span, pose-carrying?) and TF edges."""
+    infos = src.topics()
+    span = src.span()
+    duration = span[1] - span[0] if span else 0
+    topics = [{"topic": t.topic, "type": t.msgtype, "encoding": t.encoding, "count": t.count,
+               "rate_hz": round(t.count / duration * 1e9, 3) if duration else 0.0,
+               "pose": t.msgtype in POSE_TYPES} for t in sorted(infos, key=lambda t: t.topic)]
+    return {"start_ns": span[0] if span else None, "end_ns": span[1] if span else None,
+            "duration_ns": duration, "topics": topics,
+            "tf_frames": _tf_tree(src, infos, "header", quiet).edges()}

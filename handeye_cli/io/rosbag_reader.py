@@ -1,0 +1,75 @@
+"""ROS 1 ``.bag`` files (one or several split files), ROS 2 bag directories and bare ``.db3``
+files via ``rosbags.highlevel.AnyReader``.
+
+AnyReader picks the bag version by suffix only, so a file detected by content under another
+name is opened through a temporary symlink with the right suffix.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from contextlib import ExitStack
+from pathlib import Path
+from typing import Iterator, Sequence
+
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+
+from .common import unreadable
+from .messages import normalize_type, pose_decoder
+from .source import Decoder, TopicInfo
+
+__all__ = ["BagSource"]
+
+_SUFFIX = {"rosbag1": ".bag", "rosbag2": ".db3"}
+
+
+class BagSource:
+    """Open bag(s) of one format (``rosbag1``: any number of files; ``rosbag2``: one bag)."""
+
+    def __init__(self, paths: Sequence[Path], fmt: str) -> None:
+        self.name = ", ".join(str(p) for p in paths)
+        self._stack = ExitStack()
+        with unreadable(self.name):
+            try:
+                real = [self._with_suffix(Path(p), fmt) for p in paths]
+                self._reader = self._stack.enter_context(
+                    AnyReader(real, default_typestore=get_typestore(Stores.ROS2_HUMBLE)))
+            except BaseException:
+                self._stack.close()
+                raise
+
+    def _with_suffix(self, p: Path, fmt: str) -> Path:
+        if p.is_dir() or p.suffix == _SUFFIX[fmt]:
+            return p
+        tmp = Path(self._stack.enter_context(tempfile.TemporaryDirectory(prefix="handeye-")))
+        link = tmp / (p.stem + _SUFFIX[fmt])
+        os.symlink(p.resolve(), link)
+        return link
+
+    def __enter__(self) -> "BagSource":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stack.close()
+
+    def topics(self) -> list[TopicInfo]:
+        return [TopicInfo(topic, normalize_type(info.msgtype or ""),
+                          getattr(info.connections[0].ext, "serialization_format", "ros1"),
+                          info.msgcount)
+                for topic, info in self._reader.topics.items()]
+
+    def span(self) -> tuple[int, int] | None:
+        return (self._reader.start_time, self._reader.end_time) if self._reader.message_count else None
+
+    def _decoder(self, msgtype: str, cdr: bool) -> Decoder:
+        reader = self._reader
+        return pose_decoder(normalize_type(msgtype), lambda b: reader.deserialize(b, msgtype), cdr=cdr)
+
+    def read(self, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes, Decoder]]:
+        conns = [c for c in self._reader.connections if c.topic in topics]
+        decoders = {(c.topic, c.msgtype): self._decoder(
+            c.msgtype, getattr(c.ext, "serialization_format", "") == "cdr") for c in conns}
+        with unreadable(self.name):
+            for conn, log_ns, raw in self._reader.messages(connections=conns):
+                yield conn.topic, log_ns, raw, decoders[(conn.topic, conn.msgtype)]
