@@ -82,6 +82,6 @@ def rotation_angle(T_or_R: np.ndarray) -> np.ndarray:
 def is_rotation(R: np.ndarray, tol: float = 1e-6) -> np.ndarray:
     """Boolean mask: which (…, 3, 3) matrices are proper rotations within ``tol``."""
     R = np.asarray(R, dtype=float)
-    eye = np.eye(3)
-    ortho = np.abs(np.swapaxes(R, -1, -2) @ R - eye).max(axis=(-1, -2)) <= tol
-    return ortho & (np.abs(np.linalg.det(R) - 1.0) <= tol)
+    ortho = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-1, -2)) <= tol
+    det = np.einsum("...i,...i->...", R[..., 0, :], np.cross(R[..., 1, :], R[..., 2, :]))
+    return ortho & (np.abs(det - 1.0) <= tol)

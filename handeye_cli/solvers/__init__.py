@@ -1,0 +1,132 @@
+"""Solvers of ``A_i X = X B_i`` for ``X = T_a_b`` (Dekel, Härenstam-Nielsen, Caccamo).
+
+``solve()`` is the entry point; ``METHODS`` lists the algorithms. The optimal one, ``dqopt``,
+is the default. Motions follow the project convention: ``A_i = T_wa(t_i)⁻¹ T_wa(t_j)``,
+``B_i = T_wb(t_i)⁻¹ T_wb(t_j)``; the extrinsic maps points from b to a.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import HandEyeError
+from . import dualquat
+from .approximate import dq2ndord, dq2steps, dqconvrlx
+from .daniilidis import daniilidis
+from .optimal import dqitr, dqopt
+from .problem import Prior, Problem, build_problem, pair_blocks, validate_motions
+
+__all__ = ["METHODS", "Prior", "Problem", "Solution", "build_problem", "solve", "dq_cost"]
+
+METHODS = ("dqopt", "dq2steps", "dqconvrlx", "dq2ndord", "dqitr", "daniilidis")
+
+
+@dataclass(frozen=True, eq=False)
+class Solution:
+    """The result of one solve.
+
+    Attributes
+    ----------
+    matrix:
+        (4, 4) ``T_a_b``: pose of frame b in frame a, maps points from b to a.
+    cost:
+        Cost (8) at the solution, plus the prior terms of eq 26 when a prior is given.
+    method, alpha:
+        The algorithm and the weight α [1/m] used.
+    lam, mu:
+        Lagrange multipliers λ (= the cost without the prior's constant, eq 10) and μ where
+        the method defines them (``None`` otherwise).
+    iterations, converged:
+        For the iterative methods (dqopt, dqitr).
+    details:
+        Method-specific figures, e.g. DQConvRlx's ``gap_bound`` (eq 22).
+    """
+
+    matrix: np.ndarray
+    cost: float
+    method: str
+    alpha: float
+    pairs: int
+    lam: float | None = None
+    mu: float | None = None
+    iterations: int | None = None
+    converged: bool | None = None
+    details: dict = field(default_factory=dict)
+
+    @property
+    def translation(self) -> np.ndarray:
+        """Translation of ``T_a_b`` [m]."""
+        return self.matrix[:3, 3].copy()
+
+    @property
+    def quaternion_xyzw(self) -> np.ndarray:
+        """Rotation of ``T_a_b`` as a unit quaternion x, y, z, w with w ≥ 0."""
+        q, _ = dualquat.from_transforms(self.matrix)
+        return q
+
+
+def _check_determined(problem: Problem) -> None:
+    """Refuse a truly under-determined problem: cost (8) has a null space beyond the solution's own.
+
+    Noise-free data leaves two null directions of the 8x8 form (the solution and ``(0, q)``);
+    a third means a whole family of extrinsics fits exactly (e.g. planar motion: translation
+    along the normal; a single rotation axis: rotation about it).
+    """
+    Q = np.block([[problem.S, problem.W], [problem.W.T, problem.M]])
+    ev = np.linalg.eigvalsh(Q)
+    null = int(np.sum(ev <= 1e-13 * max(ev[-1], 1e-300)))
+    if null >= 3:
+        raise HandEyeError("the motions cannot determine the extrinsic: a family of solutions fits "
+                           "them exactly (all motions about one axis, or planar, or too few)",
+                           "motions", "add motion about a second rotation axis, or pass a prior "
+                           "(--prior FILE) to fix the unobservable directions")
+
+
+def dq_cost(problem: Problem, q: np.ndarray, qd: np.ndarray) -> float:
+    """Cost (8) (+ prior) of a dual quaternion; alias of :meth:`Problem.cost`."""
+    return problem.cost(q, qd)
+
+
+def solve(motions_a: np.ndarray, motions_b: np.ndarray, method: str = "dqopt", alpha: float = 1.0,
+          prior: Prior | None = None, weights: np.ndarray | None = None) -> Solution:
+    """Solve ``A_i X = X B_i`` for ``X = T_a_b`` in the least-squares sense of the paper's cost (8).
+
+    Parameters
+    ----------
+    motions_a, motions_b:
+        (N, 4, 4) relative motions of sensors a and b over the same time intervals.
+    method:
+        One of :data:`METHODS`; ``dqopt`` (Algorithm 1) is the global optimum.
+    alpha:
+        Weight of the translational residuals [1/m] (eq 8).
+    prior:
+        Optional :class:`Prior` (eqs 26–29): pulls the solution toward ``prior.T_a_b``.
+    weights:
+        Optional (N,) non-negative per-pair weights (default 1).
+
+    Raises
+    ------
+    HandEyeError
+        Bad shapes, non-finite values, non-rotation blocks, unknown method, or a problem whose
+        motions cannot determine the extrinsic.
+    """
+    if method not in METHODS:
+        raise HandEyeError(f"unknown method {method!r}", "method", f"choose one of {', '.join(METHODS)}")
+    problem = build_problem(motions_a, motions_b, alpha=alpha, prior=prior, weights=weights)
+    if prior is None:
+        _check_determined(problem)
+    n = len(np.asarray(motions_a))
+    common = dict(method=method, alpha=float(alpha), pairs=n)
+    if method in ("dqopt", "dqitr"):
+        r = (dqopt if method == "dqopt" else dqitr)(problem)
+        return Solution(dualquat.to_transform(r.q, r.qd), problem.cost(r.q, r.qd), lam=r.lam, mu=r.mu,
+                        iterations=r.iterations, converged=r.converged,
+                        details={"singular_m": r.singular_m}, **common)
+    if method == "daniilidis":
+        A, B, w = validate_motions(motions_a, motions_b, weights)
+        q, qd = daniilidis(A, B, alpha=alpha, weights=w)
+        return Solution(dualquat.to_transform(q, qd), problem.cost(q, qd), **common)
+    r = {"dq2steps": dq2steps, "dqconvrlx": dqconvrlx, "dq2ndord": dq2ndord}[method](problem)
+    return Solution(dualquat.to_transform(r.q, r.qd), problem.cost(r.q, r.qd), mu=r.mu,
+                    details=r.details, **common)

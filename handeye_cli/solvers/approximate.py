@@ -1,0 +1,79 @@
+"""The analytic approximations of §3.2: DQ2Steps (Alg. 2), DQConvRlx (Alg. 3), DQ2ndOrd (Alg. 4).
+
+Each picks a unit ``q`` in closed form and then the optimal ``q'`` for it (eq 20, computed by
+:meth:`Problem.dual_part`, which also covers a singular M). Quaternions are x-y-z-w.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .problem import Problem
+
+__all__ = ["Approximation", "dq2steps", "dqconvrlx", "dq2ndord"]
+
+
+@dataclass(frozen=True)
+class Approximation:
+    """An approximate solution ``q + ε q'``, its μ and method-specific figures (e.g. the gap bound of eq 22)."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    mu: float
+    details: dict
+
+
+def _with_dual(problem: Problem, q: np.ndarray, details: dict) -> Approximation:
+    q = q / np.linalg.norm(q)
+    qd, mu = problem.dual_part(q)
+    return Approximation(q, qd, mu, details)
+
+
+def dq2steps(problem: Problem) -> Approximation:
+    """Algorithm 2: rotation first (smallest eigenvector of M, eq 19), then translation (eq 20)."""
+    return _with_dual(problem, problem.M_smallest_eigenvector, {})
+
+
+def _z0_eigen(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenpairs of Z0 (eq 21), ascending; defined for a singular M too."""
+    return np.linalg.eigh(problem.Z0_relaxed)
+
+
+def dqconvrlx(problem: Problem) -> Approximation:
+    """Algorithm 3: relax ``q·q' = 0`` (smallest eigenvector of Z0, eq 21), then project with eq 20.
+
+    ``details["lower_bound"]`` is λ₀ (the relaxed cost, ≤ the optimum) and ``details["gap_bound"]``
+    is Δλ of eq 22, so that ``λ₀ ≤ optimal cost ≤ λ₀ + Δλ``.
+    """
+    lam, V = _z0_eigen(problem)
+    q = V[:, 0]
+    details = {"lower_bound": float(lam[0])}
+    if problem.M_is_regular:
+        _, Z1, Z2 = problem.Z
+        details["gap_bound"] = float(0.25 * (q @ Z1 @ q) ** 2 / (q @ Z2 @ q))
+    return _with_dual(problem, q, details)
+
+
+def dq2ndord(problem: Problem) -> Approximation:
+    """Algorithm 4: second-order expansion in μ around the relaxed solution (eq 23 / appendix A, eq 34).
+
+    With ``Z_i^{ab} = q_aᵀ Z_i q_b`` and ``λ_{0a} = λ₀ - λ_a`` over the eigenpairs of Z0:
+    ``μ* = ½ Z1^{00} / (Z2^{00} - Σ_a (Z1^{a0})² / λ_{0a})`` and
+    ``q₍₂₎ = q₀ + μ* Σ_a (Z1^{a0}/λ_{0a}) q_a + μ*² (−½ q₀ Σ_a (Z1^{a0}/λ_{0a})²
+    + Σ_a (Σ_b Z1^{b0} Z1^{ab}/λ_{0b} − Z2^{a0} − Z1^{00} Z1^{a0}/λ_{0a}) / λ_{0a} q_a)``,
+    then normalised (the paper's "q₍₂₎/q₍₂₎²" is a slip for q₍₂₎/|q₍₂₎|) and completed with eq 20.
+    Needs a regular M; with a singular M (noise-free data) μ* = 0 and the relaxed solution is exact.
+    """
+    lam, V = _z0_eigen(problem)
+    if not problem.M_is_regular:
+        return _with_dual(problem, V[:, 0], {"mu_2nd_order": 0.0})
+    _, Z1, Z2 = problem.Z
+    Z1e = V.T @ Z1 @ V                      # Z1^{ab}
+    Z2e = V.T @ Z2 @ V                      # Z2^{ab}
+    gaps = lam[0] - lam[1:]                 # λ_{0a}, a = 1..3 (negative)
+    c1 = Z1e[1:, 0] / gaps                  # Z1^{a0} / λ_{0a}
+    mu = 0.5 * Z1e[0, 0] / (Z2e[0, 0] - np.sum(Z1e[1:, 0] ** 2 / gaps))
+    inner = Z1e[1:, 1:] @ c1 - Z2e[1:, 0] - Z1e[0, 0] * c1
+    coeff = np.concatenate([[1.0 - 0.5 * mu * mu * np.sum(c1 * c1)], mu * c1 + mu * mu * inner / gaps])
+    return _with_dual(problem, V @ coeff, {"mu_2nd_order": float(mu)})

@@ -1,0 +1,48 @@
+"""Daniilidis (1999), "Hand-eye calibration using dual quaternions": the paper's baseline "Dan".
+
+Each pair contributes the vector parts of eq 6 (six rows: ``E_i q = 0`` and ``F_i q + E_i q' = 0``
+with the scalar rows dropped, as Daniilidis does); the translational rows are scaled by α as in
+the paper's §4.3 comparison. The solution lies in the span of the two right singular vectors of
+the stacked matrix with the smallest singular values; the unit and orthogonality constraints fix
+the combination (Daniilidis' quadratic in s = λ1/λ2).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import HandEyeError
+from .problem import pair_blocks
+
+__all__ = ["daniilidis"]
+
+
+def daniilidis(motions_a: np.ndarray, motions_b: np.ndarray, alpha: float = 1.0,
+               weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Return the dual quaternion ``(q, q')`` (x-y-z-w) of ``X = T_a_b`` by Daniilidis' SVD method."""
+    E, F = pair_blocks(motions_a, motions_b)
+    n = len(E)
+    T = np.zeros((n, 6, 8))
+    T[:, :3, :4] = E[:, :3]
+    T[:, 3:, :4] = alpha * F[:, :3]
+    T[:, 3:, 4:] = alpha * E[:, :3]
+    if weights is not None:
+        T *= np.sqrt(np.asarray(weights, dtype=float))[:, None, None]
+    _, _, Vt = np.linalg.svd(T.reshape(-1, 8), full_matrices=False)
+    u1, v1 = Vt[-2, :4], Vt[-2, 4:]
+    u2, v2 = Vt[-1, :4], Vt[-1, 4:]
+    # (s u1 + u2)·(s v1 + v2) = 0  →  a s² + b s + c = 0
+    a, b, c = u1 @ v1, u1 @ v2 + u2 @ v1, u2 @ v2
+    if abs(a) > 1e-300:
+        disc = b * b - 4 * a * c
+        if disc < 0:
+            raise HandEyeError("Daniilidis' method found no real solution (noisy or degenerate motions)",
+                               "daniilidis", "use --method dqopt, which always has one")
+        roots = (-b + np.array([1.0, -1.0]) * np.sqrt(disc)) / (2 * a)
+        # pick the root maximising |s u1 + u2|², then scale to |q| = 1
+        norms = [(s * u1 + u2) @ (s * u1 + u2) for s in roots]
+        s = roots[int(np.argmax(norms))]
+        q, qd = s * u1 + u2, s * v1 + v2
+    else:                       # a = 0: s → ∞ is a root, i.e. the first singular vector alone
+        q, qd = u1, v1
+    n_q = np.linalg.norm(q)
+    return q / n_q, qd / n_q
