@@ -102,8 +102,11 @@ def kkt_polish(problem: Problem, q: np.ndarray, qd: np.ndarray, lam: float, mu: 
 
 def _result(problem: Problem, q: np.ndarray, mu: float, lam: float, iterations: int,
             converged: bool) -> LineSearchResult:
+    """Complete ``q`` with its optimal dual part (eq 20) and polish the pair on the KKT system:
+    on ill-conditioned problems the eigenvector of Z(μ) carries an error ~ eps·|Z(μ)|/gap."""
     qd, _ = problem.dual_part(q)
-    return LineSearchResult(q, qd, lam, float(mu), iterations, converged)
+    q, qd, lam, mu = kkt_polish(problem, q, qd, lam, mu)
+    return LineSearchResult(q, qd, lam, mu, iterations, converged)
 
 
 def _singular(problem: Problem) -> LineSearchResult:
