@@ -12,6 +12,7 @@ FORMATS = ("mcap", "rosbag1", "rosbag2", "tum", "euroc", "csv")
 LOG_FORMATS = ("mcap", "rosbag1", "rosbag2")
 
 _MAGIC = ((b"\x89MCAP0\r\n", "mcap"), (b"#ROSBAG V2.0", "rosbag1"), (b"SQLite format 3\x00", "rosbag2"))
+_LOG_SUFFIXES = {".mcap": "MCAP", ".bag": "ROS 1 bag", ".db3": "ROS 2 SQLite bag"}
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 _EUROC_HEADER = re.compile(r"p_RS_R_x|q_RS_w", re.IGNORECASE)
 
@@ -53,7 +54,8 @@ def detect_format(path: str | Path) -> str:
     """One of ``mcap``, ``rosbag1``, ``rosbag2``, ``tum``, ``euroc``, ``csv``.
 
     A directory with ``metadata.yaml`` is a ROS 2 bag; files are recognised by their magic
-    bytes (MCAP, ``#ROSBAG V2.0``, SQLite = bare rosbag2 ``.db3``); anything else is text:
+    bytes (MCAP, ``#ROSBAG V2.0``, SQLite = bare rosbag2 ``.db3``; a ``.mcap``/``.bag``/``.db3``
+    without its magic is an error, not text); anything else is text:
     EuRoC (``p_RS_R_x``/``q_RS_w`` header, or comma-separated rows starting with an integer
     nanosecond stamp), generic CSV (a non-numeric header row) or TUM.
     """
@@ -71,4 +73,9 @@ def detect_format(path: str | Path) -> str:
     for magic, fmt in _MAGIC:
         if head.startswith(magic):
             return fmt
+    if not head:
+        raise HandEyeError("empty file (0 bytes)", str(p), "the recording or export failed; check the file")
+    if p.suffix.lower() in _LOG_SUFFIXES:
+        raise HandEyeError(f"not a valid {_LOG_SUFFIXES[p.suffix.lower()]} file: wrong magic bytes {head[:8]!r}",
+                           str(p), "the file is damaged or misnamed; check it with `handeye inspect FILE`")
     return _text_format(p)

@@ -6,7 +6,7 @@ from typing import Iterator
 from ..errors import HandEyeError
 from ..streams import PoseStream
 from .common import DECODE_ERRORS, PoseBuffer, make_stream
-from .messages import POSE_TYPES, TF_TYPES, PoseRecord
+from .messages import POSE_TYPES, TF_TYPES, PoseRecord, UnsupportedContent
 from .progress import progress
 from .source import LogSource, TopicInfo
 from .tf import TfTree
@@ -29,13 +29,18 @@ def _pose_topics(infos: list[TopicInfo]) -> str:
 def _records(src: LogSource, infos: list[TopicInfo], label: str, time_source: str,
              quiet: bool) -> Iterator[tuple[str, list[PoseRecord]]]:
     """(topic, pose records) per message of ``infos``; stamps replaced by log time if asked."""
+    if not infos:
+        return
     counts = {t.topic: 0 for t in infos}
     with progress(sum(t.count for t in infos), label, quiet=quiet) as bar:
-        for topic, log_ns, raw, decode in src.read(list(counts)):
+        for n, (topic, log_ns, raw, decode) in enumerate(src.read(list(counts)), 1):
             i = counts[topic]
             counts[topic] = i + 1
             try:
                 recs = decode(raw)
+            except UnsupportedContent as exc:
+                raise HandEyeError(str(exc), f"{src.name}:{topic}, message {i}",
+                                   "convert the topic to a supported pose message") from exc
             except DECODE_ERRORS as exc:
                 raise HandEyeError(f"cannot decode message: {type(exc).__name__}: {exc}",
                                    f"{src.name}:{topic}, message {i}",
@@ -43,7 +48,7 @@ def _records(src: LogSource, infos: list[TopicInfo], label: str, time_source: st
             if time_source == "log":
                 recs = [(log_ns, *r[1:]) for r in recs]
             yield topic, recs
-            if i % _BATCH == _BATCH - 1:
+            if n % _BATCH == 0:
                 bar.update(_BATCH)
 
 

@@ -19,6 +19,7 @@ from .source import Decoder, TopicInfo
 __all__ = ["McapSource"]
 
 _IDL_SEP = "=" * 80 + "\n"
+_RECOVER = "if the recording was cut off, repair it with `mcap recover FILE -o fixed.mcap`"
 
 
 class McapSource:
@@ -27,13 +28,16 @@ class McapSource:
     def __init__(self, path: Path) -> None:
         self.name = str(path)
         self._file: BinaryIO = open(path, "rb")
-        with unreadable(self.name):
-            self._reader = make_reader(self._file)
-            summary = self._reader.get_summary() if isinstance(self._reader, SeekingReader) else None
-        if summary is None or summary.statistics is None:
+        try:
+            with unreadable(self.name, _RECOVER):
+                self._reader = make_reader(self._file)
+                summary = self._reader.get_summary() if isinstance(self._reader, SeekingReader) else None
+            if summary is None or summary.statistics is None:
+                raise HandEyeError("MCAP file has no summary section (unfinished or truncated recording?)",
+                                   self.name, _RECOVER)
+        except BaseException:
             self._file.close()
-            raise HandEyeError("MCAP file has no summary section (unfinished or truncated recording?)",
-                               self.name, "repair it with `mcap recover FILE -o fixed.mcap`")
+            raise
         self._summary = summary
 
     def __enter__(self) -> "McapSource":

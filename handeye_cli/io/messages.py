@@ -13,9 +13,13 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 __all__ = ["Spec", "SPECS", "LISTS", "POSE_TYPES", "TF_TYPES", "normalize_type", "get_field",
-           "extract", "pose_decoder", "PoseRecord"]
+           "extract", "pose_decoder", "PoseRecord", "UnsupportedContent"]
 
 PoseRecord = tuple  # (stamp_ns, frame_id, child_frame_id, x, y, z, qx, qy, qz, qw)
+
+
+class UnsupportedContent(ValueError):
+    """A well-formed message whose content handeye cannot use (e.g. PosesInFrame with 3 poses)."""
 
 
 @dataclass(frozen=True)
@@ -92,8 +96,8 @@ def get_field(obj: Any, path: str) -> Any:
 
 
 def _record(spec: Spec, msg: Any) -> PoseRecord:
-    if spec.single is not None and len(get_field(msg, spec.single)) != 1:
-        raise KeyError(f"{spec.single!r} must hold exactly one pose")
+    if spec.single is not None and (n := len(get_field(msg, spec.single))) != 1:
+        raise UnsupportedContent(f"{spec.single!r} holds {n} poses; handeye reads messages with exactly one")
     t = get_field(msg, spec.stamp)
     p, q = get_field(msg, spec.position), get_field(msg, spec.orientation)
     return (int(get_field(t, "sec")) * 1_000_000_000 + int(get_field(t, "nanosec|nsec")),

@@ -68,6 +68,8 @@ class BagSource:
 
     def read(self, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes, Decoder]]:
         conns = [c for c in self._reader.connections if c.topic in topics]
+        if not conns:       # AnyReader.messages(connections=[]) would yield every message
+            return
         decoders = {(c.topic, c.msgtype): self._decoder(
             c.msgtype, getattr(c.ext, "serialization_format", "") == "cdr") for c in conns}
         with unreadable(self.name):

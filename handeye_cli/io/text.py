@@ -5,7 +5,8 @@
 * EuRoC: ``timestamp[ns], px, py, pz, qw, qx, qy, qz[, …]`` — integer nanoseconds, quaternion
   **w first**, with or without the (17-column) ``#timestamp, p_RS_R_x [m], …`` header.
 * CSV: a header row naming the columns; ``columns`` maps the keys ``t, x, y, z, qx, qy, qz, qw``
-  to column names and ``t_unit`` (``s``, ``ms``, ``us``, ``ns``; default ``s``) gives the time unit.
+  to column names and ``t_unit`` (``s``, ``ms``, ``us``, ``ns``) gives the time unit; without
+  it the unit comes from the time column's name (``t_ns``, ``stamp [us]``…), else seconds.
   Common names (``timestamp``, ``tx``, ``pos_x``, ``qw``…) are found without a mapping.
 
 Stamps are parsed exactly into int64 nanoseconds (no float round trip); positions in metres.
@@ -41,13 +42,15 @@ _ALIASES = {
 _SPLIT = re.compile(r"[,\s]+")
 _COMMA = re.compile(",")
 _UNIT_SUFFIX = re.compile(r"\s*\[.*?\]\s*$")
+_UNIT_IN_NAME = re.compile(r"(?:\[|_)(ns|us|ms|s)\]?$", re.IGNORECASE)
 
 
 def _stamp_ns(text: str, digits: int) -> int:
     """Exact int ns from a decimal string in a unit of 10**-digits s ("1.5", "1.7e9", "17")."""
-    if digits == 0 and text.isdigit():
-        return int(text)
-    return int(Decimal(text).scaleb(digits).to_integral_value())
+    ns = int(text) if digits == 0 and text.isdigit() else int(Decimal(text).scaleb(digits).to_integral_value())
+    if not -2**63 <= ns < 2**63:
+        raise ValueError(f"timestamp {text} is out of the int64 nanosecond range (wrong time unit?)")
+    return ns
 
 
 def _rows(path: Path, split: re.Pattern = _SPLIT, skip: int = 0) -> Iterator[tuple[int, list[str]]]:
@@ -68,7 +71,10 @@ def _parse(path: Path, rows: Iterator[tuple[int, list[str]]], need: int, expecte
                 raise ValueError(f"{len(fields)} values")
             stamp, vals = convert(fields)
         except (ValueError, InvalidOperation) as exc:
-            raise HandEyeError(f"malformed line: expected {expected}, got {' '.join(fields)!r}",
+            reason = str(exc) or type(exc).__name__
+            got = " ".join(fields)
+            got = got if len(got) <= 80 else got[:77] + "..."
+            raise HandEyeError(f"malformed line ({reason}): expected {expected}, got {got!r}",
                                f"{path}, line {n}", "fix or delete the line") from exc
         lines.append(n)
         stamps.append(stamp)
@@ -93,11 +99,12 @@ def _euroc(fields: list[str]) -> tuple[int, list[float]]:
 def _csv(path: Path, columns: dict | None) -> PoseStream:
     with open(path, encoding="utf-8") as f:
         header_no, header_line = next(((n, ln) for n, ln in enumerate(f, 1) if ln.strip()), (0, ""))
-    header = [_UNIT_SUFFIX.sub("", h).strip() for h in header_line.strip().lstrip("#").split(",")]
+    raw = [h.strip() for h in header_line.strip().lstrip("#").split(",")]
+    header = [_UNIT_SUFFIX.sub("", h).strip() for h in raw]
     lower = {h.lower(): i for i, h in enumerate(header)}
     mapping = dict(columns or {})
-    unit = mapping.pop("t_unit", "s")
-    if unit not in _UNITS:
+    unit = mapping.pop("t_unit", None)
+    if unit is not None and unit not in _UNITS:
         raise HandEyeError(f"unknown time unit {unit!r}", f"{path}: columns.t_unit", f"use one of {list(_UNITS)}")
     index = []
     for key in CSV_KEYS:
@@ -108,6 +115,9 @@ def _csv(path: Path, columns: dict | None) -> PoseStream:
                                f"{path}, line {header_no}", f"map it with columns={{'{key}': NAME}}; header has: "
                                f"{', '.join(header)}")
         index.append(found)
+    if unit is None:        # "timestamp [ns]", "t_ns", "stamp_us" … name their unit; else seconds
+        m = _UNIT_IN_NAME.search(raw[index[0]])
+        unit = m.group(1).lower() if m else "s"
     digits = _UNITS[unit]
 
     def convert(fields: list[str]) -> tuple[int, list[float]]:

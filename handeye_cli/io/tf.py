@@ -16,6 +16,7 @@ from .. import se3
 from ..errors import HandEyeError
 from ..streams import PoseStream
 from .common import PoseBuffer, make_stream
+from .messages import PoseRecord
 
 __all__ = ["TfTree"]
 
@@ -29,27 +30,20 @@ class TfTree:
     def __init__(self, name: str) -> None:
         self.name = name
         self._dynamic: dict[tuple[str, str], PoseBuffer] = {}
-        self._static: dict[tuple[str, str], tuple] = {}
-        self._static_count: dict[tuple[str, str], int] = {}
+        self._static: dict[tuple[str, str], PoseBuffer] = {}
 
-    def add(self, records: Sequence[tuple], *, static: bool, stamp_ns: int | None = None) -> None:
-        """Add pose records ``(stamp, parent, child, x, y, z, qx, qy, qz, qw)`` of one message.
-
-        ``stamp_ns`` (the log time) replaces each transform's own stamp when given.
-        """
+    def add(self, records: Sequence[PoseRecord], *, static: bool) -> None:
+        """Add pose records ``(stamp_ns, parent, child, x, y, z, qx, qy, qz, qw)`` of one message
+        (positions [m], quaternion x-y-z-w); ``static`` = from ``/tf_static``."""
+        edges = self._static if static else self._dynamic
         for rec in records:
             key = (rec[1].lstrip("/"), rec[2].lstrip("/"))
-            rec = (rec[0] if stamp_ns is None else stamp_ns, *key, *rec[3:])
-            if static:
-                self._static[key] = rec                      # the latest broadcast wins
-                self._static_count[key] = self._static_count.get(key, 0) + 1
-            else:
-                self._dynamic.setdefault(key, PoseBuffer()).add([rec])
+            edges.setdefault(key, PoseBuffer()).add([(rec[0], *key, *rec[3:])])
 
     def edges(self) -> list[dict]:
         """Tree edges ``[{parent, child, static, count}]``, sorted by parent then child."""
-        rows = {k: {"parent": k[0], "child": k[1], "static": True, "count": n}
-                for k, n in self._static_count.items()}
+        rows = {k: {"parent": k[0], "child": k[1], "static": True, "count": len(b)}
+                for k, b in self._static.items()}
         rows.update({k: {"parent": k[0], "child": k[1], "static": False, "count": len(b)}
                      for k, b in self._dynamic.items()})
         return [rows[k] for k in sorted(rows)]
@@ -63,17 +57,22 @@ class TfTree:
         return parent_of
 
     def _edge_stream(self, key: tuple[str, str]) -> PoseStream:
-        stamps, xyz, quat = self._dynamic[key].arrays()
+        """The validated samples of an edge (dynamic if it has any, else static), sorted by stamp."""
+        buf = self._dynamic.get(key) or self._static[key]
+        stamps, xyz, quat = buf.arrays()
         return make_stream(stamps, xyz, quat, source=f"{self.name}: TF {key[0]}->{key[1]}",
-                           frame_id=key[0], child_frame_id=key[1], time_source="")
+                           frame_id=key[0], child_frame_id=key[1], time_source="",
+                           where=lambda i: f"transform {i}")
 
-    def _edge_at(self, key: tuple[str, str], edge: PoseStream | None, t: np.ndarray) -> np.ndarray:
-        """(N, 4, 4) ``T_parent_child`` at stamps ``t`` (within the edge's span)."""
-        if edge is None:
-            rec = self._static[key]
-            return np.broadcast_to(se3.from_xyz_quat(np.array(rec[3:6]), np.array(rec[6:10])), (len(t), 4, 4))
-        if len(edge) == 1:
-            return np.broadcast_to(edge.matrices()[0], (len(t), 4, 4))
+    @staticmethod
+    def _edge_at(edge: PoseStream, static: bool, t: np.ndarray) -> np.ndarray:
+        """(N, 4, 4) ``T_parent_child`` at stamps ``t`` (within the edge's span if dynamic).
+
+        A static edge is its latest broadcast at every stamp; a dynamic one is interpolated
+        (linear translation, SLERP rotation) on float offsets from its first stamp (exact).
+        """
+        if static or len(edge) == 1:
+            return np.broadcast_to(edge.matrices()[-1], (len(t), 4, 4))
         rel = (edge.stamps_ns - edge.stamps_ns[0]).astype(np.float64)
         x = (t - edge.stamps_ns[0]).astype(np.float64)
         xyz = np.stack([np.interp(x, rel, edge.xyz[:, k]) for k in range(3)], axis=-1)
@@ -82,13 +81,8 @@ class TfTree:
         out[:, :3, :3], out[:, :3, 3], out[:, 3, 3] = rot.as_matrix(), xyz, 1.0
         return out
 
-    def lookup(self, parent: str, child: str, *, time_source: str = "header") -> PoseStream:
-        """The stream ``T_parent_child(t)``, sampled at the stamps of the dynamic edges on the chain.
-
-        Stamps are the union of those edges' stamps within the span all of them cover.
-        HandEyeError if a frame is unknown, the frames are not connected, or the chain is static.
-        """
-        parent, child = parent.lstrip("/"), child.lstrip("/")
+    def _chain(self, parent: str, child: str) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
+        """Edges ``(parent_of[f], f)`` from ``parent`` and from ``child`` up to their common ancestor."""
         parent_of = self._parents()
         known = sorted(set(parent_of) | set(parent_of.values()))
         for frame in (parent, child):
@@ -108,18 +102,30 @@ class TfTree:
             raise HandEyeError(f"TF frames {parent!r} and {child!r} are not connected "
                                f"(roots {up_p[-1]!r} and {up_c[-1]!r})", self.name,
                                "pick two frames of the same TF tree (handeye inspect FILE)")
-        keys_p = [(parent_of[f], f) for f in up_p[:up_p.index(common)]]
-        keys_c = [(parent_of[f], f) for f in up_c[:up_c.index(common)]]
-        edges = {k: self._edge_stream(k) if k in self._dynamic else None for k in keys_p + keys_c}
-        dynamic = [e for e in edges.values() if e is not None]
+        return ([(parent_of[f], f) for f in up_p[:up_p.index(common)]],
+                [(parent_of[f], f) for f in up_c[:up_c.index(common)]])
+
+    def lookup(self, parent: str, child: str, *, time_source: str = "header") -> PoseStream:
+        """The stream ``T_parent_child(t)`` (pose of ``child`` in ``parent``; metres, x-y-z-w).
+
+        Sampled at the stamps of the most frequent dynamic edge on the chain, restricted to the
+        span every dynamic edge covers (never extrapolated); the other dynamic edges are
+        interpolated there and static edges are constant. ``duplicates_dropped`` counts the
+        duplicate stamps of that reference edge. HandEyeError if a frame is unknown, the frames
+        are not connected, the chain has no moving edge, or a transform is invalid.
+        """
+        parent, child = parent.lstrip("/"), child.lstrip("/")
+        keys_p, keys_c = self._chain(parent, child)
+        edges = {k: self._edge_stream(k) for k in keys_p + keys_c}
+        dynamic = [e for k, e in edges.items() if k in self._dynamic]
         source = f"{self.name}:{parent}->{child}"
         if not dynamic:
             raise HandEyeError("empty stream: the frames are linked by static transforms only, "
                                "so they never move", source, "pick a frame pair with a moving (/tf) edge")
+        ref = max(dynamic, key=len)     # first of the most frequent: ties keep chain order
         lo = max(e.stamps_ns[0] for e in dynamic)
         hi = min(e.stamps_ns[-1] for e in dynamic)
-        t = np.unique(np.concatenate([e.stamps_ns for e in dynamic]))
-        t = t[(t >= lo) & (t <= hi)]
+        t = ref.stamps_ns[(ref.stamps_ns >= lo) & (ref.stamps_ns <= hi)]
         if len(t) == 0:
             raise HandEyeError("empty stream: the moving TF edges on the chain do not overlap in time",
                                source, "check the recording of /tf")
@@ -127,10 +133,10 @@ class TfTree:
         def compose(keys: list[tuple[str, str]]) -> np.ndarray:   # T_common_frame
             T = np.broadcast_to(np.eye(4), (len(t), 4, 4))
             for key in keys:
-                T = self._edge_at(key, edges[key], t) @ T
+                T = self._edge_at(edges[key], key not in self._dynamic, t) @ T
             return T
 
         T = se3.inverse(compose(keys_p)) @ compose(keys_c)
         xyz, quat = se3.to_xyz_quat(T)
         return PoseStream(t, xyz, quat, frame_id=parent, child_frame_id=child, source=source,
-                          time_source=time_source)
+                          time_source=time_source, duplicates_dropped=ref.duplicates_dropped)
