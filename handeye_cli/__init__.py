@@ -7,10 +7,10 @@ Public API::
 Conventions: ``T_a_b`` is the pose of frame b in frame a (maps points from b to a);
 quaternions are x-y-z-w; time is int64 nanoseconds; metres and radians.
 """
-from .errors import HandEyeError
-from .solvers import METHODS, Prior, Solution, solve
-from .streams import PoseStream
-
 __version__ = "0.1.0"
+
+from .errors import HandEyeError  # noqa: E402  (after __version__, which submodules import)
+from .solvers import METHODS, Prior, Solution, solve  # noqa: E402
+from .streams import PoseStream  # noqa: E402
 
 __all__ = ["HandEyeError", "METHODS", "PoseStream", "Prior", "Solution", "solve", "__version__"]

@@ -1,0 +1,125 @@
+"""The result document (schema of DESIGN.md), its YAML/JSON text, and atomic file writes.
+
+Keys, in order: ``matrix`` (4x4 ``T_a_b`` row-major: pose of frame b in frame a, maps points
+from b to a), ``translation`` [m], ``quaternion_xyzw`` (Hamilton, x-y-z-w, w ≥ 0), ``frames``
+``{a, b}``, ``method``, ``alpha`` [1/m], ``cost`` (cost 8, + prior terms), ``pairs_used``,
+``samples`` (what each stage read, kept and dropped), ``inputs``, ``version``, ``warnings``,
+then diagnostics (e.g. ``solver``, ``residuals``, ``time_offset``, ``uncertainty``) and
+``ros2_static_transform`` (a ready command line publishing the extrinsic on /tf_static).
+YAML and JSON carry the same content.
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from . import __version__
+from .errors import HandEyeError
+from .solvers import Solution
+
+__all__ = ["FORMATS", "result_document", "render", "write_atomic", "format_for_path", "plain"]
+
+FORMATS = ("yaml", "json")
+
+
+def plain(value: Any) -> Any:
+    """Numpy scalars/arrays and tuples → built-in Python types, recursively (for YAML/JSON)."""
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return plain(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _static_transform_command(t: np.ndarray, q: np.ndarray, frames: dict) -> str:
+    nums = " ".join(f"--{k} {v:.9g}" for k, v in zip(("x", "y", "z", "qx", "qy", "qz", "qw"), [*t, *q]))
+    return (f"ros2 run tf2_ros static_transform_publisher {nums} "
+            f"--frame-id {frames.get('a', 'a')} --child-frame-id {frames.get('b', 'b')}")
+
+
+def result_document(solution: Solution, *, frames: dict | None = None, inputs: dict | None = None,
+                    samples: dict | None = None, warnings: list[str] | None = None,
+                    diagnostics: dict | None = None) -> dict:
+    """The result as a plain dict in schema order (see the module docstring).
+
+    ``frames`` names frames a and b (default ``{"a": "a", "b": "b"}``); ``samples`` holds the
+    per-stage counts; ``diagnostics`` are appended after the required keys.
+    """
+    frames = dict(frames or {"a": "a", "b": "b"})
+    t, q = solution.translation, solution.quaternion_xyzw
+    solver = {k: v for k, v in (("lambda", solution.lam), ("mu", solution.mu),
+                                ("iterations", solution.iterations), ("converged", solution.converged))
+              if v is not None}
+    solver.update(solution.details)
+    doc = {
+        "matrix": solution.matrix,
+        "translation": t,
+        "quaternion_xyzw": q,
+        "frames": frames,
+        "method": solution.method,
+        "alpha": solution.alpha,
+        "cost": solution.cost,
+        "pairs_used": solution.pairs,
+        "samples": samples or {"pairs": solution.pairs},
+        "inputs": inputs or {},
+        "version": __version__,
+        "warnings": list(warnings or []),
+        "solver": solver,
+        **(diagnostics or {}),
+        "ros2_static_transform": _static_transform_command(t, q, frames),
+    }
+    return plain(doc)
+
+
+class _Dumper(yaml.SafeDumper):
+    """Lists of scalars in flow style (``[x, y, z]``), everything else in block style."""
+
+
+def _represent_list(dumper: yaml.SafeDumper, data: list) -> yaml.Node:
+    flow = all(not isinstance(v, (list, dict)) for v in data)
+    return dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=flow)
+
+
+_Dumper.add_representer(list, _represent_list)
+
+
+def render(doc: dict, fmt: str = "yaml") -> str:
+    """The document as YAML or JSON text (floats at full precision, ``repr`` round-trip)."""
+    if fmt == "json":
+        return json.dumps(doc, indent=2) + "\n"
+    if fmt == "yaml":
+        return yaml.dump(doc, Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=10_000)
+    raise HandEyeError(f"unknown output format {fmt!r}", "--format", f"use one of {', '.join(FORMATS)}")
+
+
+def format_for_path(path: str | Path | None, fmt: str | None) -> str:
+    """The explicit ``fmt``, else the one the suffix names (``.json`` → json), else YAML."""
+    if fmt:
+        return fmt
+    return "json" if path is not None and Path(path).suffix.lower() == ".json" else "yaml"
+
+
+def write_atomic(path: str | Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file in the same folder and a rename, so a
+    reader never sees a half-written file and a failure leaves no file behind."""
+    path = Path(path)
+    if not path.parent.exists():
+        raise HandEyeError("the output folder does not exist", str(path.parent), "create it or choose another -o path")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

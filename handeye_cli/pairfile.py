@@ -1,0 +1,103 @@
+"""Files of relative motion pairs (input of ``handeye solve``) and extrinsic files (priors).
+
+Motion-pair files hold ``A_i`` (motion of sensor a) and ``B_i`` (motion of sensor b) over the
+same interval, ``A_i X = X B_i`` with ``X = T_a_b``:
+
+* ``.npz`` with arrays ``A`` and ``B`` of shape (N, 4, 4) and optionally ``weights`` (N,).
+* CSV with a header and 14 columns ``ax, ay, az, aqx, aqy, aqz, aqw, bx, by, bz, bqx, bqy, bqz,
+  bqw`` (translations [m], quaternions x-y-z-w), optionally a 15th column ``weight``.
+
+Extrinsic files (``--prior``) are any handeye result (YAML/JSON with ``matrix``) or a YAML/JSON
+mapping with ``translation`` [m] and ``quaternion_xyzw``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from . import se3
+from .errors import HandEyeError
+
+__all__ = ["CSV_COLUMNS", "read_pairs", "write_pairs_csv", "read_extrinsic"]
+
+CSV_COLUMNS = ("ax", "ay", "az", "aqx", "aqy", "aqz", "aqw", "bx", "by", "bz", "bqx", "bqy", "bqz", "bqw")
+
+
+def _file(path: str | Path) -> Path:
+    p = Path(path)
+    if not p.is_file():
+        raise HandEyeError("file not found", str(p), "check the path")
+    return p
+
+
+def _read_npz(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    try:
+        with np.load(p) as z:
+            missing = {"A", "B"} - set(z.files)
+            if missing:
+                raise HandEyeError(f"missing array(s) {', '.join(sorted(missing))}; found {', '.join(z.files)}",
+                                   str(p), "save the motions as A and B, each of shape (N, 4, 4)")
+            return z["A"], z["B"], (z["weights"] if "weights" in z.files else None)
+    except (OSError, ValueError) as e:
+        if isinstance(e, HandEyeError):
+            raise
+        raise HandEyeError("not a readable .npz file", str(p), "write it with numpy.savez(path, A=..., B=...)") from e
+
+
+def _read_csv(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    with p.open(encoding="utf-8") as f:
+        header = [h.strip() for h in f.readline().split(",")]
+    expected = list(CSV_COLUMNS)
+    if header[:14] != expected or header[14:] not in ([], ["weight"]):
+        raise HandEyeError(f"unexpected CSV header {','.join(header)!r}", f"{p}:1",
+                           f"the header must be {','.join(CSV_COLUMNS)}[,weight]")
+    try:
+        data = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2)
+    except ValueError as e:
+        raise HandEyeError(f"unreadable row: {e}", str(p), f"every row needs {len(header)} numbers") from e
+    if data.shape[1] != len(header):
+        raise HandEyeError(f"rows have {data.shape[1]} columns, the header {len(header)}", str(p),
+                           "give one number per header column")
+    norms = np.linalg.norm(data[:, [3, 4, 5, 6, 10, 11, 12, 13]].reshape(-1, 2, 4), axis=2)
+    bad = np.flatnonzero(~(np.isfinite(norms).all(axis=1) & (norms > 1e-9).all(axis=1)))
+    if len(bad):
+        raise HandEyeError("NaN or zero-norm quaternion", f"{p}:{bad[0] + 2}", "repair or remove that row")
+    A = se3.from_xyz_quat(data[:, 0:3], data[:, 3:7])
+    B = se3.from_xyz_quat(data[:, 7:10], data[:, 10:14])
+    return A, B, (data[:, 14] if data.shape[1] == 15 else None)
+
+
+def read_pairs(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Motions ``(A, B, weights or None)`` from a ``.npz`` or CSV file (see the module docstring)."""
+    p = _file(path)
+    return _read_npz(p) if p.suffix.lower() == ".npz" else _read_csv(p)
+
+
+def write_pairs_csv(path: str | Path, A: np.ndarray, B: np.ndarray, weights: np.ndarray | None = None) -> None:
+    """Write motions in the CSV layout :func:`read_pairs` reads (17 significant digits)."""
+    ta, qa = se3.to_xyz_quat(A)
+    tb, qb = se3.to_xyz_quat(B)
+    cols = [ta, qa, tb, qb] + ([np.asarray(weights)[:, None]] if weights is not None else [])
+    header = ",".join(CSV_COLUMNS) + (",weight" if weights is not None else "")
+    np.savetxt(path, np.hstack(cols), delimiter=",", header=header, comments="", fmt="%.17g")
+
+
+def read_extrinsic(path: str | Path) -> np.ndarray:
+    """A 4x4 ``T_a_b`` from a handeye result or a ``{translation, quaternion_xyzw}`` YAML/JSON file."""
+    p = _file(path)
+    try:
+        doc = yaml.safe_load(p.read_text(encoding="utf-8"))   # YAML ⊃ JSON
+    except yaml.YAMLError as e:
+        raise HandEyeError("not a YAML or JSON file", str(p), "pass a handeye result file") from e
+    if isinstance(doc, dict) and "matrix" in doc:
+        T = np.asarray(doc["matrix"], dtype=float)
+        if T.shape == (4, 4) and np.isfinite(T).all() and se3.is_rotation(T[:3, :3], 1e-6):
+            return T
+    elif isinstance(doc, dict) and {"translation", "quaternion_xyzw"} <= set(doc):
+        t, q = np.asarray(doc["translation"], float), np.asarray(doc["quaternion_xyzw"], float)
+        if t.shape == (3,) and q.shape == (4,) and np.isfinite([*t, *q]).all() and np.linalg.norm(q) > 1e-9:
+            return se3.from_xyz_quat(t, q)
+    raise HandEyeError("no extrinsic found", str(p), "pass a handeye result (with 'matrix') or a mapping with "
+                       "'translation: [x, y, z]' and 'quaternion_xyzw: [x, y, z, w]'")
