@@ -51,15 +51,17 @@ class PoseBuffer:
     def __init__(self) -> None:
         self.stamps = array("q")
         self.values = array("d")
-        self.pairs: dict[tuple[str, str], int] = {}
+        self.pairs: dict[tuple[str, str], None] = {}    # (frame, child) pairs seen, in order
+        self._last: tuple = ()
 
     def add(self, records: Sequence[tuple]) -> None:
         """Append pose records ``(stamp_ns, frame, child, x, y, z, qx, qy, qz, qw)``."""
         for rec in records:
             self.stamps.append(rec[0])
             self.values.extend(rec[3:])
-            key = (rec[1], rec[2])
-            self.pairs[key] = self.pairs.get(key, 0) + 1
+            if rec[1:3] != self._last:
+                self._last = rec[1:3]
+                self.pairs[self._last] = None
 
     def __len__(self) -> int:
         return len(self.stamps)

@@ -117,10 +117,10 @@ def extract(msgtype: str, msg: Any) -> list[PoseRecord]:
 
 # --- fast path for little-endian CDR ----------------------------------------------------------
 # Decoding PoseStamped & co with struct.unpack_from is ~5x faster than rosbags'
-# Typestore.deserialize_cdr (measured in notes/formats.md §4.3 and by benchmarks/readers.py:
-# the MCAP reader is faster than AnyReader only thanks to it). It covers the fixed layouts of the
-# ROS 2 types above; anything else (big-endian, ROS 1, custom types) goes through the typestore.
-_CDR_LE = b"\x00\x01"
+# Typestore.deserialize_cdr (notes/formats.md §4.3; benchmarks/readers.py measures the whole
+# reader). It covers the fixed layouts of the ROS 2 types above, little-endian plain CDR
+# (encapsulation header 00 01); anything else (big-endian, ROS 1, custom types) goes through the
+# typestore.
 _HEAD = struct.Struct("<iII")
 _LEN = struct.Struct("<I")
 _POSE = struct.Struct("<7d")
@@ -172,4 +172,4 @@ def pose_decoder(msgtype: str, deserialize: Callable[[bytes], Any], *,
 
     if fast is None:
         return slow
-    return lambda buf: fast(buf) if buf[:2] == _CDR_LE else slow(buf)
+    return lambda buf: fast(buf) if buf[0] == 0 and buf[1] == 1 else slow(buf)

@@ -1,5 +1,5 @@
-"""ROS 1 ``.bag`` files (one or several split files), ROS 2 bag directories and bare ``.db3``
-files via ``rosbags.highlevel.AnyReader``.
+"""ROS 1 ``.bag`` files (one or several split files), ROS 2 bag directories and bare ``.db3`` /
+``.mcap`` files via ``rosbags.highlevel.AnyReader``.
 
 AnyReader picks the bag version by suffix only, so a file detected by content under another
 name is opened through a temporary symlink with the right suffix.
@@ -21,11 +21,12 @@ from .source import Decoder, TopicInfo
 
 __all__ = ["BagSource"]
 
-_SUFFIX = {"rosbag1": ".bag", "rosbag2": ".db3"}
+_SUFFIX = {"rosbag1": ".bag", "rosbag2": ".db3", "mcap": ".mcap"}
 
 
 class BagSource:
-    """Open bag(s) of one format (``rosbag1``: any number of files; ``rosbag2``: one bag)."""
+    """Open bag(s) of one format (``rosbag1``: any number of files; ``rosbag2``: one bag
+    directory or ``.db3``; ``mcap``: one ROS 2 ``.mcap``)."""
 
     def __init__(self, paths: Sequence[Path], fmt: str) -> None:
         self.name = ", ".join(str(p) for p in paths)
