@@ -28,6 +28,7 @@ thousand samples stays cheap in memory.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Callable, Iterator
 
@@ -67,13 +68,12 @@ class Pairs:
 def _parse(strategy: str) -> tuple[str, int]:
     """Split ``"stride:K"`` / ``"random:N"`` into name and a positive integer."""
     name, _, arg = strategy.strip().partition(":")
-    bad = HandEyeError(f"unknown pair strategy {strategy!r}", "pairs",
-                       f"use one of {', '.join(STRATEGIES)} (K, N positive integers)")
     if name in ("keyframes", "consecutive", "all") and not arg:
         return name, 0
-    if name in ("stride", "random") and arg.isdigit() and int(arg) > 0:
+    if name in ("stride", "random") and re.fullmatch(r"[0-9]+", arg) and int(arg) > 0:
         return name, int(arg)
-    raise bad
+    raise HandEyeError(f"unknown pair strategy {strategy!r}", "pairs",
+                       f"use one of {', '.join(STRATEGIES)} (K, N positive integers)")
 
 
 def _quats(T: np.ndarray) -> np.ndarray:
@@ -84,6 +84,8 @@ def keyframes(synced: Synced, rotation_rad: float, translation_m: float) -> np.n
     """Indices of keyframes: the first sample, then each sample where either sensor moved
     ≥ ``rotation_rad`` or ≥ ``translation_m`` since the last keyframe (or a new segment starts)."""
     n = len(synced)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
     pos = (synced.T_a[:, :3, 3], synced.T_b[:, :3, 3])
     quat = (_quats(synced.T_a), _quats(synced.T_b))
     cos_half = np.cos(rotation_rad / 2)

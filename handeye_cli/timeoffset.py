@@ -11,12 +11,15 @@ Method
    slower stream) averages out pose noise. ω is then smoothed by a Gaussian of σ = the slower
    stream's sample interval: without it the noise variance of ω varies with the phase between
    grid and samples (SLERP midway between two samples averages their noise), which would make the
-   refinement cost depend on that phase and bias the offset by up to ~1 ms. Grid points whose window touches a gap in the data or a
-   tracking jump (a step far faster than its neighbours) are marked invalid.
+   refinement cost depend on that phase and bias the offset by up to ~1 ms. Grid points whose
+   window, widened by the smoothing kernel, touches a gap in the data or a tracking jump (a step
+   far faster than its neighbours) are marked invalid.
 2. Coarse, global: the angular speeds |ω| — equal for rigidly attached sensors whatever their
    frames — are cross-correlated over **every** lag with FFTs (masked, normalised per lag; at least
    a third of the shorter stream must overlap), so offsets of any size are found, even when the
-   raw time spans do not overlap. A parabola through the peak gives a sub-grid estimate.
+   raw time spans do not overlap. A parabola through the peak gives a sub-grid estimate. A peak
+   correlation below ``MIN_CORRELATION`` (too little rotation, or unrelated streams) is an error;
+   a weak peak, or a second peak elsewhere nearly as high (repetitive motion), is a warning.
 3. Refinement: Brent's method on ``J(τ) = min_R Σ |ω_a(t) − R ω_b(t + τ)|²`` (the rotation R ≈
    R_a_b is refitted in closed form for each τ) within ±``_BRACKET_NS`` of the coarse estimate.
    Vectors carry more timing information than their norms.
@@ -35,13 +38,18 @@ from .errors import HandEyeError
 from .streams import PoseStream
 from .sync import interpolate
 
-__all__ = ["TimeOffset", "estimate_time_offset", "angular_velocity"]
+__all__ = ["TimeOffset", "estimate_time_offset", "angular_velocity", "MIN_CORRELATION"]
 
 _GRID_NS = 5_000_000          # grid step of the ω signals [ns]
 _MIN_WINDOW_NS = 100_000_000  # smallest differentiation window [ns]
 _BRACKET_NS = 50_000_000      # refinement bracket around the coarse estimate [ns]
 _MIN_OVERLAP = 1 / 3          # least overlap, as a fraction of the shorter signal, for a coarse lag
 _MAX_GAP_NS = 500_000_000     # data gaps longer than this invalidate the grid points across them
+_TRUNCATE = 3.0               # the smoothing kernel reaches this many σ
+MIN_CORRELATION = 0.5         # a lower peak correlation of the angular speeds is an error
+_WEAK_CORRELATION = 0.8       # a lower one is a warning
+_AMBIGUITY = 0.05             # warn when another peak comes within this of the best
+_PEAK_SEPARATION_NS = 500_000_000   # peaks closer than this to the best are the same peak
 
 
 @dataclass(frozen=True)
@@ -51,9 +59,10 @@ class TimeOffset:
     offset_ns: how far b's clock is ahead of a's [ns] (pass it to ``associate(time_offset_ns=…)``).
     std_ns: 1-σ uncertainty of ``offset_ns`` [ns].
     coarse_ns: the global cross-correlation estimate [ns].
-    correlation: peak normalised correlation of the angular speeds (1 = identical; < 0.5 is
-        suspicious: little rotation or repetitive motion).
+    correlation: peak normalised correlation of the angular speeds (1 = identical; below
+        ``MIN_CORRELATION`` the estimate is refused).
     method: what produced the estimate.
+    warnings: reasons to distrust the estimate (weak or ambiguous correlation peak).
     """
 
     offset_ns: int
@@ -61,6 +70,7 @@ class TimeOffset:
     coarse_ns: int
     correlation: float
     method: str
+    warnings: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -97,11 +107,14 @@ def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float) -> _S
     _, _, q_lo, _ = interpolate(stream, centres - half)
     _, _, q_hi, _ = interpolate(stream, centres + half)
     omega = (Rotation.from_quat(q_lo).inv() * Rotation.from_quat(q_hi)).as_rotvec() / (2 * half / 1e9)
-    omega = ndimage.gaussian_filter1d(omega, smooth_ns / _GRID_NS, axis=0, mode="nearest")
+    sigma = smooth_ns / _GRID_NS
+    omega = ndimage.gaussian_filter1d(omega, sigma, axis=0, mode="nearest", truncate=_TRUNCATE)
     bad = np.concatenate([[0], np.cumsum(_bad_steps(stream))])
     first = np.searchsorted(stamps, centres - half, side="right") - 1
     last = np.searchsorted(stamps, centres + half, side="left")
-    return _Signal(t0, omega, bad[last] == bad[first])
+    reach = 2 * int(np.ceil(_TRUNCATE * sigma)) + 1       # a smoothed point mixes this many grid points
+    valid = ndimage.minimum_filter1d((bad[last] == bad[first]).astype(np.uint8), reach, mode="nearest")
+    return _Signal(t0, omega, valid.astype(bool))
 
 
 def _masked_ncc(f: np.ndarray, mf: np.ndarray, g: np.ndarray, mg: np.ndarray
@@ -127,8 +140,8 @@ def _masked_ncc(f: np.ndarray, mf: np.ndarray, g: np.ndarray, mg: np.ndarray
     return signal.correlation_lags(len(g), len(f), mode="full"), ncc, n
 
 
-def _coarse(sa: _Signal, sb: _Signal, max_offset_ns: int | None) -> tuple[float, float]:
-    """Global search: (offset [ns], float, from the parabola through the peak; peak correlation)."""
+def _coarse(sa: _Signal, sb: _Signal, max_offset_ns: int | None) -> tuple[float, float, tuple[str, ...]]:
+    """Global search: (offset [ns] from the parabola through the peak, peak correlation, warnings)."""
     speed_a, speed_b = np.linalg.norm(sa.omega, axis=1), np.linalg.norm(sb.omega, axis=1)
     lags, ncc, n = _masked_ncc(speed_a, sa.valid, speed_b, sb.valid)
     offsets = (sb.t0_ns - sa.t0_ns) + lags.astype(np.int64) * _GRID_NS
@@ -140,11 +153,26 @@ def _coarse(sa: _Signal, sb: _Signal, max_offset_ns: int | None) -> tuple[float,
                            "give a fixed --time-offset, or widen --max-time-offset")
     score = np.where(allowed, ncc, -np.inf)
     k = int(np.argmax(score))
+    best = float(score[k])
+    if best < MIN_CORRELATION:
+        raise HandEyeError(
+            f"the two streams' angular speeds do not correlate (peak {best:.2f} < {MIN_CORRELATION})",
+            "time offset", "the sensors must rotate (linear motion carries no timing information) and "
+            "record the same motion; otherwise give a fixed --time-offset")
+    warnings = []
+    if best < _WEAK_CORRELATION:
+        warnings.append(f"weak angular-speed correlation {best:.2f}: the time offset may be wrong")
+    peaks, _ = signal.find_peaks(np.where(allowed, ncc, -1.0), prominence=_AMBIGUITY)
+    rivals = peaks[np.abs(offsets[peaks] - offsets[k]) > _PEAK_SEPARATION_NS]
+    if len(rivals) and score[rivals].max() >= best - _AMBIGUITY:
+        r = rivals[np.argmax(score[rivals])]
+        warnings.append(f"ambiguous time offset: {offsets[r] / 1e9:.3f} s correlates almost as well "
+                        f"({score[r]:.3f} vs {best:.3f}; repetitive or too short motion)")
     frac = 0.0
     if 0 < k < len(score) - 1 and np.isfinite(score[k - 1]) and np.isfinite(score[k + 1]):
         den = score[k - 1] - 2 * score[k] + score[k + 1]
         frac = 0.5 * (score[k - 1] - score[k + 1]) / den if den < 0 else 0.0
-    return float(offsets[k]) + frac * _GRID_NS, float(score[k])
+    return float(offsets[k]) + frac * _GRID_NS, best, tuple(warnings)
 
 
 def _interp(t: np.ndarray, grid: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -205,15 +233,20 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
 
     Raises
     ------
-    HandEyeError: when the streams are too short or too gappy to correlate.
+    HandEyeError: when a stream has fewer than two samples, the streams are too short or too gappy
+        to correlate, or their angular speeds do not correlate (too little rotation).
     """
-    intervals = [np.median(np.diff(s.stamps_ns)) if len(s) > 1 else 0 for s in (a, b)]
+    for name, stream in (("a", a), ("b", b)):
+        if len(stream) < 2:
+            raise HandEyeError(f"pose stream {name} has {len(stream)} samples, too few to estimate a time offset",
+                               stream.source or f"stream {name}", "give a fixed --time-offset")
+    intervals = [np.median(np.diff(s.stamps_ns)) for s in (a, b)]
     window = int(max(_MIN_WINDOW_NS, 3 * max(intervals)))
     window -= window % (2 * _GRID_NS)
     smooth = float(max(intervals))
     sa, sb = angular_velocity(a, window, smooth), angular_velocity(b, window, smooth)
     max_ns = None if max_offset_s is None else int(round(max_offset_s * 1e9))
-    coarse_ns, corr = _coarse(sa, sb, max_ns)
+    coarse_ns, corr, warnings = _coarse(sa, sb, max_ns)
 
     ref = _Refiner(sa, sb, coarse_ns)
     tau0 = (coarse_ns - ref.base_ns) / 1e9
@@ -224,4 +257,5 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
 
     return TimeOffset(offset_ns=int(ref.base_ns + round(tau * 1e9)), std_ns=ref.std_s(tau) * 1e9,
                       coarse_ns=int(round(coarse_ns)), correlation=corr,
-                      method="angular-speed FFT cross-correlation + angular-velocity refinement")
+                      method="angular-speed FFT cross-correlation + angular-velocity refinement",
+                      warnings=warnings)
