@@ -258,3 +258,25 @@ def write_csv(path: str | Path, stream: PoseStream, names: Sequence[str], *, t_s
     rows = [",".join([str(r[0] // t_scale), *(repr(v) for v in r[3:])]) for r in records(stream)]
     path.write_text(",".join(names) + "\n" + "\n".join(rows) + "\n")
     return path
+
+
+# --- one entry point for every container --------------------------------------------------
+LOG_KINDS = ("mcap", "mcap_ros1", "bag1", "bag2_sqlite", "bag2_mcap", "db3")
+"""Containers :func:`write_log` writes: ROS 2 MCAP, ROS 1-profile MCAP, ROS 1 bag, ROS 2 bag
+directories (sqlite3 / MCAP storage) and the bare ``.db3`` of a sqlite3 bag."""
+
+
+def write_log(kind: str, directory: str | Path, channels: Sequence[Channel], name: str = "log") -> Path:
+    """Write ``channels`` as a log of ``kind`` (one of :data:`LOG_KINDS`) in ``directory``."""
+    base = Path(directory) / name
+    if kind == "mcap":
+        return write_mcap(base.with_suffix(".mcap"), channels)
+    if kind == "mcap_ros1":
+        return write_mcap(base.with_suffix(".mcap"), channels, ros1=True)
+    if kind == "bag1":
+        return write_bag1(base.with_suffix(".bag"), channels)
+    if kind in ("bag2_sqlite", "bag2_mcap"):
+        return write_bag2(base, channels, storage=kind[5:])
+    if kind == "db3":
+        return write_bag2(base, channels) / f"{name}.db3"
+    raise ValueError(f"unknown log kind {kind!r}; expected one of {LOG_KINDS}")
