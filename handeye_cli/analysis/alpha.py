@@ -1,0 +1,122 @@
+"""Choosing the weight α [1/m] of the translational residuals in cost (8) from the data.
+
+Conventions: ``X = T_a_b`` (maps frame b to frame a), ``A_i X = X B_i``; quaternions x-y-z-w.
+
+The paper treats α as a tunable constant (§3.1, "Choice of α" in §4) and picks the best value
+per dataset against ground truth. Without ground truth, :func:`auto_alpha` predicts the error
+for each α on a log grid with the sandwich covariance (:mod:`.covariance`) — which measures the
+noise from the residuals, so it stays right when α weighs them wrongly — and returns the α
+whose predicted rotation and translation errors are *both* closest to their own minimum over
+the grid (min over α of the larger of the two ratios). :func:`residual_ratio_alpha` is the
+cheaper textbook rule α = σ_rot / σ_trans from the residuals of a first solve, iterated.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..solvers import Prior, solve
+from ..solvers.problem import validate_motions
+from .covariance import linear_covariance
+from .residuals import residuals_batch
+
+__all__ = ["AlphaChoice", "auto_alpha", "residual_ratio_alpha", "DEFAULT_GRID"]
+
+#: The paper's α range, 10⁻² … 10^1.7 [1/m] (appendix D), 25 log-spaced values.
+DEFAULT_GRID = np.logspace(-2.0, 1.7, 25)
+
+
+@dataclass(frozen=True, eq=False)
+class AlphaChoice:
+    """The chosen α [1/m] and the evidence for it.
+
+    ``grid`` (K,) are the α tried; ``rotation_rms_deg`` and ``translation_rms_m`` (K,) the
+    predicted RMS errors of X at each [deg], [m]; ``rotation_rms_deg_at`` / ``translation_rms_m_at``
+    those at the chosen α; ``method`` is ``"sandwich"`` or ``"residual-ratio"``.
+    """
+
+    alpha: float
+    method: str
+    grid: np.ndarray
+    rotation_rms_deg: np.ndarray
+    translation_rms_m: np.ndarray
+
+    @property
+    def index(self) -> int:
+        """Position of the chosen α in the grid."""
+        return int(np.argmin(np.abs(np.log(self.grid / self.alpha))))
+
+    def as_dict(self) -> dict:
+        """Plain summary for the result file."""
+        i = self.index
+        return {"alpha": self.alpha, "method": self.method,
+                "predicted_rotation_rms_deg": float(self.rotation_rms_deg[i]),
+                "predicted_translation_rms_m": float(self.translation_rms_m[i])}
+
+
+def _predicted_errors(A: np.ndarray, B: np.ndarray, grid: np.ndarray, prior: Prior | None,
+                      weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted RMS rotation [deg] and translation [m] error of DQOpt at each α of the grid."""
+    rot, trans = np.empty(len(grid)), np.empty(len(grid))
+    for k, a in enumerate(grid):
+        X = solve(A, B, alpha=float(a), prior=prior, weights=weights).matrix
+        c = linear_covariance(A, B, X, alpha=float(a), prior=prior, weights=weights)
+        rot[k], trans[k] = c.rotation_rms_deg, c.translation_rms_m
+    return rot, trans
+
+
+def _minimax_ratio(rot: np.ndarray, trans: np.ndarray) -> int:
+    """Grid index minimising max(rot/min rot, trans/min trans); ties go to the smaller index."""
+    tiny = np.finfo(float).tiny
+    ratio = np.maximum(rot / max(rot.min(), tiny), trans / max(trans.min(), tiny))
+    return int(np.argmin(np.round(ratio, 9)))
+
+
+def auto_alpha(motions_a: np.ndarray, motions_b: np.ndarray, *, prior: Prior | None = None,
+               weights: np.ndarray | None = None, grid: np.ndarray | None = None) -> AlphaChoice:
+    """Choose α [1/m] by minimising the sandwich-predicted error of ``T_a_b`` over a log grid.
+
+    Parameters
+    ----------
+    motions_a, motions_b:
+        (N, 4, 4) relative motions, ``A_i X = X B_i``.
+    prior, weights:
+        As for :func:`handeye_cli.solvers.solve` (e.g. an inlier mask as weights).
+    grid:
+        Candidate α values [1/m]; default :data:`DEFAULT_GRID`.
+
+    Returns
+    -------
+    :class:`AlphaChoice`. Noise-free data (all predictions zero) falls back to the
+    residual-ratio rule's answer, or α = 1.
+    """
+    A, B, w = validate_motions(motions_a, motions_b, weights)
+    grid = DEFAULT_GRID if grid is None else np.asarray(grid, dtype=float)
+    rot, trans = _predicted_errors(A, B, grid, prior, w)
+    if not (rot.max() > 0 and trans.max() > 0 and np.isfinite(rot).all() and np.isfinite(trans).all()):
+        fallback = residual_ratio_alpha(A, B, prior=prior, weights=w)
+        return AlphaChoice(fallback.alpha, "residual-ratio", grid, rot, trans)
+    return AlphaChoice(float(grid[_minimax_ratio(rot, trans)]), "sandwich", grid, rot, trans)
+
+
+def residual_ratio_alpha(motions_a: np.ndarray, motions_b: np.ndarray, *, prior: Prior | None = None,
+                         weights: np.ndarray | None = None, iterations: int = 2,
+                         start: float = 1.0) -> AlphaChoice:
+    """α = RMS rotation residual [rad] / RMS translation residual [m], re-solving ``iterations`` times.
+
+    The maximum-likelihood weight if rotational and translational residuals were independent
+    with those scales; cheap, but blind to the rotation noise that the lever arm carries into
+    the translation residuals. Returns α = ``start`` when the residuals vanish (noise-free data).
+    """
+    A, B, w = validate_motions(motions_a, motions_b, weights)
+    a = float(start)
+    for _ in range(iterations):
+        X = solve(A, B, alpha=a, prior=prior, weights=w).matrix
+        r, t = residuals_batch(A, B, X[None])
+        sr, st = np.sqrt(np.average(r[0] ** 2, weights=w)), np.sqrt(np.average(t[0] ** 2, weights=w))
+        if not (sr > 0 and st > 0):
+            break
+        a = float(sr / st)
+    grid = np.array([a])
+    return AlphaChoice(a, "residual-ratio", grid, np.full(1, np.nan), np.full(1, np.nan))

@@ -1,0 +1,114 @@
+"""Linearised (sandwich) covariance of the DQOpt estimate ``X = T_a_b`` under cost (8).
+
+Conventions: ``X = T_a_b`` (maps frame b to frame a), ``A_i X = X B_i``; dual quaternions
+``x = [q; q']`` with q in x-y-z-w order (:mod:`handeye_cli.solvers.dualquat`).
+
+The estimate is perturbed on the left in frame a, ``X(δ) = Δ(ω, v) X``, i.e.
+``Q_X(δ) = Q_Δ ⊗ Q_X`` with ``Q_Δ ≈ (ω/2, 1) + ε (v/2, 0)``. This map stays on the unit dual
+quaternions, so ``dx/dδ = D`` (8x6) spans the constraint set's tangent space. With the per-pair
+rows ``K_i = [E_i, 0; αF_i, αE_i]`` (eqs 6–8) and the Lagrangian of §3.1,
+``L = xᵀQx - λ(|q|² - 1) - 2μ q·q'``:
+
+* Hessian along the constraint set: ``H = Dᵀ (Q - Λ) D``, ``Λ = [λI, μI; μI, 0]`` (λ, μ from eq 10);
+* per-pair score: ``g_i = Dᵀ K_iᵀ K_i x``;
+* covariance of δ: ``H⁻¹ (Σ g_i g_iᵀ) H⁻¹`` — the sandwich form, valid whatever α is, because it
+  measures the noise from the residuals instead of assuming that α weighs it correctly.
+
+Finally δ is mapped to the error of X itself: rotation ``ω`` [rad] and translation
+``δt = ω × t + v`` [m], both in frame a.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..solvers import Prior
+from ..solvers import dualquat as dq
+from ..solvers.problem import build_problem, pair_blocks, validate_motions
+
+__all__ = ["LinearCovariance", "linear_covariance", "tangent_basis"]
+
+
+@dataclass(frozen=True, eq=False)
+class LinearCovariance:
+    """First-order uncertainty of ``T_a_b`` as a 6x6 covariance over ``(ω [rad], δt [m])`` in frame a.
+
+    ``hessian`` is the cost's curvature in the same coordinates (for conditioning checks);
+    ``singular`` says whether it had a null space (some direction is not determined at all).
+    """
+
+    covariance: np.ndarray
+    hessian: np.ndarray
+    singular: bool
+
+    @property
+    def rotation_std_deg(self) -> np.ndarray:
+        """(3,) standard deviations of the rotation error about x, y, z of frame a [deg]."""
+        return np.rad2deg(np.sqrt(np.clip(np.diag(self.covariance)[:3], 0.0, None)))
+
+    @property
+    def translation_std_m(self) -> np.ndarray:
+        """(3,) standard deviations of the translation error along x, y, z of frame a [m]."""
+        return np.sqrt(np.clip(np.diag(self.covariance)[3:], 0.0, None))
+
+    @property
+    def rotation_rms_deg(self) -> float:
+        """Expected geodesic rotation error (root of the trace) [deg]."""
+        return float(np.rad2deg(np.sqrt(max(np.trace(self.covariance[:3, :3]), 0.0))))
+
+    @property
+    def translation_rms_m(self) -> float:
+        """Expected Euclidean translation error (root of the trace) [m]."""
+        return float(np.sqrt(max(np.trace(self.covariance[3:, 3:]), 0.0)))
+
+
+def tangent_basis(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    """``D = dx/dδ`` (8x6) for ``Q_X(δ) = Q_Δ(ω, v) ⊗ Q_X``, x = [q; q'], δ = (ω [rad], v [m]) in frame a."""
+    Rq, Rqd = dq.right(q)[:, :3], dq.right(qd)[:, :3]
+    D = np.zeros((8, 6))
+    D[:4, :3] = 0.5 * Rq
+    D[4:, :3] = 0.5 * Rqd
+    D[4:, 3:] = 0.5 * Rq
+    return D
+
+
+def _error_map(t: np.ndarray) -> np.ndarray:
+    """6x6 map from δ = (ω, v) to the error (ω, δt = ω × t + v) of ``X = [R | t]``."""
+    T = np.eye(6)
+    T[3:, :3] = -np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+    return T
+
+
+def linear_covariance(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np.ndarray, *,
+                      alpha: float = 1.0, prior: Prior | None = None,
+                      weights: np.ndarray | None = None) -> LinearCovariance:
+    """Sandwich covariance of the cost-(8) minimiser at ``T_a_b`` (which should be that minimiser).
+
+    Parameters are those of :func:`handeye_cli.solvers.solve`; α in 1/m. The prior adds
+    curvature (eq 29) but no noise. Returns a :class:`LinearCovariance`; for a singular Hessian
+    the pseudo-inverse is used and ``singular`` is set.
+    """
+    A, B, w = validate_motions(motions_a, motions_b, weights)
+    problem = build_problem(A, B, alpha=alpha, prior=prior, weights=w)
+    q, qd = dq.from_transforms(np.asarray(T_a_b, dtype=float))
+    x = np.concatenate([q, qd])
+    Q = np.block([[problem.S, problem.W], [problem.W.T, problem.M]])
+    Qx = Q @ x
+    lam, mu = float(q @ Qx[:4]), float(q @ Qx[4:])
+    Lam = np.block([[lam * np.eye(4), mu * np.eye(4)], [mu * np.eye(4), np.zeros((4, 4))]])
+    D = tangent_basis(q, qd)
+    E, F = pair_blocks(A, B)
+    r_rot = E @ q                                                   # (N, 4)
+    r_dual = alpha * (F @ q + E @ qd)
+    Kx = np.concatenate([np.einsum("nki,nk->ni", E, r_rot) + alpha * np.einsum("nki,nk->ni", F, r_dual),
+                         alpha * np.einsum("nki,nk->ni", E, r_dual)], axis=1)   # K_iᵀ K_i x
+    G = (w[:, None] * Kx) @ D                                       # (N, 6) scores
+    H = D.T @ (Q - Lam) @ D
+    ev = np.linalg.eigvalsh(H)
+    singular = bool(ev[0] <= 1e-12 * max(abs(ev[-1]), 1e-300))
+    Hinv = np.linalg.pinv(H, hermitian=True)
+    cov = Hinv @ (G.T @ G) @ Hinv
+    Tm = _error_map(np.asarray(T_a_b, dtype=float)[:3, 3])
+    Tinv = np.linalg.inv(Tm)
+    return LinearCovariance(Tm @ cov @ Tm.T, Tinv.T @ H @ Tinv, singular)

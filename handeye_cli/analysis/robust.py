@@ -1,0 +1,178 @@
+"""Outlier rejection among motion pairs: RANSAC on minimal sets, then the weighted optimal solve.
+
+Conventions: ``X = T_a_b`` (maps frame b to frame a), ``A_i X = X B_i``; quaternions x-y-z-w;
+residuals as in :mod:`.residuals` (rotation [rad] inside, [deg] in results; translation [m]).
+
+Algorithm (:func:`robust_solve`):
+
+1. **Hypotheses.** ``hypotheses`` random minimal sets of ``sample_size`` pairs are solved at once,
+   vectorised, with the two-step method (DQ2Steps, Alg. 2): the rotation is the smallest
+   eigenvector of ``Σ E_iᵀE_i`` (eq 19, E_i from eq 7), the translation the least-squares
+   solution of ``(R_Ai - I) t = R_X t_Bi - t_Ai``.
+2. **Scoring without a threshold (LMedS).** Every hypothesis is scored by the median over all
+   pairs of ``(r_rot/s_rot)² + (r_t/s_t)²``, where ``s`` is the smallest per-hypothesis median
+   residual; the best hypothesis survives up to 50 % outliers.
+3. **Data-derived threshold.** For residual magnitudes the median is the MAD about zero;
+   a pair is an inlier when both its residuals are ≤ ``k`` × the inliers' median residual
+   (k = 3: a 3-D Gaussian residual exceeds 3 × its median with probability ≈ 1e-4).
+4. **Refinement.** The weighted optimal solve (dqopt with 0/1 weights, cost (8)) on the inliers,
+   new residuals, new threshold; repeated until the inlier set no longer changes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..errors import HandEyeError
+from ..solvers import Prior, Solution, solve
+from ..solvers.problem import pair_blocks, validate_motions
+from .residuals import Residuals, residuals_batch
+
+__all__ = ["RobustResult", "robust_solve", "minimal_hypotheses"]
+
+
+@dataclass(frozen=True, eq=False)
+class RobustResult:
+    """Outcome of :func:`robust_solve`.
+
+    Attributes
+    ----------
+    solution:
+        The weighted optimal solve on the inliers (``solution.matrix`` is ``T_a_b``).
+    inliers:
+        (N,) bool mask over the input pairs.
+    rejected:
+        (K,) int indices of the rejected pairs, ascending.
+    threshold_rotation_deg, threshold_translation_m:
+        The final inlier thresholds [deg], [m].
+    residuals:
+        Residuals of every input pair at ``solution.matrix``.
+    hypotheses, refinements:
+        Number of minimal-set hypotheses scored and of refinement solves run.
+    """
+
+    solution: Solution
+    inliers: np.ndarray
+    rejected: np.ndarray
+    threshold_rotation_deg: float
+    threshold_translation_m: float
+    residuals: Residuals
+    hypotheses: int
+    refinements: int
+
+    def as_dict(self) -> dict:
+        """Plain summary for the result file (the rejected indices, not the mask)."""
+        return {"inliers": int(self.inliers.sum()), "rejected": [int(i) for i in self.rejected],
+                "threshold_rotation_deg": self.threshold_rotation_deg,
+                "threshold_translation_m": self.threshold_translation_m,
+                "hypotheses": self.hypotheses, "refinements": self.refinements}
+
+
+def _sample_sets(n: int, size: int, count: int, rng: np.random.Generator) -> np.ndarray:
+    """``count`` sets of ``size`` distinct pair indices in ``range(n)``, shape (count, size)."""
+    return np.argpartition(rng.random((count, n)), size - 1, axis=1)[:, :size]
+
+
+def minimal_hypotheses(motions_a: np.ndarray, motions_b: np.ndarray, sets: np.ndarray) -> np.ndarray:
+    """Solve every minimal set of pairs with the two-step method (DQ2Steps, Alg. 2), vectorised.
+
+    Parameters
+    ----------
+    motions_a, motions_b:
+        (N, 4, 4) validated motions.
+    sets:
+        (H, s) pair indices, s ≥ 2.
+
+    Returns
+    -------
+    (H, 4, 4) candidate ``T_a_b``: rotation from the smallest eigenvector of ``Σ E_iᵀE_i`` (eq 19),
+    translation [m] from the least-squares ``(R_Ai - I) t = R_X t_Bi - t_Ai`` (pseudo-inverse,
+    so a set rotating about one axis gives the minimum-norm translation along it).
+    """
+    E, _ = pair_blocks(motions_a, motions_b)
+    EtE = np.einsum("nki,nkj->nij", E, E)
+    _, V = np.linalg.eigh(EtE[sets].sum(axis=1))
+    Rx = Rotation.from_quat(V[:, :, 0]).as_matrix()                      # (H, 3, 3)
+    D = motions_a[sets, :3, :3] - np.eye(3)                              # (H, s, 3, 3)
+    rhs = np.einsum("hij,hsj->hsi", Rx, motions_b[sets, :3, 3]) - motions_a[sets, :3, 3]
+    N = np.einsum("hski,hskj->hij", D, D)
+    g = np.einsum("hski,hsk->hi", D, rhs)
+    X = np.tile(np.eye(4), (len(sets), 1, 1))
+    X[:, :3, :3] = Rx
+    X[:, :3, 3] = np.einsum("hij,hj->hi", np.linalg.pinv(N, hermitian=True), g)
+    return X
+
+
+def _lmeds_best(rot: np.ndarray, trans: np.ndarray) -> int:
+    """Index of the hypothesis with the least median of the normalised squared residuals."""
+    tiny = np.finfo(float).tiny
+    s_r = max(float(np.median(rot, axis=1).min()), tiny)
+    s_t = max(float(np.median(trans, axis=1).min()), tiny)
+    score = np.median((rot / s_r) ** 2 + (trans / s_t) ** 2, axis=1)
+    return int(np.argmin(score))
+
+
+def _inlier_mask(rot: np.ndarray, trans: np.ndarray, basis: np.ndarray, k: float) -> tuple[np.ndarray, float, float]:
+    """Inliers: both residuals ≤ k × their median over the pairs in ``basis``; also the thresholds."""
+    floor = 1e-12
+    tau_r = k * max(float(np.median(rot[basis])), floor)
+    tau_t = k * max(float(np.median(trans[basis])), floor)
+    return (rot <= tau_r) & (trans <= tau_t), tau_r, tau_t
+
+
+def robust_solve(motions_a: np.ndarray, motions_b: np.ndarray, *, method: str = "dqopt",
+                 alpha: float = 1.0, prior: Prior | None = None, hypotheses: int = 256,
+                 sample_size: int = 3, k: float = 3.0, max_refinements: int = 10,
+                 seed: int = 0) -> RobustResult:
+    """Estimate ``T_a_b`` from motion pairs of which a minority are gross outliers.
+
+    Parameters
+    ----------
+    motions_a, motions_b:
+        (N, 4, 4) relative motions, ``A_i X = X B_i``.
+    method, alpha, prior:
+        Passed to :func:`handeye_cli.solvers.solve` for the final weighted solve (α in 1/m).
+    hypotheses, sample_size:
+        Number of random minimal sets and their size (2 pairs determine X when their rotation
+        axes differ; 3 is more robust to noise).
+    k:
+        Inlier threshold in multiples of the inliers' median residual (rotation and translation).
+    seed:
+        Seed of the sampling; the result is deterministic for a given seed.
+
+    Returns
+    -------
+    :class:`RobustResult` with the solution, the (N,) inlier mask and the rejected indices.
+
+    Raises
+    ------
+    HandEyeError
+        Malformed motions, fewer than ``2 × sample_size`` pairs, or an inlier set the solver
+        refuses (e.g. all inliers rotate about one axis and no prior is given).
+    """
+    A, B, _ = validate_motions(motions_a, motions_b)
+    n = len(A)
+    if sample_size < 2 or n < 2 * sample_size:
+        raise HandEyeError(f"{n} motion pairs are too few for outlier rejection with samples of "
+                           f"{sample_size}", "robust", f"record at least {2 * max(sample_size, 2)} "
+                           "motion pairs, or solve without --robust")
+    rng = np.random.default_rng(seed)
+    cand = minimal_hypotheses(A, B, _sample_sets(n, sample_size, hypotheses, rng))
+    rot, trans = residuals_batch(A, B, cand)
+    best = _lmeds_best(rot, trans)
+    rot, trans = rot[best], trans[best]
+    half = np.argsort((rot / max(np.median(rot), 1e-300)) ** 2 + (trans / max(np.median(trans), 1e-300)) ** 2)
+    mask, tau_r, tau_t = _inlier_mask(rot, trans, half[: max(n // 2, sample_size)], k)
+    solution, refinements = None, 0
+    for refinements in range(1, max_refinements + 1):
+        solution = solve(A, B, method=method, alpha=alpha, prior=prior, weights=mask.astype(float))
+        r, t = residuals_batch(A, B, solution.matrix[None])
+        rot, trans = r[0], t[0]
+        new, tau_r, tau_t = _inlier_mask(rot, trans, mask, k)
+        if np.array_equal(new, mask) or new.sum() < sample_size:
+            break
+        mask = new
+    return RobustResult(solution, mask, np.flatnonzero(~mask), float(np.rad2deg(tau_r)), float(tau_t),
+                        Residuals(np.rad2deg(rot), trans), int(len(cand)), refinements)
