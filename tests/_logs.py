@@ -209,7 +209,7 @@ def write_bag2(path: str | Path, channels: Sequence[Channel], storage: str = "sq
     """A ROS 2 bag directory (format 9, ``sqlite3`` or ``mcap`` storage); static channels are
     TRANSIENT_LOCAL like a recorded ``/tf_static``."""
     path = Path(path)
-    plugin = StoragePlugin.SQLITE3 if storage == "sqlite3" else StoragePlugin.MCAP
+    plugin = {"sqlite3": StoragePlugin.SQLITE3, "mcap": StoragePlugin.MCAP}[storage]
     with Bag2Writer(path, version=9, storage_plugin=plugin) as w:
         conns = [w.add_connection(ch.topic, ch.msgtype, typestore=ROS2_STORE,
                                   offered_qos_profiles=[_LATCHED] if ch.static else [])
@@ -276,7 +276,7 @@ def write_log(kind: str, directory: str | Path, channels: Sequence[Channel], nam
     if kind == "bag1":
         return write_bag1(base.with_suffix(".bag"), channels)
     if kind in ("bag2_sqlite", "bag2_mcap"):
-        return write_bag2(base, channels, storage=kind[5:])
+        return write_bag2(base, channels, storage="sqlite3" if kind == "bag2_sqlite" else "mcap")
     if kind == "db3":
         return write_bag2(base, channels) / f"{name}.db3"
     raise ValueError(f"unknown log kind {kind!r}; expected one of {LOG_KINDS}")

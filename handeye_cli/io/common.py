@@ -1,6 +1,7 @@
 """Shared reader plumbing: turning decoder failures into HandEyeErrors, building a PoseStream."""
 from __future__ import annotations
 
+import importlib
 import json
 import struct
 from array import array
@@ -10,6 +11,8 @@ from typing import Callable, Iterator, Sequence
 import numpy as np
 from mcap.exceptions import McapError
 from rosbags.highlevel import AnyReaderError
+from rosbags.rosbag1 import ReaderError as Bag1ReaderError
+from rosbags.rosbag2 import ReaderError as Bag2ReaderError
 from rosbags.serde import SerdeError
 from rosbags.typesys import TypesysError
 
@@ -18,15 +21,24 @@ from ..streams import PoseStream
 
 __all__ = ["DECODE_ERRORS", "unreadable", "PoseBuffer", "make_stream"]
 
-try:  # compression back-ends raise their own types on corrupt chunks
-    from zstandard import ZstdError
-except ImportError:  # pragma: no cover - zstandard is a dependency of mcap
-    ZstdError = OSError
+
+def _optional_error(module: str) -> tuple[type[BaseException], ...]:
+    """``module.ZstdError`` if that zstd binding is installed (mcap uses zstandard, rosbags
+    compression.zstd or its backport)."""
+    try:
+        return (importlib.import_module(module).ZstdError,)
+    except (ImportError, AttributeError):
+        return ()
+
+
+_ZSTD_ERRORS = sum(map(_optional_error, ("zstandard", "compression.zstd", "backports.zstd")), ())
 
 DECODE_ERRORS: tuple[type[BaseException], ...] = (
-    McapError, struct.error, OSError, EOFError, AnyReaderError, SerdeError, TypesysError,
-    KeyError, IndexError, UnicodeDecodeError, json.JSONDecodeError, ZstdError)
-"""What mcap, rosbags, json and the decoders raise on truncated or corrupt input."""
+    McapError, struct.error, OSError, EOFError, AnyReaderError, Bag1ReaderError, Bag2ReaderError,
+    SerdeError, TypesysError, KeyError, IndexError, UnicodeDecodeError, json.JSONDecodeError,
+    RuntimeError, *_ZSTD_ERRORS)
+"""What mcap, rosbags, json and the decoders raise on truncated or corrupt input (lz4 raises a
+bare RuntimeError on a corrupt chunk)."""
 
 
 @contextmanager
