@@ -32,6 +32,7 @@ def _records(src: LogSource, infos: list[TopicInfo], label: str, time_source: st
     if not infos:
         return
     counts = {t.topic: 0 for t in infos}
+    n = 0
     with progress(sum(t.count for t in infos), label, quiet=quiet) as bar:
         for n, (topic, log_ns, raw, decode) in enumerate(src.read(list(counts)), 1):
             i = counts[topic]
@@ -50,6 +51,7 @@ def _records(src: LogSource, infos: list[TopicInfo], label: str, time_source: st
             yield topic, recs
             if n % _BATCH == 0:
                 bar.update(_BATCH)
+        bar.update(n % _BATCH)
 
 
 def read_topic(src: LogSource, topic: str, *, time_source: str = "header",

@@ -61,7 +61,8 @@ class BagSource:
                 for topic, info in self._reader.topics.items()]
 
     def span(self) -> tuple[int, int] | None:
-        return (self._reader.start_time, self._reader.end_time) if self._reader.message_count else None
+        r = self._reader    # rosbags' end_time is exclusive: last log time + 1
+        return (r.start_time, r.end_time - 1) if r.message_count else None
 
     def _decoder(self, msgtype: str, cdr: bool) -> Decoder:
         reader = self._reader
