@@ -53,8 +53,8 @@ class Synced:
     T_a: (N, 4, 4) poses ``T_wa_a`` of sensor a at the stamps.
     T_b: (N, 4, 4) poses ``T_wb_b`` of sensor b at the stamps (interpolated or nearest).
     dt_ns: int64[N] the gap used: the largest distance [ns] from a stamp to a b sample used.
-    segment: int64[N] tracking segment of each sample (0 unless the pose-jump gate accepted a
-        new tracking level); motions are only formed within a segment.
+    segment: int64[N] non-decreasing tracking segment of each sample (0 unless the pose-jump gate
+        accepted a new tracking level); motions are only formed within a segment.
     source: the raw streams and settings it was associated from (``None`` when built directly).
     """
 
