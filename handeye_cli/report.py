@@ -1,0 +1,458 @@
+"""A self-contained HTML report of a calibration (``handeye calibrate --report out.html``).
+
+One HTML file, no external resources: inline CSS, matplotlib figures rendered with the Agg
+backend (through :class:`matplotlib.figure.Figure`, never pyplot, so no global backend state is
+touched) and embedded as base64 PNG ``data:`` URIs, and a tiny inline script that records on
+window load how many images decoded (``<body data-images=… data-loaded=…>``, used by the tests).
+
+Conventions: ``X = T_a_b`` is the pose of frame b in frame a (maps points from b to a); each
+stream holds ``T_world_sensor(t)``; motions satisfy ``A_i X = X B_i``; quaternions are Hamilton
+x-y-z-w; metres, and degrees in everything shown.
+
+Contents: the extrinsic (matrix, translation, quaternion, rotation in degrees), method, α, cost,
+pairs used and inputs; the warnings; (1) both trajectories in a's world after applying the
+extrinsic, (2) per-pair residuals over time, (3) what each stage kept and each gate dropped,
+(4) the bootstrap spread when given; tables for whatever diagnostics the result document
+holds (time offset, uncertainty, residuals, robust, solver, …). matplotlib is an optional
+dependency: ``pip install 'handeye-cli[report]'``.
+"""
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from . import __version__, se3
+from .analysis.residuals import pair_residuals
+from .errors import HandEyeError
+from .output import write_atomic
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from .pipeline import Calibration
+    from .sync import Synced
+
+__all__ = ["write_report", "world_alignment", "render_report"]
+
+DPI = 90
+MAX_PLOT_POINTS = 20_000
+COLOR_A, COLOR_B, COLOR_BAD = "#1f77b4", "#ff7f0e", "#d62728"
+
+# Result keys shown in the header or in their own section; anything else lands in "Other diagnostics".
+_SECTIONS = (("residuals", "Residual summary"), ("uncertainty", "Uncertainty"), ("time_offset", "Time offset"),
+             ("robust", "Outlier rejection"), ("solver", "Solver"), ("samples", "Samples per stage"),
+             ("inputs", "Inputs"))
+_HEADER_KEYS = {"matrix", "translation", "quaternion_xyzw", "frames", "method", "alpha", "cost", "pairs_used",
+                "version", "warnings", "ros2_static_transform"}
+
+_CSS = """
+body{font-family:-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;margin:0;background:#f6f7f9;color:#1d232b}
+main{max-width:1140px;margin:0 auto;padding:18px 22px 40px}
+h1{font-size:1.5em;margin:.2em 0 .1em}h2{font-size:1.15em;margin:1.6em 0 .5em;border-bottom:1px solid #d5d9df;padding-bottom:.2em}
+.sub{color:#5b6572;font-size:.9em}
+.card{background:#fff;border:1px solid #dde1e6;border-radius:6px;padding:12px 16px;margin:10px 0}
+.grid{display:flex;flex-wrap:wrap;gap:12px}.grid>.card{flex:1 1 330px;margin:0}
+table{border-collapse:collapse;font-size:.92em}td,th{padding:3px 10px 3px 0;text-align:left;vertical-align:top}
+th{color:#5b6572;font-weight:600}td.num,table.matrix td{font-family:ui-monospace,Menlo,Consolas,monospace;text-align:right}
+table.matrix td{padding:2px 8px}
+.warnings{background:#fff4e5;border:2px solid #e8a33d;border-radius:6px;padding:10px 16px;margin:14px 0}
+.warnings h2{border:0;margin:.1em 0 .3em;color:#8a4b00}.warnings li{margin:.25em 0}
+.ok{background:#eaf6ec;border:1px solid #8cc79a;border-radius:6px;padding:8px 16px;margin:14px 0;color:#225c2f}
+figure{margin:10px 0;background:#fff;border:1px solid #dde1e6;border-radius:6px;padding:8px}
+figure img{max-width:100%;height:auto;display:block;margin:0 auto}figcaption{color:#5b6572;font-size:.88em;margin-top:4px}
+pre{background:#fff;border:1px solid #dde1e6;border-radius:6px;padding:8px 12px;white-space:pre-wrap;word-break:break-all;font-size:.85em}
+.note{color:#5b6572;font-style:italic}.card>h2:first-child{margin-top:.2em}
+"""
+
+_SCRIPT = """
+window.addEventListener("load", function () {
+  var imgs = Array.prototype.slice.call(document.images);
+  document.body.dataset.images = String(imgs.length);
+  document.body.dataset.loaded = String(imgs.filter(function (i) {
+    return i.complete && i.naturalWidth > 0; }).length);
+});
+"""
+
+
+# ----------------------------------------------------------------------------------------------
+# numbers and small HTML pieces
+
+def _fmt(value: Any, digits: int = 6) -> str:
+    """A human-readable value: floats to ``digits`` significant digits, lists recursively."""
+    if isinstance(value, (bool, np.bool_)):
+        return "yes" if value else "no"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        v = float(value)
+        if not math.isfinite(v):
+            return str(v)
+        return f"{v:.{digits}g}"
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_fmt(v, digits) for v in value) + "]"
+    return str(value)
+
+
+def _esc(value: Any) -> str:
+    return html.escape(str(value), quote=True)
+
+
+def _flatten(d: dict, prefix: str = "") -> list[tuple[str, Any]]:
+    """Nested dicts → ``[("a.b", value), …]``."""
+    rows: list[tuple[str, Any]] = []
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict) and v:
+            rows.extend(_flatten(v, key + "."))
+        else:
+            rows.append((key, v))
+    return rows
+
+
+def _table(value: Any) -> str:
+    """A two-column key/value table of a (nested) dict; other values as one line."""
+    if not isinstance(value, dict):
+        return f"<p class='num'>{_esc(_fmt(value))}</p>"
+    if not value:
+        return "<p class='note'>(empty)</p>"
+    rows = "".join(f"<tr><th>{_esc(k)}</th><td class='num'>{_esc(_fmt(v))}</td></tr>" for k, v in _flatten(value))
+    return f"<table>{rows}</table>"
+
+
+def _figure(fig: "Figure", alt: str, caption: str) -> str:
+    """Render a matplotlib figure to a base64 PNG ``<figure>``."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI)
+    data = base64.b64encode(buf.getvalue()).decode("ascii")
+    return (f"<figure><img alt='{_esc(alt)}' src='data:image/png;base64,{data}'>"
+            f"<figcaption>{caption}</figcaption></figure>")
+
+
+def _new_figure(width: float, height: float) -> "Figure":
+    try:
+        from matplotlib.figure import Figure
+    except ImportError:  # pragma: no cover - depends on the environment
+        raise HandEyeError("matplotlib is not installed", "--report",
+                           "install it: pip install 'handeye-cli[report]'") from None
+    return Figure(figsize=(width, height), layout="constrained")
+
+
+def _thin(n: int) -> np.ndarray:
+    """Indices of at most MAX_PLOT_POINTS evenly spread samples out of n."""
+    return np.arange(n) if n <= MAX_PLOT_POINTS else np.linspace(0, n - 1, MAX_PLOT_POINTS).astype(int)
+
+
+def _extrinsic(calibration: "Calibration", document: dict) -> np.ndarray:
+    """``T_a_b`` as the result document states it (what the user gets), else the calibration's."""
+    try:
+        X = np.asarray(document["matrix"], dtype=float)
+        if X.shape == (4, 4) and np.isfinite(X).all():
+            return X
+    except (KeyError, TypeError, ValueError):
+        pass
+    return np.asarray(calibration.matrix, dtype=float)
+
+
+# ----------------------------------------------------------------------------------------------
+# trajectories
+
+def world_alignment(synced: "Synced", T_a_b: np.ndarray) -> np.ndarray:
+    """The transform ``T_wa_wb`` from b's world to a's world implied by the extrinsic.
+
+    Each synced sample gives ``T_wa_wb(t) = T_wa_a(t) · X · T_wb_b(t)⁻¹``; the estimate is their
+    chordal mean rotation (SVD projection of the summed rotation matrices) and the per-axis
+    median translation (robust to the odd tracking jump). Raises ``ValueError`` without samples.
+    """
+    if len(synced) == 0:
+        raise ValueError("no synced samples to align the two worlds")
+    G = synced.T_a @ np.asarray(T_a_b, dtype=float) @ se3.inverse(synced.T_b)
+    U, _, Vt = np.linalg.svd(G[:, :3, :3].sum(axis=0))
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
+    out = np.eye(4)
+    out[:3, :3] = U @ D @ Vt
+    out[:3, 3] = np.median(G[:, :3, 3], axis=0)
+    return out
+
+
+def _trajectory_section(calibration: "Calibration", X: np.ndarray) -> str:
+    synced = calibration.synced
+    if len(synced) == 0:
+        return "<p class='note'>No synced samples: the trajectories cannot be aligned.</p>"
+    G = world_alignment(synced, X)
+    X_inv = se3.inverse(X)
+    p_a = calibration.stream_a.xyz
+    p_b = (G @ calibration.stream_b.matrices() @ X_inv)[:, :3, 3]           # b's sensor a in a's world
+    # alignment error at the synced samples
+    sa = synced.T_a[:, :3, 3]
+    sb = (G @ synced.T_b @ X_inv)[:, :3, 3]
+    err = np.linalg.norm(sa - sb, axis=1)
+    t0 = int(synced.stamps_ns[0])
+    ts = (synced.stamps_ns - t0) / 1e9
+
+    fig = _new_figure(12.0, 4.0)
+    axes = fig.subplots(1, 3, width_ratios=[1, 1, 1.25])
+    ia, ib = _thin(len(p_a)), _thin(len(p_b))
+    for ax, (i, j, name) in zip(axes[:2], ((0, 1, "xy"), (0, 2, "xz"))):
+        ax.plot(p_a[ia, i], p_a[ia, j], "-", color=COLOR_A, lw=2.4, alpha=0.45, label="a")
+        ax.plot(p_b[ib, i], p_b[ib, j], "--", color=COLOR_B, lw=0.9, label="b · X⁻¹ in a's world")
+        ax.set_xlabel(f"{name[0]} [m]")
+        ax.set_ylabel(f"{name[1]} [m]")
+        ax.set_title(f"{name} view (frame of world a)")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="best", fontsize=8)
+    k = _thin(len(ts))
+    axes[2].plot(ts[k], err[k], ".", ms=2, color=COLOR_A)
+    axes[2].set_xlabel("time since first synced sample [s]")
+    axes[2].set_ylabel("|p_a − p_b| [m]")
+    axes[2].set_title("position disagreement at synced samples")
+    axes[2].grid(alpha=0.3)
+    rot = Rotation.from_matrix(G[:3, :3])
+    caption = (f"Stream b mapped into a's world: positions of T_wa_wb · T_wb_b(t) · X⁻¹, with T_wa_wb the "
+               f"consensus of T_wa_a(t) · X · T_wb_b(t)⁻¹ over {len(synced)} synced samples "
+               f"(translation {_esc(_fmt(G[:3, 3], 4))} m, rotation {np.rad2deg(rot.magnitude()):.3f}°). "
+               f"Position disagreement: median {np.median(err):.4g} m, 95th percentile "
+               f"{np.percentile(err, 95):.4g} m.")
+    return _figure(fig, "trajectories", caption)
+
+
+# ----------------------------------------------------------------------------------------------
+# residuals over time
+
+def _rejected_mask(document: dict, n: int) -> np.ndarray:
+    mask = np.zeros(n, dtype=bool)
+    robust = document.get("robust")
+    rejected = robust.get("rejected") if isinstance(robust, dict) else None
+    if isinstance(rejected, (list, tuple, np.ndarray)):
+        idx = np.asarray([i for i in rejected if isinstance(i, (int, np.integer)) and 0 <= i < n], dtype=int)
+        mask[idx] = True
+    return mask
+
+
+def _residual_section(calibration: "Calibration", document: dict, X: np.ndarray) -> str:
+    pairs = calibration.pairs
+    if len(pairs) == 0:
+        return "<p class='note'>No motion pairs.</p>"
+    res = pair_residuals(pairs.A, pairs.B, X)
+    t0 = int(calibration.synced.stamps_ns[0]) if len(calibration.synced) else int(pairs.t_i_ns.min())
+    t = (pairs.t_j_ns - t0) / 1e9
+    bad = _rejected_mask(document, len(pairs))
+    fig = _new_figure(12.0, 4.6)
+    axes = fig.subplots(2, 1, sharex=True)
+    for ax, values, label in ((axes[0], res.rotation_deg, "rotation [deg]"),
+                              (axes[1], res.translation_m, "translation [m]")):
+        k = _thin(len(t))
+        good = ~bad[k]
+        ax.plot(t[k][good], values[k][good], ".", ms=2.5, color=COLOR_A, label="pairs")
+        if bad.any():
+            ax.plot(t[bad], values[bad], "x", ms=4, color=COLOR_BAD, label="rejected (--robust)")
+        med, p95 = np.median(values[~bad] if (~bad).any() else values), np.percentile(values, 95)
+        ax.axhline(med, color="k", lw=0.8, ls="-", label=f"median {med:.3g}")
+        ax.axhline(p95, color="k", lw=0.8, ls=":", label=f"95th pct {p95:.3g}")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper right", fontsize=8)
+    axes[1].set_xlabel("pair time t_j since first synced sample [s]")
+    axes[0].set_title(f"per-pair residuals of A_i X = X B_i ({len(pairs)} pairs)")
+    caption = ("Rotation: angle between R_A·R_X and R_X·R_B; translation: |R_A t_X + t_A − R_X t_B − t_X| "
+               "(frame a). Plotted against the later stamp t_j of each pair.")
+    return _figure(fig, "residuals over time", caption)
+
+
+# ----------------------------------------------------------------------------------------------
+# samples per stage
+
+def _is_drop(key: str) -> bool:
+    return "dropped" in key or "rejected" in key or key.startswith("jumps_")
+
+
+def _samples_section(samples: Any) -> str:
+    if not isinstance(samples, dict):
+        return "<p class='note'>No per-stage counts in the result.</p>"
+    counts = {k: v for k, v in samples.items()
+              if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)}
+    kept = {k: v for k, v in counts.items() if not _is_drop(k)}
+    drops = {k: v for k, v in counts.items() if _is_drop(k)}
+    if not counts:
+        return "<p class='note'>No per-stage counts in the result.</p>"
+    fig = _new_figure(12.0, max(2.4, 0.32 * max(len(kept), len(drops)) + 1.0))
+    axes = fig.subplots(1, 2)
+    for ax, data, color, title, log in ((axes[0], kept, COLOR_A, "what each stage read / kept", True),
+                                        (axes[1], drops, COLOR_BAD, "what each gate dropped", False)):
+        if not data:
+            ax.set_axis_off()
+            ax.set_title(f"{title}: none reported")
+            continue
+        names, values = list(data)[::-1], np.array(list(data.values())[::-1], dtype=float)
+        y = np.arange(len(names))
+        ax.barh(y, np.maximum(values, 0.8) if log else values, color=color)
+        ax.set_yticks(y, names, fontsize=8)
+        if log:
+            ax.set_xscale("log")
+        top = max(values.max(), 1.0)
+        ax.set_xlim(right=top * (4.0 if log else 1.25))
+        for yi, v in zip(y, values):
+            ax.text(max(v, 0.8 if log else 0.0), yi, f" {_fmt(v)}", va="center", fontsize=8)
+        ax.set_title(title)
+        ax.grid(alpha=0.3, axis="x")
+    return _figure(fig, "samples per stage", "Counts from the result's <code>samples</code> (log scale on the left).")
+
+
+# ----------------------------------------------------------------------------------------------
+# bootstrap
+
+def _bootstrap_section(deviations: np.ndarray | None) -> str:
+    if deviations is None:
+        return ""
+    d = deviations[np.isfinite(deviations).all(axis=1)]
+    if len(d) == 0:
+        return "<p class='note'>Bootstrap: no finite replicates.</p>"
+    fig = _new_figure(12.0, 5.0)
+    axes = fig.subplots(2, 3)
+    labels = ("rotation", "translation")
+    units = ("deg", "m")
+    for r in range(2):
+        for c, axis in enumerate("xyz"):
+            ax = axes[r, c]
+            v = d[:, 3 * r + c]
+            lo, hi = np.percentile(v, [2.5, 97.5])
+            ax.hist(v, bins=min(40, max(8, len(v) // 10)), color=(COLOR_A, COLOR_B)[r], alpha=0.85)
+            ax.axvline(lo, color="k", ls=":", lw=0.9)
+            ax.axvline(hi, color="k", ls=":", lw=0.9)
+            ax.set_title(f"{labels[r]} {axis}: σ = {np.std(v, ddof=1) if len(v) > 1 else 0.0:.3g} {units[r]}",
+                         fontsize=9)
+            ax.set_xlabel(f"deviation [{units[r]}]", fontsize=8)
+            ax.tick_params(labelsize=7)
+    std = d.std(axis=0, ddof=1) if len(d) > 1 else np.zeros(6)
+    rows = "".join(f"<tr><th>{name}</th>" + "".join(f"<td class='num'>{s:.4g}</td>" for s in std[3 * r:3 * r + 3])
+                   + "</tr>" for r, name in enumerate(("rotation σ [deg]", "translation σ [m]")))
+    table = f"<table><tr><th></th><th>x</th><th>y</th><th>z</th></tr>{rows}</table>"
+    caption = (f"{len(d)} bootstrap replicates: deviation of X per axis, rotation as a rotation vector [deg] "
+               "and translation [m]; dotted lines bound the central 95 %.")
+    return _figure(fig, "bootstrap spread", caption) + f"<div class='card'>{table}</div>"
+
+
+# ----------------------------------------------------------------------------------------------
+# header
+
+def _header(calibration: "Calibration", document: dict, X: np.ndarray) -> str:
+    rot = Rotation.from_matrix(X[:3, :3])
+    q = rot.as_quat(canonical=True)
+    t = X[:3, 3]
+    frames = document.get("frames") if isinstance(document.get("frames"), dict) else calibration.frames
+    fa, fb = _esc(frames.get("a", "a")), _esc(frames.get("b", "b"))
+    sol = getattr(calibration, "solution", None)
+    facts = [("method", document.get("method", getattr(sol, "method", None))),
+             ("α [1/m]", document.get("alpha", getattr(sol, "alpha", None))),
+             ("cost", document.get("cost", getattr(sol, "cost", None))),
+             ("pairs used", document.get("pairs_used", len(calibration.pairs))),
+             ("version", document.get("version", __version__))]
+    facts_html = "".join(f"<tr><th>{_esc(k)}</th><td class='num'>{_esc(_fmt(v))}</td></tr>"
+                         for k, v in facts if v is not None)
+    matrix = "".join("<tr>" + "".join(f"<td>{v:.6f}</td>" for v in row) + "</tr>" for row in X)
+    pose = [("translation [m]", ", ".join(f"{v:.6f}" for v in t)),
+            ("quaternion x, y, z, w", ", ".join(f"{v:.6f}" for v in q)),
+            ("rotation angle [deg]", f"{np.rad2deg(rot.magnitude()):.4f}"),
+            ("rotation vector [deg]", ", ".join(f"{v:.4f}" for v in np.rad2deg(rot.as_rotvec()))),
+            ("roll, pitch, yaw [deg] (fixed x-y-z)", ", ".join(f"{v:.4f}" for v in rot.as_euler("xyz", degrees=True)))]
+    pose_html = "".join(f"<tr><th>{_esc(k)}</th><td class='num'>{_esc(v)}</td></tr>" for k, v in pose)
+    inputs = document.get("inputs")
+    inputs_html = _table(inputs) if isinstance(inputs, dict) and inputs else "<p class='note'>(not recorded)</p>"
+    ros = document.get("ros2_static_transform")
+    ros_html = f"<h2>ROS 2 static transform</h2><pre>{_esc(ros)}</pre>" if ros else ""
+    stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+    return (f"<h1>handeye calibration report</h1>"
+            f"<p class='sub'>Extrinsic T_{fa}_{fb}: the pose of frame <b>{fb}</b> in frame <b>{fa}</b> "
+            f"(maps points from {fb} to {fa}). Generated {stamp} by handeye {_esc(__version__)}.</p>"
+            f"{_warnings(document)}"
+            f"<div class='grid'><div class='card'><h2>T_{fa}_{fb}</h2><table class='matrix'>{matrix}</table>"
+            f"<table>{pose_html}</table></div>"
+            f"<div class='card'><h2>Solve</h2><table>{facts_html}</table><h2>Inputs</h2>{inputs_html}</div></div>"
+            f"{ros_html}")
+
+
+def _warnings(document: dict) -> str:
+    warnings = document.get("warnings")
+    if isinstance(warnings, str):
+        warnings = [warnings]
+    if not warnings:
+        return "<div class='ok'>No warnings.</div>"
+    items = "".join(f"<li>{_esc(w)}</li>" for w in warnings)
+    return f"<div class='warnings' id='warnings'><h2>⚠ {len(warnings)} warning(s)</h2><ul>{items}</ul></div>"
+
+
+def _tables(document: dict) -> str:
+    parts = []
+    for key, title in _SECTIONS:
+        if key in document and key != "inputs" and document[key] not in (None, {}, []):
+            parts.append(f"<div class='card'><h2>{_esc(title)}</h2>{_table(document[key])}</div>")
+    known = _HEADER_KEYS | {k for k, _ in _SECTIONS}
+    other = {k: v for k, v in document.items() if k not in known and v not in (None, {}, [])}
+    if other:
+        parts.append(f"<div class='card'><h2>Other diagnostics</h2>{_table(other)}</div>")
+    return f"<div class='grid'>{''.join(parts)}</div>" if parts else ""
+
+
+# ----------------------------------------------------------------------------------------------
+# entry points
+
+def render_report(calibration: "Calibration", document: dict,
+                  bootstrap_deviations: np.ndarray | None = None) -> str:
+    """The report as one HTML string (see :func:`write_report`)."""
+    document = document if isinstance(document, dict) else {}
+    if bootstrap_deviations is not None:
+        bootstrap_deviations = np.asarray(bootstrap_deviations, dtype=float)
+        if bootstrap_deviations.ndim != 2 or bootstrap_deviations.shape[1] != 6:
+            raise ValueError(f"bootstrap_deviations must have shape (K, 6), got {bootstrap_deviations.shape}")
+    X = _extrinsic(calibration, document)
+    body = [_header(calibration, document, X),
+            "<h2>1. Trajectories after applying the extrinsic</h2>", _trajectory_section(calibration, X),
+            "<h2>2. Residuals over time</h2>", _residual_section(calibration, document, X),
+            "<h2>3. Samples kept and dropped per stage</h2>", _samples_section(document.get("samples",
+                                                                                           calibration.samples))]
+    if bootstrap_deviations is not None:
+        body += ["<h2>4. Bootstrap spread</h2>", _bootstrap_section(bootstrap_deviations)]
+    tables = _tables(document)
+    if tables:
+        body += ["<h2>Diagnostics</h2>", tables]
+    return ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
+            "<meta name='viewport' content='width=device-width, initial-scale=1'>"
+            f"<meta name='generator' content='handeye {_esc(__version__)}'>"
+            f"<title>handeye report</title><style>{_CSS}</style></head>"
+            f"<body><main>{''.join(body)}</main><script>{_SCRIPT}</script></body></html>\n")
+
+
+def write_report(path: str | Path, calibration: "Calibration", document: dict,
+                 bootstrap_deviations: np.ndarray | None = None) -> None:
+    """Write a self-contained HTML report of ``calibration`` to ``path`` (atomically).
+
+    Parameters
+    ----------
+    path:
+        The .html file to write (temp file in the same folder, then a rename).
+    calibration:
+        The :class:`~handeye_cli.pipeline.Calibration` (streams, synced samples, pairs).
+    document:
+        The result dict (``calibration.document()`` plus diagnostics); every key is optional,
+        ``matrix`` (``T_a_b``) is preferred over ``calibration.matrix`` when present.
+    bootstrap_deviations:
+        Optional (K, 6): per bootstrap replicate the rotation deviation of ``X`` as a rotation
+        vector [deg] (3) and the translation deviation [m] (3); plotted per axis.
+
+    Raises :class:`~handeye_cli.errors.HandEyeError` when matplotlib is missing or the folder does
+    not exist; no file is created on failure.
+    """
+    folder = Path(path).parent
+    if not folder.is_dir():      # fail before the rendering work (write_atomic checks again)
+        raise HandEyeError("the report's folder does not exist", str(folder), "create it or choose another --report path")
+    write_atomic(path, render_report(calibration, document, bootstrap_deviations))

@@ -1,0 +1,157 @@
+"""The HTML report: self-contained structure, the alignment it plots, and rendering in a real
+headless browser (Debian's chromium; CI installs it, so a missing browser fails, never skips)."""
+from __future__ import annotations
+
+import base64
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from handeye_cli.errors import HandEyeError
+from handeye_cli.pipeline import calibrate
+from handeye_cli.report import world_alignment, write_report
+from handeye_cli.synthetic import Rig, random_transform, simulate_rig
+
+WARNING = "translation along z of frame a is unobservable: spread < 0.4° & more"
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def rig():
+    rng = np.random.default_rng(7)
+    X, G = random_transform(rng, 0.3), random_transform(rng, 5.0)
+    a, b = simulate_rig(Rig(X), duration_s=20.0, sigma_r=0.002, sigma_t=0.002, jumps=1, seed=11, T_wb_wa=G)
+    return X, G, calibrate(a, b)
+
+
+@pytest.fixture(scope="module")
+def full_doc(rig):
+    _, _, cal = rig
+    doc = cal.document()
+    doc["warnings"] = [WARNING, "second warning"]
+    doc["residuals"] = {"rotation_median_deg": 0.1, "rotation_p95_deg": 0.3, "translation_median_m": 0.002}
+    doc["uncertainty"] = {"bootstrap": {"replicates": 200, "rotation_std_deg": [0.01, 0.02, 0.03],
+                                        "translation_interval_m": [[-1e-3] * 3, [1e-3] * 3]}}
+    doc["robust"] = {"inliers": len(cal.pairs) - 3, "rejected": [0, 5, 9]}
+    doc["observability"] = {"rank": 6, "spread_deg": 41.0}
+    return doc
+
+
+@pytest.fixture(scope="module")
+def deviations():
+    rng = np.random.default_rng(3)
+    return np.c_[rng.normal(0, 0.02, (300, 3)), rng.normal(0, 1e-3, (300, 3))]
+
+
+@pytest.fixture(scope="module")
+def report(rig, full_doc, deviations, tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("report") / "out.html"
+    write_report(path, rig[2], full_doc, deviations)
+    return path
+
+
+def _images(text: str) -> list[str]:
+    return re.findall(r"<img\b[^>]*\bsrc=['\"]([^'\"]*)['\"]", text)
+
+
+def test_report_is_self_contained_and_states_the_result(report, full_doc):
+    text = report.read_text(encoding="utf-8")
+    assert text.startswith("<!DOCTYPE html>")
+    for v in [*full_doc["translation"], *full_doc["quaternion_xyzw"], *np.ravel(full_doc["matrix"])]:
+        assert f"{v:.6f}" in text
+    assert "dqopt" in text and str(full_doc["pairs_used"]) in text
+    assert "2 warning(s)" in text and "second warning" in text
+    assert "spread &lt; 0.4° &amp; more" in text                      # escaped, not raw HTML
+    for section in ("Time offset", "Uncertainty", "Residual summary", "Outlier rejection", "Other diagnostics"):
+        assert section in text
+    images = _images(text)
+    assert len(images) == 4 == text.count("<img")                     # trajectories, residuals, samples, bootstrap
+    for src in images:
+        assert src.startswith("data:image/png;base64,")
+        assert base64.b64decode(src.split(",", 1)[1]).startswith(PNG_MAGIC)
+    assert not re.search(r"https?:", text, flags=re.I)
+    assert not re.search(r"\b(?:src|href)\s*=\s*['\"](?!data:|#)", text)    # nothing fetched from anywhere
+    assert "<link" not in text and "@import" not in text and "url(" not in text
+    assert report.stat().st_size < 2_000_000
+    assert [p.name for p in report.parent.iterdir()] == ["out.html"]        # no temp file left behind
+
+
+def test_optional_keys_may_be_missing(rig, tmp_path):
+    _, _, cal = rig
+    document = {"robust": {"rejected": "not a list"}}                 # no matrix: falls back to the calibration
+    write_report(tmp_path / "bare.html", cal, document, np.full((4, 6), np.nan))
+    text = (tmp_path / "bare.html").read_text(encoding="utf-8")
+    for v in cal.matrix[:3, 3]:
+        assert f"{v:.6f}" in text
+    assert "No warnings." in text and "no finite replicates" in text
+    assert len(_images(text)) == 3                                    # no bootstrap figure without finite replicates
+
+
+def test_bad_arguments_fail_without_a_file(rig, tmp_path):
+    _, _, cal = rig
+    with pytest.raises(ValueError, match=r"\(K, 6\)"):
+        write_report(tmp_path / "r.html", cal, {}, np.zeros((5, 3)))
+    with pytest.raises(HandEyeError):
+        write_report(tmp_path / "missing" / "r.html", cal, {})
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_world_alignment_recovers_the_world_to_world_transform(rig):
+    X, G, cal = rig                                                   # T_wb_b = G · T_wa_a · X
+    W = world_alignment(cal.synced, cal.matrix)                       # T_wa_wb = G⁻¹
+    err = W @ G
+    assert np.rad2deg(np.arccos(np.clip((np.trace(err[:3, :3]) - 1) / 2, -1, 1))) < 0.1
+    assert np.linalg.norm(err[:3, 3]) < 0.01
+
+
+# ---------------------------------------------------------------------------------------------
+# a real browser
+
+def _chromium() -> str:
+    exe = shutil.which("chromium") or shutil.which("chromium-browser")
+    if exe is None:
+        pytest.fail("chromium is not installed: the report test opens the report in a real headless browser; "
+                    "install it with `apt-get install -y chromium` (.ci/run does)")
+    return exe
+
+
+def _run_chromium(tmp_path: Path, *args: str) -> subprocess.CompletedProcess:
+    cmd = [_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+           "--no-first-run", "--hide-scrollbars", f"--user-data-dir={tmp_path / 'profile'}",
+           "--virtual-time-budget=5000", *args]
+    try:
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=60, check=True)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"chromium did not finish within 60 s: {' '.join(cmd)}")
+    except subprocess.CalledProcessError as e:
+        pytest.fail(f"chromium failed with exit code {e.returncode}: {e.stderr[-2000:]}")
+
+
+def test_report_renders_in_headless_chromium(report, tmp_path):
+    url = report.resolve().as_uri()
+    dom = _run_chromium(tmp_path, "--dump-dom", url).stdout
+    body = re.search(r"<body\b[^>]*>", dom)
+    assert body, f"no <body> in chromium's DOM dump: {dom[:500]!r}"
+    images = re.search(r"data-images=\"(\d+)\"", body.group(0))
+    loaded = re.search(r"data-loaded=\"(\d+)\"", body.group(0))
+    assert images and loaded, f"the page's load script did not run: {body.group(0)!r}"
+    assert int(images.group(1)) == 4
+    assert int(loaded.group(1)) == 4, "not every embedded PNG decoded in the browser"
+
+    import matplotlib.image as mpimg
+
+    shot = tmp_path / "shot.png"
+    _run_chromium(tmp_path, "--window-size=1200,2400", f"--screenshot={shot}", url)
+    assert shot.exists(), "chromium wrote no screenshot"
+    pixels = mpimg.imread(shot)[..., :3]
+    assert pixels.shape[:2] == (2400, 1200)
+    assert pixels.std() > 0.05                                         # not a blank page
+    # the figures' plot colours (trajectory blue, b's orange, the drop bars' red) were painted
+    flat = pixels.reshape(-1, 3)
+    for rgb in ((0x1f, 0x77, 0xb4), (0xff, 0x7f, 0x0e)):
+        close = np.abs(flat - np.array(rgb) / 255.0).max(axis=1) < 0.06
+        assert close.sum() > 200, f"colour {rgb} barely appears in the screenshot"
