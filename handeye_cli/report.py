@@ -454,5 +454,6 @@ def write_report(path: str | Path, calibration: "Calibration", document: dict,
     """
     folder = Path(path).parent
     if not folder.is_dir():      # fail before the rendering work (write_atomic checks again)
-        raise HandEyeError("the report's folder does not exist", str(folder), "create it or choose another --report path")
+        raise HandEyeError("the report's folder does not exist", str(folder),
+                           "create it or choose another --report path")
     write_atomic(path, render_report(calibration, document, bootstrap_deviations))
