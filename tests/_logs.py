@@ -194,10 +194,14 @@ def write_mcap(path: str | Path, channels: Sequence[Channel], *, ros1: bool = Fa
     return path
 
 
-def write_bag1(path: str | Path, channels: Sequence[Channel]) -> Path:
-    """A ROS 1 bag (Noetic types + TFMessage); static channels are latched."""
+def write_bag1(path: str | Path, channels: Sequence[Channel], compression: str | None = None) -> Path:
+    """A ROS 1 bag (Noetic types + TFMessage); static channels are latched; ``compression``
+    ``"lz4"`` or ``"bz2"`` compresses its chunks."""
     path = Path(path)
-    with Bag1Writer(path) as w:
+    writer = Bag1Writer(path)
+    if compression:
+        writer.set_compression(Bag1Writer.CompressionFormat[compression.upper()])
+    with writer as w:
         conns = [w.add_connection(ch.topic, ch.msgtype, typestore=ROS1_STORE,
                                   latching=1 if ch.static else None) for ch in channels]
         for t, i, payload in _merged(channels):
