@@ -10,7 +10,7 @@ from .alpha import AlphaChoice, auto_alpha, residual_ratio_alpha
 from .bootstrap import BootstrapResult, bootstrap
 from .covariance import LinearCovariance, linear_covariance
 from .observability import Observability, ObservabilityWarning, assess_observability, describe_direction
-from .residuals import Residuals, ResidualSummary, pair_residuals, summarize
+from .residuals import Residuals, ResidualSummary, extrinsic_error, pair_residuals, summarize
 from .robust import RobustResult, robust_solve
 
 __all__ = [
@@ -18,6 +18,6 @@ __all__ = [
     "BootstrapResult", "bootstrap",
     "LinearCovariance", "linear_covariance",
     "Observability", "ObservabilityWarning", "assess_observability", "describe_direction",
-    "Residuals", "ResidualSummary", "pair_residuals", "summarize",
+    "Residuals", "ResidualSummary", "extrinsic_error", "pair_residuals", "summarize",
     "RobustResult", "robust_solve",
 ]

@@ -8,8 +8,8 @@ Speed: a replicate with multinomial counts ``c_i`` has the weighted normal matri
 ``S = Σ c_i (E_iᵀE_i + α² F_iᵀF_i)``, ``M = α² Σ c_i E_iᵀE_i``, ``W = α² Σ c_i F_iᵀE_i``. The
 per-pair 8x8 blocks ``Q_i`` of ``[q'; q]`` are built once (eqs 6–7, :func:`pair_blocks`); all
 replicates' sums are one matrix product ``C Q`` of the (R, N) count matrix. Each sum is turned
-back into residual rows (any square root ``K`` with ``KᵀK = Q``) so the project's DQOpt
-(Algorithm 1) solves it unchanged.
+solved by DQOpt (Algorithm 1) vectorised over the replicates (:func:`_batched_dqopt`, checked
+against the project's :func:`dqopt`, which takes over for any replicate with a singular M).
 """
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ from ..solvers import dualquat as dq
 from ..solvers.optimal import dqopt
 from ..solvers.problem import Problem, build_problem, pair_blocks, validate_motions
 
-__all__ = ["BootstrapResult", "bootstrap", "replicate_problems"]
+__all__ = ["BootstrapResult", "bootstrap", "replicate_grams", "replicate_problems"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,13 +107,104 @@ def _full_gram(p: Problem) -> np.ndarray:
     return np.block([[p.M, p.W.T], [p.W, p.S]])
 
 
-def replicate_problems(motions_a: np.ndarray, motions_b: np.ndarray, counts: np.ndarray,
-                       alpha: float = 1.0, prior: Prior | None = None) -> list[Problem]:
-    """One weighted problem (eq 9, + prior eq 29) per row of ``counts`` (R, N), via one matrix product."""
+def replicate_grams(motions_a: np.ndarray, motions_b: np.ndarray, counts: np.ndarray,
+                    alpha: float = 1.0, prior: Prior | None = None) -> np.ndarray:
+    """``[[M, Wᵀ], [W, S]]`` (eq 9, + prior eq 29) per row of ``counts`` (R, N) as (R, 8, 8), via one matrix product."""
     A, B, _ = validate_motions(motions_a, motions_b)
     E, F = pair_blocks(A, B)
     Q = (np.asarray(counts, dtype=float) @ _pair_gram(E, F, alpha)).reshape(-1, 8, 8)
-    return _problems_from_grams(Q + _prior_gram(A, B, alpha, prior))
+    return Q + _prior_gram(A, B, alpha, prior)
+
+
+def replicate_problems(motions_a: np.ndarray, motions_b: np.ndarray, counts: np.ndarray,
+                       alpha: float = 1.0, prior: Prior | None = None) -> list[Problem]:
+    """One weighted :class:`Problem` per row of ``counts`` (R, N), e.g. for the project's solvers."""
+    return _problems_from_grams(replicate_grams(motions_a, motions_b, counts, alpha, prior))
+
+
+def _batched_z(Q: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Z0, Z1, Z2 of eq 13 for a stack of 8x8 ``Q`` in ``[q'; q]`` order, the Cholesky factor of M,
+    and a mask of the stack entries whose M is regular (the others get a placeholder M).
+
+    With ``M = L Lᵀ`` and ``H = L⁻¹``, ``G = H Wᵀ``: ``Z2 = M⁻¹ = HᵀH``, ``W M⁻¹ = Gᵀ H``,
+    ``Z0 = S - GᵀG``.
+    """
+    M, Wt, S = Q[:, :4, :4], Q[:, :4, 4:], Q[:, 4:, 4:]
+    ev = np.linalg.eigvalsh(M)
+    regular = ev[:, 0] > 1e-8 * ev[:, -1]
+    L = np.linalg.cholesky(np.where(regular[:, None, None], M, np.eye(4)))
+    H = np.linalg.inv(L)
+    Gt = np.swapaxes(H @ Wt, 1, 2)
+    WMinv = Gt @ H
+    return S - Gt @ np.swapaxes(Gt, 1, 2), WMinv + np.swapaxes(WMinv, 1, 2), np.swapaxes(H, 1, 2) @ H, L, regular
+
+
+def _eig_z(Z0: np.ndarray, Z1: np.ndarray, Z2: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenpairs (ascending) of ``Z(μ) = Z0 + μZ1 - μ²Z2`` (eq 12) for a stack."""
+    m = mu[:, None, None]
+    return np.linalg.eigh(Z0 + m * Z1 - (m * m) * Z2)
+
+
+def _f_slope(Z1: np.ndarray, Z2: np.ndarray, mu: np.ndarray, lam: np.ndarray,
+             V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """f(μ) of eq 18 and its derivative (second-order eigenvalue perturbation), for a stack."""
+    q = V[:, :, 0]
+    z2q = np.einsum("rij,rj->ri", Z2, q)
+    qz2q = np.einsum("ri,ri->r", q, z2q)
+    f = mu * qz2q - 0.5 * np.einsum("ri,rij,rj->r", q, Z1, q)
+    coupling = np.einsum("rja,rj->ra", V[:, :, 1:], np.einsum("rij,rj->ri", Z1 - 2 * mu[:, None, None] * Z2, q))
+    gaps = np.maximum(lam[:, 1:] - lam[:, :1], 1e-300)
+    return f, qz2q + np.sum(coupling ** 2 / gaps, axis=1)
+
+
+def _batched_dqopt(Q: np.ndarray, iterations: int = 60) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """DQOpt (Algorithm 1) on a stack of problems at once: bisection-safeguarded Newton on f(μ) (eq 18).
+
+    f(μ) = q₀ᵀ(μZ2 - ½Z1)q₀ is increasing; its root lies between the extreme generalised
+    eigenvalues of (½Z1, Z2), i.e. the eigenvalues of ``Lᵀ(½Z1)L`` with ``Z2⁻¹ = M = LLᵀ``
+    (appendix C). Returns q, q' (x-y-z-w, (R, 4) each; q' from eq 20, projected onto q⊥) and a
+    mask of the problems solved here (M regular and converged); the caller re-solves the rest.
+    """
+    Z0, Z1, Z2, L, ok = _batched_z(Q)
+    theta = np.linalg.eigvalsh(np.swapaxes(L, 1, 2) @ (0.5 * Z1) @ L)
+    pad = 1e-12 * np.abs(theta).max(axis=1)
+    lo, hi = theta[:, 0] - pad, theta[:, -1] + pad
+    mu = np.clip(0.0, lo, hi)
+    done = ~ok
+    for _ in range(iterations):
+        f, slope = _f_slope(Z1, Z2, mu, *_eig_z(Z0, Z1, Z2, mu))
+        lo, hi = np.where(f < 0, mu, lo), np.where(f < 0, hi, mu)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            new = mu - f / slope
+        new = np.where((lo < new) & (new < hi), new, 0.5 * (lo + hi))
+        converged = np.abs(new - mu) <= 4 * np.finfo(float).eps * np.maximum(np.abs(mu), 1.0)
+        mu = np.where(done, mu, new)
+        done |= converged
+        if done.all():
+            break
+    q = _eig_z(Z0, Z1, Z2, mu)[1][:, :, 0]
+    Wt_q = np.einsum("rij,rj->ri", Q[:, :4, 4:], q)
+    qd = np.einsum("rij,rj->ri", Z2, mu[:, None] * q - Wt_q)                   # eq 20
+    qd -= np.einsum("ri,ri->r", q, qd)[:, None] * q
+    return q, qd, ok & done
+
+
+def _to_transforms(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    """Transforms (R, 4, 4) of unit dual quaternions (R, 4) x-y-z-w: ``t = 2 q' ⊗ q*`` (eq 2)."""
+    X = np.tile(np.eye(4), (len(q), 1, 1))
+    X[:, :3, :3] = Rotation.from_quat(q).as_matrix()
+    X[:, :3, 3] = 2.0 * dq.multiply(qd, dq.conjugate(q))[:, :3]
+    return X
+
+
+def _solve_replicates(Q: np.ndarray) -> np.ndarray:
+    """``T_a_b`` (R, 4, 4) minimising each replicate's cost; the project's DQOpt where batching gives up."""
+    q, qd, ok = _batched_dqopt(Q)
+    X = _to_transforms(q, qd)
+    for i in np.flatnonzero(~ok):
+        r = dqopt(_problems_from_grams(Q[i:i + 1])[0])
+        X[i] = dq.to_transform(r.q, r.qd)
+    return X
 
 
 def _deltas(X_hat: np.ndarray, Xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -156,7 +247,7 @@ def bootstrap(motions_a: np.ndarray, motions_b: np.ndarray, replicates: int = 10
     X_hat = solve(A, B, alpha=alpha, prior=prior, weights=w).matrix
     rng = np.random.default_rng(seed)
     counts = rng.multinomial(len(A), np.full(len(A), 1.0 / len(A)), size=replicates) * w
-    Xs = np.array([dq.to_transform(r.q, r.qd) for r in map(dqopt, replicate_problems(A, B, counts, alpha, prior))])
+    Xs = _solve_replicates(replicate_grams(A, B, counts, alpha, prior))
     d, t = _deltas(X_hat, Xs)
     pct = 100.0 * np.array([(1.0 - level) / 2.0, (1.0 + level) / 2.0])
     return BootstrapResult(X_hat, d.std(axis=0, ddof=1), t.std(axis=0, ddof=1),

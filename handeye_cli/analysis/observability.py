@@ -177,16 +177,17 @@ def _fixed_line_residual(A: np.ndarray, axis: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(res * res, axis=1))) / scale) if scale > 0 else 0.0
 
 
-def _single_axis(A: np.ndarray, axis: np.ndarray, spread: float, max_spread: float,
+def _single_axis(A: np.ndarray, total: int, axis: np.ndarray, spread: float, max_spread: float,
                  line_tol: float, R_x: np.ndarray) -> list[ObservabilityWarning]:
-    """Warnings for motions that all rotate about one axis (planar motion is the usual case)."""
+    """Warnings for rotating motions ``A`` (of ``total``) that all rotate about one axis (e.g. planar motion)."""
     n = len(A)
     t = A[:, :3, 3]
     along = np.sqrt(np.mean((t @ axis) ** 2))
     planar = along <= np.tan(np.deg2rad(max_spread)) * max(np.sqrt(np.mean(np.sum(t * t, 1))), 1e-300)
     name = describe_direction(axis, "a")
     code = "planar" if planar else "single_axis"
-    what = "all {} motions rotate about one axis{}".format(n, " and translate in the plane across it" if planar else "")
+    who = f"all {n} motions" if n == total else f"all {n} motions that rotate (of {total})"
+    what = who + " rotate about one axis" + (" and translate in the plane across it" if planar else "")
     out = [_warning(code, f"translation along the common rotation axis ({name}) is unobservable: {what} "
                           f"(spread {spread:.2f}°)",
                     f"add rotation about another axis (tilt or roll the rig), or {PRIOR_HINT}",
@@ -294,7 +295,7 @@ def assess_observability(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np
                                   "the extrinsic is sensitive to noise", "pair samples further apart in time, "
                                   "or rotate the rig more"))
         if spread < max_axis_spread_deg:
-            found += _single_axis(A[rotating], axis, spread, max_axis_spread_deg, fixed_line_tolerance, R_x)
+            found += _single_axis(A[rotating], len(A), axis, spread, max_axis_spread_deg, fixed_line_tolerance, R_x)
     try:
         cov = linear_covariance(A, B, X, alpha=alpha, prior=prior, weights=w)
     except (HandEyeError, np.linalg.LinAlgError):

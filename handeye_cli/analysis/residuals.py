@@ -17,11 +17,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..solvers import dualquat as dq
 from ..solvers.problem import validate_motions
 
-__all__ = ["Residuals", "ResidualSummary", "pair_residuals", "residuals_batch", "summarize"]
+__all__ = ["Residuals", "ResidualSummary", "extrinsic_error", "pair_residuals", "residuals_batch", "summarize"]
 
 
 @dataclass(frozen=True)
@@ -103,3 +104,10 @@ def summarize(residuals: Residuals, mask: np.ndarray | None = None) -> ResidualS
     pr = np.percentile(r, [50, 95, 100])
     pt = np.percentile(t, [50, 95, 100])
     return ResidualSummary(*(float(v) for v in pr), *(float(v) for v in pt))
+
+
+def extrinsic_error(T_a_b: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
+    """Error of an estimate against the true ``T_a_b``: geodesic rotation [deg], Euclidean translation [m]."""
+    X, Y = np.asarray(T_a_b, dtype=float), np.asarray(truth, dtype=float)
+    rot = Rotation.from_matrix(Y[:3, :3].T @ X[:3, :3]).magnitude()
+    return float(np.rad2deg(rot)), float(np.linalg.norm(X[:3, 3] - Y[:3, 3]))

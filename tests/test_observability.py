@@ -1,0 +1,120 @@
+"""Degeneracy detection (handeye_cli.analysis.observability) on motions whose blind spots are known."""
+import re
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from handeye_cli import se3
+from handeye_cli.analysis import assess_observability, describe_direction
+from handeye_cli.solvers import Prior
+from handeye_cli.synthetic import motion_pairs, random_transform
+
+Z = np.array([0.0, 0.0, 1.0])
+X_AXIS = np.array([1.0, 0.0, 0.0])
+
+
+def _truth(seed):
+    rng = np.random.default_rng(seed)
+    return rng, random_transform(rng)
+
+
+def _about(report, code, kind, direction, cos=0.999):
+    """The warning with this code whose direction_a is parallel to ``direction`` (fails if none)."""
+    hits = [w for w in report.warnings if w.code == code and w.kind == kind
+            and abs(np.dot(w.direction_a, direction)) > cos]
+    assert hits, [str(w) for w in report.warnings]
+    return hits[0]
+
+
+def test_general_motion_has_no_warnings():
+    rng, X = _truth(0)
+    A, B = motion_pairs(100, X, rng, "random", np.deg2rad(0.57), 0.01)
+    report = assess_observability(A, B)
+    assert report.ok and report.codes == []
+    assert report.axis_spread_deg > 20 and report.covariance.rotation_rms_deg < 0.2
+
+
+@pytest.mark.parametrize("noise", [(0.0, 0.0), (np.deg2rad(0.57), 0.01)])
+def test_planar_motion_names_translation_along_the_normal(noise):
+    rng, X = _truth(1)
+    A, B = motion_pairs(300, X, rng, "planar", *noise)
+    report = assess_observability(A, B)
+    w = _about(report, "planar", "translation", Z)
+    assert "translation along the common rotation axis (z of frame a) is unobservable" in w.message
+    assert re.search(r"all \d+ motions that rotate \(of 300\) rotate about one axis .*\(spread 0\.\d\d°\)", w.message)
+    assert "--prior" in w.remedy and "another axis" in w.remedy
+    np.testing.assert_allclose(np.abs(np.dot(w.direction_b, X[:3, :3].T @ Z)), 1.0, atol=1e-3)   # in frame b
+    assert not report.ok and "fixed_rotation_line" not in report.codes       # random in-plane paths fix the yaw
+
+
+def _turntable(n, X, rng, lever):
+    """Rotations about z through the fixed point ``lever`` of frame a: t_A = (I - R_A) p."""
+    A = np.tile(np.eye(4), (n, 1, 1))
+    A[:, :3, :3] = Rotation.from_rotvec(np.c_[np.zeros((n, 2)), rng.uniform(0.2, 1.5, n)]).as_matrix()
+    A[:, :3, 3] = (np.eye(3) - A[:, :3, :3]) @ lever
+    return A, se3.inverse(X) @ A @ X
+
+
+def test_rotation_about_one_fixed_line_also_hides_the_yaw():
+    rng, X = _truth(2)
+    A, B = _turntable(50, X, rng, np.array([0.4, -0.3, 0.2]))
+    report = assess_observability(A, B)
+    _about(report, "planar", "translation", Z)
+    w = _about(report, "fixed_rotation_line", "rotation", Z)
+    assert "rotation of the extrinsic about the common rotation axis (z of frame a) is unobservable" in w.message
+
+
+def test_screw_motion_about_one_axis_is_single_axis():
+    rng, X = _truth(3)
+    A, B = _turntable(40, X, rng, np.array([0.5, 0.0, 0.0]))
+    A[:, 2, 3] = rng.uniform(0.2, 0.5, 40)                      # also move along the axis
+    B = se3.inverse(X) @ A @ X
+    report = assess_observability(A, B)
+    _about(report, "single_axis", "translation", Z)
+
+
+def test_pure_translation_along_a_line():
+    rng, X = _truth(4)
+    A = np.tile(np.eye(4), (30, 1, 1))
+    A[:, 0, 3] = rng.uniform(0.1, 1.0, 30)
+    B = se3.inverse(X) @ A @ X
+    report = assess_observability(A, B)
+    assert report.codes.count("pure_translation") == 2 and report.rotating_pairs == 0
+    assert "unobservable along all axes" in report.warnings[0].message
+    w = _about(report, "pure_translation", "rotation", X_AXIS)
+    assert "travel direction (x of frame a)" in w.message
+
+
+def test_noisy_circle_is_flagged_as_ill_conditioned():
+    rng, X = _truth(5)
+    A, B = motion_pairs(100, X, rng, "circle", np.deg2rad(0.57), 0.01)
+    report = assess_observability(A, B)
+    _about(report, "ill_conditioned", "rotation", Z, cos=0.98)       # yaw about the circle's axis
+    weak_t = [w for w in report.warnings if w.code == "ill_conditioned" and w.kind == "translation"]
+    assert weak_t and all("predicted standard deviation" in w.message for w in weak_t)
+    assert report.covariance.translation_std_m[2] > 0.05             # along the axis (z of frame a)
+
+
+def test_small_rotations_and_too_few_pairs():
+    rng, X = _truth(6)
+    A, B = motion_pairs(100, X, rng, "line", np.deg2rad(0.57), 0.01)
+    assert "small_rotations" in assess_observability(A, B).codes
+    A, B = motion_pairs(6, X, rng, "random", np.deg2rad(0.57), 0.01)
+    report = assess_observability(A, B)
+    assert report.codes[0] == "too_few_pairs" and "only 6 motion pairs" in report.warnings[0].message
+
+
+def test_with_a_prior_the_remedy_says_the_prior_decides():
+    rng, X = _truth(7)
+    A, B = motion_pairs(100, X, rng, "planar", np.deg2rad(0.57), 0.01)
+    report = assess_observability(A, B, prior=Prior(X, 1.0, 1.0))
+    assert "planar" in report.codes and all("--prior FILE" not in w.remedy for w in report.warnings)
+    assert "given prior" in report.warnings[0].remedy
+    d = report.as_dict()
+    assert d["warnings"][0]["code"] == "planar" and len(d["warnings"][0]["direction_a"]) == 3
+
+
+def test_describe_direction():
+    assert describe_direction(np.array([0.01, -0.02, -1.0]), "a") == "z of frame a"
+    assert describe_direction(np.array([1.0, 1.0, 0.0]), "b") == "direction [0.71, 0.71, 0.00] of frame b"
