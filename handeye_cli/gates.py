@@ -2,8 +2,9 @@
 
 A raw sample of a stream is dropped when its sensor moved more than ``max_translation_m`` [m]
 (in the stream's own world frame) or ``max_rotation_rad`` [rad] since the stream's previous
-**kept** sample: tracking failures show up as such jumps. Comparing with the last kept sample,
-not the previous raw one, means a single outlier drops only itself.
+**kept** sample (moved on at its recent velocity across any dropped samples, see
+:func:`stream_jump_gate`): tracking failures show up as such jumps. Comparing with the last kept
+sample, not the previous raw one, means a single outlier drops only itself.
 
 Why the raw streams and not the synchronised samples: interpolating b at a's stamps smears one
 bad b sample over its neighbours (a ramp of partial jumps, each possibly under the limits, that
@@ -23,6 +24,7 @@ is treated the same way.
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from .errors import HandEyeError
 from .streams import PoseStream
@@ -31,16 +33,33 @@ from .sync import Association, Synced, associate_raw
 __all__ = ["pose_jump_gate", "stream_jump_gate"]
 
 
-def _moved(xyz: np.ndarray, quat: np.ndarray, i: np.ndarray | int, j: np.ndarray | int,
-           max_t: float, cos_half: float) -> np.ndarray:
-    """Whether the sensor moved beyond the limits between samples ``i`` and ``j`` (arrays or ints)."""
-    return (np.linalg.norm(xyz[j] - xyz[i], axis=-1) > max_t) | (np.abs(np.sum(quat[j] * quat[i], axis=-1)) < cos_half)
+def _beyond(p0: np.ndarray, q0: np.ndarray, p1: np.ndarray, q1: np.ndarray, max_t: float, cos_half: float
+            ) -> np.ndarray:
+    """Whether poses ``(p1, q1)`` lie beyond the limits from ``(p0, q0)`` (rows or single poses)."""
+    return (np.linalg.norm(p1 - p0, axis=-1) > max_t) | (np.abs(np.sum(q1 * q0, axis=-1)) < cos_half)
+
+
+def _reference(stream: PoseStream, keep: np.ndarray, last: int, i: int) -> tuple[np.ndarray, np.ndarray]:
+    """The pose sample ``i`` is compared with: the last kept sample, moved on across the dropped
+    samples ``last+1 … i-1`` at the velocity between ``last`` and the kept sample before it."""
+    xyz, quat, stamps = stream.xyz, stream.quat_xyzw, stream.stamps_ns
+    if i == last + 1 or last == 0 or not keep[last - 1] or stamps[last] <= stamps[last - 1]:
+        return xyz[last], quat[last]
+    ratio = (stamps[i - 1] - stamps[last]) / (stamps[last] - stamps[last - 1])
+    r_last = Rotation.from_quat(quat[last])
+    step = (Rotation.from_quat(quat[last - 1]).inv() * r_last).as_rotvec()
+    return xyz[last] + ratio * (xyz[last] - xyz[last - 1]), (r_last * Rotation.from_rotvec(step * ratio)).as_quat()
 
 
 def stream_jump_gate(stream: PoseStream, *, max_translation_m: float | None = 0.10,
                      max_rotation_rad: float | None = np.deg2rad(11.5),
                      accept_after: int = 3) -> tuple[np.ndarray, np.ndarray, int]:
     """The pose-jump gate on one raw stream (see the module docstring).
+
+    A sample right after a kept one is compared with it (the paper's rule). After dropped
+    samples, the last kept sample is first moved on at its recent velocity to the sample before
+    the one compared: otherwise fast motion at a low rate (two intervals' motion beyond the limit)
+    would make the samples after a lone outlier look like a new tracking level.
 
     Parameters
     ----------
@@ -59,11 +78,11 @@ def stream_jump_gate(stream: PoseStream, *, max_translation_m: float | None = 0.
         raise HandEyeError(f"accept_after must be at least 1, not {accept_after}", "pose-jump gate",
                            "give the number of consistent samples that confirm a new tracking level")
     n = len(stream)
-    max_t = np.inf if max_translation_m is None else float(max_translation_m)
-    cos_half = -1.0 if max_rotation_rad is None else float(np.cos(min(max_rotation_rad, np.pi) / 2))
-    args = (stream.xyz, stream.quat_xyzw)
+    limits = (np.inf if max_translation_m is None else float(max_translation_m),
+              -1.0 if max_rotation_rad is None else float(np.cos(min(max_rotation_rad, np.pi) / 2)))
+    xyz, quat = stream.xyz, stream.quat_xyzw
     step_jump = np.zeros(n, dtype=bool)
-    step_jump[1:] = _moved(*args, np.arange(n - 1), np.arange(1, n), max_t, cos_half)
+    step_jump[1:] = _beyond(xyz[:-1], quat[:-1], xyz[1:], quat[1:], *limits)
 
     keep = np.ones(n, dtype=bool)
     segment = np.zeros(n, dtype=np.int64)
@@ -77,10 +96,11 @@ def stream_jump_gate(stream: PoseStream, *, max_translation_m: float | None = 0.
         i += int(later[0])
         last, run = i - 1, []
         while i < n:      # sequential mode: compare with the last kept sample
-            if not _moved(*args, last, i, max_t, cos_half):
+            if not _beyond(*_reference(stream, keep, last, i), xyz[i], quat[i], *limits):
                 break
             keep[i] = False
-            run = run + [i] if run and not _moved(*args, run[-1], i, max_t, cos_half) else [i]
+            consistent = run and not _beyond(xyz[run[-1]], quat[run[-1]], xyz[i], quat[i], *limits)
+            run = run + [i] if consistent else [i]
             if len(run) == accept_after:
                 keep[run] = True
                 accepted += 1
