@@ -23,6 +23,9 @@ from .residuals import residuals_batch
 
 __all__ = ["AlphaChoice", "auto_alpha", "residual_ratio_alpha", "DEFAULT_GRID"]
 
+_EXACT_DEG, _EXACT_M = 1e-9, 1e-9         # predicted errors this small mean noise-free data
+_ROUNDING = 1e-12                          # residuals [rad], [m] at rounding level
+
 #: The paper's α range, 10⁻² … 10^1.7 [1/m] (appendix D), 25 log-spaced values.
 DEFAULT_GRID = np.logspace(-2.0, 1.7, 25)
 
@@ -88,13 +91,14 @@ def auto_alpha(motions_a: np.ndarray, motions_b: np.ndarray, *, prior: Prior | N
 
     Returns
     -------
-    :class:`AlphaChoice`. Noise-free data (all predictions zero) falls back to the
-    residual-ratio rule's answer, or α = 1.
+    :class:`AlphaChoice`. Noise-free data (all predicted errors below 1e-9 deg and 1e-9 m, where
+    every α gives the same answer) falls back to the residual-ratio rule's answer, or α = 1.
     """
     A, B, w = validate_motions(motions_a, motions_b, weights)
     grid = DEFAULT_GRID if grid is None else np.asarray(grid, dtype=float)
     rot, trans = _predicted_errors(A, B, grid, prior, w)
-    if not (rot.max() > 0 and trans.max() > 0 and np.isfinite(rot).all() and np.isfinite(trans).all()):
+    exact = rot.max() < _EXACT_DEG and trans.max() < _EXACT_M
+    if exact or not (np.isfinite(rot).all() and np.isfinite(trans).all()):
         fallback = residual_ratio_alpha(A, B, prior=prior, weights=w)
         return AlphaChoice(fallback.alpha, "residual-ratio", grid, rot, trans)
     return AlphaChoice(float(grid[_minimax_ratio(rot, trans)]), "sandwich", grid, rot, trans)
@@ -107,7 +111,8 @@ def residual_ratio_alpha(motions_a: np.ndarray, motions_b: np.ndarray, *, prior:
 
     The maximum-likelihood weight if rotational and translational residuals were independent
     with those scales; cheap, but blind to the rotation noise that the lever arm carries into
-    the translation residuals. Returns α = ``start`` when the residuals vanish (noise-free data).
+    the translation residuals. Returns α = ``start`` when the residuals are at rounding level
+    (noise-free data).
     """
     A, B, w = validate_motions(motions_a, motions_b, weights)
     a = float(start)
@@ -115,7 +120,7 @@ def residual_ratio_alpha(motions_a: np.ndarray, motions_b: np.ndarray, *, prior:
         X = solve(A, B, alpha=a, prior=prior, weights=w).matrix
         r, t = residuals_batch(A, B, X[None])
         sr, st = np.sqrt(np.average(r[0] ** 2, weights=w)), np.sqrt(np.average(t[0] ** 2, weights=w))
-        if not (sr > 0 and st > 0):
+        if not (sr > _ROUNDING and st > _ROUNDING):
             break
         a = float(sr / st)
     grid = np.array([a])

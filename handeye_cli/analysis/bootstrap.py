@@ -213,6 +213,12 @@ def _deltas(X_hat: np.ndarray, Xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.rad2deg(Rotation.from_matrix(dR).as_rotvec()), Xs[:, :3, 3].copy()
 
 
+def _dof_correction(n: int) -> float:
+    """``√(n / (n - 6))``: the pairs bootstrap, like the HC0 sandwich, under-spreads by the 6 fitted
+    degrees of freedom; scaling the replicates' deviations by this is the HC1 correction."""
+    return float(np.sqrt(n / (n - 6))) if n > 12 else float(np.sqrt(2.0))
+
+
 def bootstrap(motions_a: np.ndarray, motions_b: np.ndarray, replicates: int = 1000, *,
               alpha: float = 1.0, prior: Prior | None = None, weights: np.ndarray | None = None,
               seed: int = 0, level: float = 0.95) -> BootstrapResult:
@@ -236,8 +242,9 @@ def bootstrap(motions_a: np.ndarray, motions_b: np.ndarray, replicates: int = 10
 
     Returns
     -------
-    :class:`BootstrapResult`. Replicates are i.i.d. over pairs: pairs built from overlapping
-    time windows are correlated and then the spread is optimistic.
+    :class:`BootstrapResult`. The replicates' deviations from ``X̂`` are scaled by ``√(n/(n-6))``
+    (HC1 degrees-of-freedom correction; n = resampled pairs). Replicates are i.i.d. over pairs:
+    pairs built from overlapping time windows are correlated and then the spread is optimistic.
     """
     A, B, w = validate_motions(motions_a, motions_b, weights)
     if replicates < 2:
@@ -249,6 +256,8 @@ def bootstrap(motions_a: np.ndarray, motions_b: np.ndarray, replicates: int = 10
     counts = rng.multinomial(len(A), np.full(len(A), 1.0 / len(A)), size=replicates) * w
     Xs = _solve_replicates(replicate_grams(A, B, counts, alpha, prior))
     d, t = _deltas(X_hat, Xs)
+    c = _dof_correction(len(A))
+    d, t = c * d, X_hat[:3, 3] + c * (t - X_hat[:3, 3])
     pct = 100.0 * np.array([(1.0 - level) / 2.0, (1.0 + level) / 2.0])
     return BootstrapResult(X_hat, d.std(axis=0, ddof=1), t.std(axis=0, ddof=1),
                            np.percentile(d, pct, axis=0), np.percentile(t, pct, axis=0),

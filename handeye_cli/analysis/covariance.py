@@ -11,8 +11,9 @@ rows ``K_i = [E_i, 0; αF_i, αE_i]`` (eqs 6–8) and the Lagrangian of §3.1,
 
 * Hessian along the constraint set: ``H = Dᵀ (Q - Λ) D``, ``Λ = [λI, μI; μI, 0]`` (λ, μ from eq 10);
 * per-pair score: ``g_i = Dᵀ K_iᵀ K_i x``;
-* covariance of δ: ``H⁻¹ (Σ g_i g_iᵀ) H⁻¹`` — the sandwich form, valid whatever α is, because it
-  measures the noise from the residuals instead of assuming that α weighs it correctly.
+* covariance of δ: ``H⁻¹ (Σ g_i g_iᵀ) H⁻¹ · n/(n-6)`` — the sandwich form (with the HC1
+  degrees-of-freedom factor), valid whatever α is, because it measures the noise from the
+  residuals instead of assuming that α weighs it correctly.
 
 Finally δ is mapped to the error of X itself: rotation ``ω`` [rad] and translation
 ``δt = ω × t + v`` [m], both in frame a.
@@ -108,7 +109,8 @@ def linear_covariance(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np.nd
     ev = np.linalg.eigvalsh(H)
     singular = bool(ev[0] <= 1e-12 * max(abs(ev[-1]), 1e-300))
     Hinv = np.linalg.pinv(H, hermitian=True)
-    cov = Hinv @ (G.T @ G) @ Hinv
+    n = int(np.count_nonzero(w))
+    cov = Hinv @ (G.T @ G) @ Hinv * (n / (n - 6) if n > 12 else 2.0)        # HC1 correction
     Tm = _error_map(np.asarray(T_a_b, dtype=float)[:3, 3])
     Tinv = np.linalg.inv(Tm)
     return LinearCovariance(Tm @ cov @ Tm.T, Tinv.T @ H @ Tinv, singular)

@@ -1,0 +1,58 @@
+"""Choice of α (handeye_cli.analysis.alpha) against an α sweep with known truth (paper's scenarios, app. D.2)."""
+import numpy as np
+import pytest
+
+from handeye_cli.analysis import auto_alpha, extrinsic_error, residual_ratio_alpha
+from handeye_cli.analysis.alpha import DEFAULT_GRID
+from handeye_cli.solvers import solve
+from handeye_cli.synthetic import motion_pairs, random_transform
+
+SIGMA_R, SIGMA_T = np.deg2rad(0.57), 0.01
+SWEEP = np.logspace(-2.0, 1.7, 12)
+
+
+@pytest.mark.parametrize("scenario", ["random", "line", "circle"])
+def test_auto_alpha_within_20_percent_of_the_sweep_best(scenario):
+    trials = 8
+    sweep = np.zeros((len(SWEEP), 2))
+    auto = np.zeros(2)
+    for seed in range(trials):
+        rng = np.random.default_rng(100 + seed)
+        X = random_transform(rng)
+        A, B = motion_pairs(100, X, rng, scenario, SIGMA_R, SIGMA_T)
+        sweep += [extrinsic_error(solve(A, B, alpha=a).matrix, X) for a in SWEEP]
+        auto += extrinsic_error(solve(A, B, alpha=auto_alpha(A, B).alpha).matrix, X)
+    best = sweep.min(axis=0)          # mean error at the best α, separately for rotation and translation
+    assert (auto <= 1.2 * best).all(), (auto / trials, best / trials)
+
+
+def test_choice_reports_the_evidence():
+    rng = np.random.default_rng(1)
+    X = random_transform(rng)
+    A, B = motion_pairs(80, X, rng, "random", SIGMA_R, SIGMA_T)
+    choice = auto_alpha(A, B)
+    assert choice.method == "sandwich" and choice.alpha in DEFAULT_GRID
+    i = choice.index
+    ratio = np.maximum(choice.rotation_rms_deg / choice.rotation_rms_deg.min(),
+                       choice.translation_rms_m / choice.translation_rms_m.min())
+    assert ratio[i] == pytest.approx(ratio.min())
+    d = choice.as_dict()
+    assert d["alpha"] == choice.alpha and 0 < d["predicted_rotation_rms_deg"] < 0.5
+    assert 0 < d["predicted_translation_rms_m"] < 0.05
+
+
+def test_residual_ratio_follows_the_noise_ratio():
+    """Pure rotation noise vs pure translation noise: quadrupling σ_t divides α by about four."""
+    rng = np.random.default_rng(2)
+    X = random_transform(rng, 0.05)                      # small lever arm: residuals ≈ the injected noise
+    A, B = motion_pairs(400, X, np.random.default_rng(3), "random", np.deg2rad(0.5), 0.005)
+    A4, B4 = motion_pairs(400, X, np.random.default_rng(3), "random", np.deg2rad(0.5), 0.02)
+    a1, a4 = residual_ratio_alpha(A, B).alpha, residual_ratio_alpha(A4, B4).alpha
+    assert 3.0 < a1 / a4 < 4.5
+
+
+def test_noise_free_data_falls_back():
+    rng = np.random.default_rng(4)
+    A, B = motion_pairs(30, random_transform(rng), rng, "random")
+    choice = auto_alpha(A, B)
+    assert choice.method == "residual-ratio" and choice.alpha == 1.0
