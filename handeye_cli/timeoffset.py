@@ -45,6 +45,7 @@ _MIN_WINDOW_NS = 100_000_000  # smallest differentiation window [ns]
 _BRACKET_NS = 50_000_000      # refinement bracket around the coarse estimate [ns]
 _MIN_OVERLAP = 1 / 3          # least overlap, as a fraction of the shorter signal, for a coarse lag
 _MAX_GAP_NS = 500_000_000     # data gaps longer than this invalidate the grid points across them
+_MIN_SPAN_NS = 2_000_000_000  # shortest stream [ns] whose rotation can be correlated
 _TRUNCATE = 3.0               # the smoothing kernel reaches this many σ
 MIN_CORRELATION = 0.5         # a lower peak correlation of the angular speeds is an error
 _WEAK_CORRELATION = 0.8       # a lower one is a warning
@@ -102,8 +103,8 @@ def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float) -> _S
     t0 = int(stamps[0]) + half
     centres = t0 + np.arange(max((int(stamps[-1]) - half - t0) // _GRID_NS + 1, 0), dtype=np.int64) * _GRID_NS
     if len(centres) < 2:
-        raise HandEyeError("pose stream too short to estimate a time offset", stream.source,
-                           f"record at least a few seconds of rotation, or give a fixed --time-offset")
+        raise HandEyeError("pose stream too short for its sample rate to estimate a time offset", stream.source,
+                           "record more samples while rotating, or give a fixed --time-offset")
     _, _, q_lo, _ = interpolate(stream, centres - half)
     _, _, q_hi, _ = interpolate(stream, centres + half)
     omega = (Rotation.from_quat(q_lo).inv() * Rotation.from_quat(q_hi)).as_rotvec() / (2 * half / 1e9)
@@ -233,13 +234,15 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
 
     Raises
     ------
-    HandEyeError: when a stream has fewer than two samples, the streams are too short or too gappy
+    HandEyeError: when a stream spans less than 2 s, the streams are too short or too gappy
         to correlate, or their angular speeds do not correlate (too little rotation).
     """
     for name, stream in (("a", a), ("b", b)):
-        if len(stream) < 2:
-            raise HandEyeError(f"pose stream {name} has {len(stream)} samples, too few to estimate a time offset",
-                               stream.source or f"stream {name}", "give a fixed --time-offset")
+        span = stream.stamps_ns[-1] - stream.stamps_ns[0] if len(stream) else 0
+        if span < _MIN_SPAN_NS:
+            raise HandEyeError(f"pose stream {name} spans {span / 1e9:.2f} s ({len(stream)} samples), too short "
+                               "to estimate a time offset", stream.source or f"stream {name}",
+                               f"record at least {_MIN_SPAN_NS / 1e9:.0f} s of rotation, or give a fixed --time-offset")
     intervals = [np.median(np.diff(s.stamps_ns)) for s in (a, b)]
     window = int(max(_MIN_WINDOW_NS, 3 * max(intervals)))
     window -= window % (2 * _GRID_NS)

@@ -1,0 +1,108 @@
+"""Clock-offset estimation: offsets of minutes between 100 Hz and 30 Hz streams with realistic
+noise to within 1 ms, streams that do not overlap in raw time, and the refusals and warnings."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from handeye_cli import se3
+from handeye_cli.errors import HandEyeError
+from handeye_cli.pairs import make_pairs
+from handeye_cli.solvers import solve
+from handeye_cli.streams import PoseStream
+from handeye_cli.sync import associate
+from handeye_cli.synthetic import Rig, random_transform, simulate_rig
+from handeye_cli.timeoffset import MIN_CORRELATION, estimate_time_offset
+
+X = random_transform(np.random.default_rng(31), 0.3)
+NOISE = dict(sigma_r=np.deg2rad(0.1), sigma_t=0.002)      # realistic tracking noise: 0.1°, 2 mm
+MS = 1_000_000
+
+
+def rig(offset_ns: int, seed: int, duration_s: float = 40.0, **kw) -> tuple[PoseStream, PoseStream]:
+    """A noisy 100 Hz stream a and 30 Hz stream b whose clock is ``offset_ns`` ahead."""
+    return simulate_rig(Rig(X, offset_ns), duration_s=duration_s, rate_a=100, rate_b=30, seed=seed, **{**NOISE, **kw})
+
+
+@pytest.mark.parametrize("offset_s", [-299.7, -123.456789, -0.0173, 0.0, 0.0333, 57.25, 299.9])
+def test_offsets_of_minutes_are_found_within_a_millisecond(offset_s: float) -> None:
+    offset = int(round(offset_s * 1e9))
+    a, b = rig(offset, seed=int(abs(offset_s) * 10) % 97)
+    est = estimate_time_offset(a, b)
+    assert abs(est.offset_ns - offset) < 1 * MS
+    assert abs(est.coarse_ns - offset) < 10 * MS
+    assert 0 < est.std_ns < 1 * MS
+    assert est.correlation > 0.95 and est.warnings == ()
+
+
+def test_streams_that_do_not_overlap_in_raw_time_are_aligned_and_calibrated() -> None:
+    offset = 200_000_000_000 + 12_345_678
+    a, b = rig(offset, seed=4, duration_s=30)
+    assert b.stamps_ns[0] > a.stamps_ns[-1]                  # no raw overlap at all
+    with pytest.raises(HandEyeError, match="do not overlap"):
+        associate(a, b)
+    est = estimate_time_offset(a, b)
+    assert abs(est.offset_ns - offset) < 1 * MS
+    synced, _ = associate(a, b, time_offset_ns=est.offset_ns)
+    pairs, _ = make_pairs(synced)
+    E = se3.inverse(X) @ solve(pairs.A, pairs.B).matrix
+    assert se3.rotation_angle(E) < np.deg2rad(0.05) and np.linalg.norm(E[:3, 3]) < 2e-3
+
+
+def test_swapping_the_streams_negates_the_offset() -> None:
+    offset = -87_654_321_000
+    a, b = rig(offset, seed=5, duration_s=30)
+    assert abs(estimate_time_offset(b, a).offset_ns + offset) < 1 * MS
+
+
+def test_gaps_jumps_and_partial_overlap_are_tolerated() -> None:
+    offset = 31_415_926_535
+    a, b = rig(offset, seed=6, jumps=5)
+    t = (b.stamps_ns - b.stamps_ns[0]) / 1e9
+    b = b.select(((t < 12) | (t > 17)) & (t < 30))          # a 5 s hole, and b stops 10 s early
+    est = estimate_time_offset(a, b)
+    assert abs(est.offset_ns - offset) < 1 * MS
+
+
+def test_a_search_bound_is_honoured() -> None:
+    offset = 100_000_000_000
+    a, b = rig(offset, seed=7, duration_s=30)
+    assert abs(estimate_time_offset(a, b, max_offset_s=150).offset_ns - offset) < 1 * MS
+    try:
+        outside = estimate_time_offset(a, b, max_offset_s=50)
+    except HandEyeError:
+        return
+    assert abs(outside.offset_ns) <= 50_000_000_000 + 60 * MS and outside.warnings
+
+
+def test_rotation_free_motion_is_refused() -> None:
+    a, b = rig(3_000_000_000, seed=8, motion="linear")
+    with pytest.raises(HandEyeError, match=f"do not correlate .* < {MIN_CORRELATION}"):
+        estimate_time_offset(a, b)
+
+
+@pytest.mark.parametrize("n_samples", [0, 1, 5, 55])
+def test_too_short_streams_are_refused(n_samples: int) -> None:
+    a, b = rig(0, seed=9, duration_s=10)
+    with pytest.raises(HandEyeError, match="too short to estimate a time offset"):
+        estimate_time_offset(a, b.select(np.arange(n_samples)))
+
+
+def periodic_streams(offset_ns: int) -> tuple[PoseStream, PoseStream]:
+    """A rotation whose speed repeats every 2 s (a robot arm repeating one move), 100 Hz / 30 Hz."""
+    def stream(rate: float, shift_ns: int, T_s: np.ndarray) -> PoseStream:
+        t = np.arange(int(20 * rate)) / rate
+        angle = t + (1 - np.cos(np.pi * t)) / (2 * np.pi)        # speed 1 + 0.5 sin(πt) rad/s
+        T = np.tile(np.eye(4), (len(t), 1, 1))
+        T[:, :3, :3] = Rotation.from_rotvec(np.outer(angle, [0.3, 0.2, 0.93])).as_matrix()
+        return PoseStream.from_matrices(10**18 + shift_ns + np.round(t * 1e9).astype(np.int64), T @ T_s)
+    return stream(100, 0, np.eye(4)), stream(30, offset_ns, X)
+
+
+def test_repetitive_motion_is_flagged_as_ambiguous() -> None:
+    a, b = periodic_streams(5_000_000_000)
+    est = estimate_time_offset(a, b)
+    assert any("ambiguous" in w for w in est.warnings)
+    periods = (est.offset_ns - 5_000_000_000) / 2e9
+    assert abs(periods - round(periods)) * 2e9 < MS          # right, or off by whole 2 s periods
