@@ -61,12 +61,15 @@ def test_a_jump_in_b_does_not_leak_into_interpolated_neighbours() -> None:
 
 @pytest.mark.parametrize("method", ["interpolate", "nearest"])
 def test_relocalisation_starts_a_new_segment_and_no_pair_spans_it(method: str) -> None:
-    a, b = simulate_rig(Rig(X), **RIG)
+    a, b = simulate_rig(Rig(X), **RIG, T_wb_wa=np.eye(4))
     k = len(b) // 2
     b = shifted_from(b, k, 0.25)         # interpolating across it would hide it in 8 cm steps
     synced, _ = associate(a, b, method=method)
     kept, counts = pose_jump_gate(synced)
     assert counts["accepted_jumps"] == 1 and counts["jumps_b"] == 0
+    truth = (kept.T_a @ X)[:, :3, 3] + np.outer(kept.segment, [0.25, 0.0, 0.0])
+    tolerance = 5e-3 if method == "interpolate" else 0.1          # nearest: up to 1/60 s of motion
+    assert np.linalg.norm(kept.T_b[:, :3, 3] - truth, axis=1).max() < tolerance   # nothing bridges the shift
     boundary = b.stamps_ns[k]
     np.testing.assert_array_equal(kept.segment, (kept.stamps_ns >= boundary if method == "interpolate"
                                                  else kept.segment > 0).astype(int))

@@ -36,6 +36,17 @@ def test_offsets_of_minutes_are_found_within_a_millisecond(offset_s: float) -> N
     assert est.correlation > 0.95 and est.warnings == ()
 
 
+def test_refinement_beats_the_coarse_peak_under_heavy_noise() -> None:
+    final, coarse = [], []
+    for seed in range(6):
+        offset = 10_000_000_000 + seed * 777_777_777
+        est = estimate_time_offset(*rig(offset, seed=seed, sigma_r=np.deg2rad(0.4), sigma_t=0.004))
+        final.append(est.offset_ns - offset)
+        coarse.append(est.coarse_ns - offset)
+    rms = [float(np.sqrt(np.mean(np.square(e)))) for e in (final, coarse)]
+    assert np.max(np.abs(final)) < 1 * MS and rms[0] < 0.6 * rms[1]
+
+
 def test_streams_that_do_not_overlap_in_raw_time_are_aligned_and_calibrated() -> None:
     offset = 200_000_000_000 + 12_345_678
     a, b = rig(offset, seed=4, duration_s=30)
