@@ -167,9 +167,29 @@ def _merged(channels: Sequence[Channel]) -> list[tuple[int, int, Any]]:
 
 
 # --- containers -----------------------------------------------------------------------------
+def _idl_struct(msgtype: str, fields: Sequence[tuple[str, str]]) -> str:
+    pkg, _, name = msgtype.split("/")
+    body = "".join(f"      {typ} {field};\n" for typ, field in fields)
+    return f"module {pkg} {{\n  module msg {{\n    struct {name} {{\n{body}    }};\n  }};\n}};\n"
+
+
+_IDL_SEP = "=" * 80 + "\n"
+POSE_STAMPED_IDL = "".join(f"{_IDL_SEP}IDL: {t}\n{_idl_struct(t, f)}" for t, f in {
+    POSE: [("std_msgs::msg::Header", "header"), ("geometry_msgs::msg::Pose", "pose")],
+    "std_msgs/msg/Header": [("builtin_interfaces::msg::Time", "stamp"), ("string", "frame_id")],
+    "builtin_interfaces/msg/Time": [("int32", "sec"), ("uint32", "nanosec")],
+    "geometry_msgs/msg/Pose": [("geometry_msgs::msg::Point", "position"),
+                               ("geometry_msgs::msg::Quaternion", "orientation")],
+    "geometry_msgs/msg/Point": [("double", "x"), ("double", "y"), ("double", "z")],
+    "geometry_msgs/msg/Quaternion": [("double", "x"), ("double", "y"), ("double", "z"), ("double", "w")],
+}.items())
+"""PoseStamped as a ``ros2idl`` MCAP schema (rosbag2's layout: one IDL block per type)."""
+
+
 def write_mcap(path: str | Path, channels: Sequence[Channel], *, ros1: bool = False,
-               compression: str = "zstd", chunk_size: int = 1024 * 1024) -> Path:
-    """An MCAP (profile ros2, or ros1 with ``ros1=True``); ``foxglove.*`` channels are JSON."""
+               compression: str = "zstd", chunk_size: int = 1024 * 1024, idl: bool = False) -> Path:
+    """An MCAP (profile ros2, or ros1 with ``ros1=True``); ``foxglove.*`` channels are JSON;
+    ``idl=True`` stores PoseStamped schemas as ``ros2idl`` instead of ``ros2msg``."""
     path = Path(path)
     store = ROS1_STORE if ros1 else ROS2_STORE
     with open(path, "wb") as f:
@@ -181,6 +201,9 @@ def write_mcap(path: str | Path, channels: Sequence[Channel], *, ros1: bool = Fa
                 schema = json.dumps({"title": ch.msgtype, "type": "object"}).encode()
                 sid = w.register_schema(ch.msgtype, "jsonschema", schema)
                 ids.append(w.register_channel(ch.topic, "json", sid))
+            elif idl and ch.msgtype == POSE and not ros1:
+                sid = w.register_schema(POSE, "ros2idl", POSE_STAMPED_IDL.encode())
+                ids.append(w.register_channel(ch.topic, "cdr", sid))
             else:
                 text, _ = store.generate_msgdef(ch.msgtype, ros_version=1 if ros1 else 2)
                 name = ch.msgtype.replace("/msg/", "/") if ros1 else ch.msgtype

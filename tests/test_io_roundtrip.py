@@ -52,6 +52,14 @@ def test_foxglove_json_round_trip(tmp_path, truth, msgtype):
     assert_same(read_stream(path, topic="/cdr"), truth)
 
 
+@pytest.mark.parametrize("with_json", [False, True], ids=["ros2-only", "mixed"])
+def test_ros2idl_schema(tmp_path, truth, with_json):
+    """IDL schemas are decoded by AnyReader (pure ROS 2 file) or by handeye's mcap path (mixed)."""
+    extra = [pose_channel("/fox", "foxglove.PoseInFrame", records(truth))] if with_json else []
+    path = write_mcap(tmp_path / "idl.mcap", [pose_channel("/p", POSE, records(truth, "map", "")), *extra], idl=True)
+    assert_same(read_stream(path, topic="/p"), truth)
+
+
 @pytest.mark.parametrize("kind", LOG_KINDS)
 def test_log_time_on_request(tmp_path, truth, kind):
     offset = 1_234_567     # recorder receives each message 1.23 ms after its header stamp

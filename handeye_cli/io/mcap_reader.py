@@ -41,6 +41,7 @@ class McapSource:
             with unreadable(self.name, _RECOVER):
                 self._reader = make_reader(self._file)
                 summary = self._reader.get_summary() if isinstance(self._reader, SeekingReader) else None
+                profile = self._reader.get_header().profile
             if summary is None or summary.statistics is None:
                 raise HandEyeError("MCAP file has no summary section (unfinished or truncated recording?)",
                                    self.name, _RECOVER)
@@ -49,8 +50,8 @@ class McapSource:
             raise
         self._summary = summary
         self._path = path
-        self._bag: BagSource | None = None
-        self._ros2 = (self._reader.get_header().profile == "ros2"
+        self._bag: BagSource | None = None      # AnyReader on this file, opened by the first read()
+        self._ros2 = (profile == "ros2"
                       and all(ch.message_encoding == "cdr" for ch in summary.channels.values())
                       and all(sc.encoding in _ROS2_SCHEMAS for sc in summary.schemas.values()))
 
