@@ -48,8 +48,13 @@ def read_stream(paths: str | Path | Sequence[str | Path], *, topic: str | None =
     columns (keys ``t, t_unit, x, y, z, qx, qy, qz, qw``).
 
     ``time_source``: ``"header"`` (header.stamp / each transform's stamp) or ``"log"`` (the
-    recorder's log time; logs only). Stamps come back sorted, exact duplicates dropped and
-    counted in ``duplicates_dropped``. Raises HandEyeError on any bad input.
+    recorder's log time; logs only). ``quiet=False`` shows a progress bar on stderr when stderr
+    is a terminal.
+
+    Returns the poses of the child frame in the parent frame (text files: ``T_world_<file stem>``):
+    int64 nanosecond stamps sorted ascending (exact duplicate stamps dropped, first kept, counted
+    in ``duplicates_dropped``), positions in metres, unit Hamilton quaternions in x-y-z-w order.
+    Raises HandEyeError (one line: what, where, how to fix) on any bad input.
     """
     plist = [paths] if isinstance(paths, (str, Path)) else list(paths)
     if not plist:

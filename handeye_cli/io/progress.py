@@ -11,6 +11,8 @@ __all__ = ["Progress", "progress"]
 
 
 class Progress(Protocol):
+    """What ``progress`` yields: ``update(n)`` advances the bar by n messages."""
+
     def update(self, n_steps: int) -> None: ...
 
 

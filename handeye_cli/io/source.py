@@ -34,4 +34,4 @@ class LogSource(Protocol):
 
     def read(self, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes, Decoder]]:
         """(topic, log_time_ns, raw message, decoder raw → pose records) for every message of
-        ``topics`` (pose types only), in file order; HandEyeError on a corrupt container."""
+        ``topics`` (pose types only), in file or log-time order; HandEyeError on a corrupt container."""
