@@ -92,20 +92,20 @@ def read_streams(spec_a: StreamSpec, spec_b: StreamSpec, config: dict | None = N
     return streams[0], streams[1]
 
 
-def _time_offset(a: PoseStream, b: PoseStream, sync: dict) -> tuple[int, dict]:
-    """The offset [ns] b's clock is ahead of a's, and its report."""
+def _time_offset(a: PoseStream, b: PoseStream, sync: dict) -> tuple[int, dict, list[str]]:
+    """The offset [ns] b's clock is ahead of a's, its report, and warnings about it."""
     value = sync["time_offset"]
     if isinstance(value, str) and value.strip().lower() == "auto":
         est = estimate_time_offset(a, b, max_offset_s=sync["max_time_offset"])
         return est.offset_ns, {"seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,
                                "coarse_seconds": est.coarse_ns / 1e9, "correlation": est.correlation,
-                               "method": est.method}
+                               "method": est.method}, list(est.warnings)
     try:
         seconds = float(value)
     except (TypeError, ValueError):
         raise HandEyeError(f"bad time offset {value!r}", "sync.time_offset",
                            "give seconds (b's clock ahead of a's) or 'auto'") from None
-    return int(round(seconds * 1e9)), {"seconds": seconds, "method": "fixed"}
+    return int(round(seconds * 1e9)), {"seconds": seconds, "method": "fixed"}, []
 
 
 def _too_few(pairs: Pairs, samples: dict, cfg: dict) -> HandEyeError:
@@ -141,7 +141,7 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, config: dict | None = 
     returns (default: the defaults). Raises HandEyeError on data that cannot be calibrated."""
     cfg = config or load_config()
     sync, gates, pc, solver = cfg["sync"], cfg["gates"], cfg["pairs"], cfg["solver"]
-    offset_ns, offset_report = _time_offset(stream_a, stream_b, sync)
+    offset_ns, offset_report, warnings = _time_offset(stream_a, stream_b, sync)
     synced, counts = associate(stream_a, stream_b, method=sync["method"],
                                max_dt_ns=int(round(float(sync["max_dt"]) * 1e9)), time_offset_ns=offset_ns)
     max_rot = gates["max_rotation_deg"]
@@ -158,7 +158,7 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, config: dict | None = 
         raise _too_few(pairs, samples, cfg)
     solution = solve(pairs.A, pairs.B, method=solver["method"], alpha=float(solver["alpha"]),
                      prior=_prior(solver))
-    return Calibration(solution, stream_a, stream_b, kept, pairs, samples, cfg,
+    return Calibration(solution, stream_a, stream_b, kept, pairs, samples, cfg, warnings=warnings,
                        diagnostics={"time_offset": offset_report}, inputs=dict(inputs or {}))
 
 
