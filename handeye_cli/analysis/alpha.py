@@ -35,8 +35,9 @@ class AlphaChoice:
     """The chosen α [1/m] and the evidence for it.
 
     ``grid`` (K,) are the α tried; ``rotation_rms_deg`` and ``translation_rms_m`` (K,) the
-    predicted RMS errors of X at each [deg], [m]; ``rotation_rms_deg_at`` / ``translation_rms_m_at``
-    those at the chosen α; ``method`` is ``"sandwich"`` or ``"residual-ratio"``.
+    predicted RMS errors of X at each [deg], [m] (NaN for the residual-ratio rule, which predicts
+    none); ``index`` locates the chosen α in the grid; ``method`` is ``"sandwich"`` or
+    ``"residual-ratio"``.
     """
 
     alpha: float
@@ -53,9 +54,10 @@ class AlphaChoice:
     def as_dict(self) -> dict:
         """Plain summary for the result file."""
         i = self.index
+        rot, trans = float(self.rotation_rms_deg[i]), float(self.translation_rms_m[i])
         return {"alpha": self.alpha, "method": self.method,
-                "predicted_rotation_rms_deg": float(self.rotation_rms_deg[i]),
-                "predicted_translation_rms_m": float(self.translation_rms_m[i])}
+                "predicted_rotation_rms_deg": rot if np.isfinite(rot) else None,
+                "predicted_translation_rms_m": trans if np.isfinite(trans) else None}
 
 
 def _predicted_errors(A: np.ndarray, B: np.ndarray, grid: np.ndarray, prior: Prior | None,
@@ -88,6 +90,11 @@ def auto_alpha(motions_a: np.ndarray, motions_b: np.ndarray, *, prior: Prior | N
         As for :func:`handeye_cli.solvers.solve` (e.g. an inlier mask as weights).
     grid:
         Candidate α values [1/m]; default :data:`DEFAULT_GRID`.
+
+    Raises
+    ------
+    HandEyeError
+        As :func:`handeye_cli.solvers.solve` (e.g. exactly degenerate motion without a prior).
 
     Returns
     -------

@@ -77,13 +77,14 @@ def residuals_batch(motions_a: np.ndarray, motions_b: np.ndarray,
     qa, Ra, ta = _rotation_parts(motions_a)
     qb, _, tb = _rotation_parts(motions_b)
     qx, Rx, tx = _rotation_parts(X)
-    p1 = dq.multiply(qa[None], qx[:, None])                       # q_A ⊗ q_X   (H, N, 4)
-    p2 = dq.multiply(qx[:, None], qb[None])                       # q_X ⊗ q_B
-    d = np.minimum(np.linalg.norm(p1 - p2, axis=-1), np.linalg.norm(p1 + p2, axis=-1))
-    rot = 4.0 * np.arcsin(np.clip(0.5 * d, 0.0, 1.0))
-    res_t = (np.einsum("nij,hj->hni", Ra, tx) + ta[None] - np.einsum("hij,nj->hni", Rx, tb)
-             - tx[:, None])
-    return rot, np.linalg.norm(res_t, axis=-1)
+    n, h = len(qa), len(qx)
+    p1 = qa @ np.swapaxes(dq.right(qx), 1, 2)                     # q_A ⊗ q_X = R(q_X) q_A   (H, N, 4)
+    p2 = qb @ np.swapaxes(dq.left(qx), 1, 2)                      # q_X ⊗ q_B = L(q_X) q_B
+    d2 = np.minimum(np.sum((p1 - p2) ** 2, axis=-1), np.sum((p1 + p2) ** 2, axis=-1))   # q ~ -q
+    rot = 4.0 * np.arcsin(np.clip(0.5 * np.sqrt(d2), 0.0, 1.0))
+    Ra_tx = (Ra.reshape(3 * n, 3) @ tx.T).T.reshape(h, n, 3)      # R_A t_X
+    res_t = Ra_tx + ta[None] - tb @ np.swapaxes(Rx, 1, 2) - tx[:, None]
+    return rot, np.sqrt(np.sum(res_t * res_t, axis=-1))
 
 
 def pair_residuals(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np.ndarray) -> Residuals:

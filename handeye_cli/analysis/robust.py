@@ -9,8 +9,8 @@ Algorithm (:func:`robust_solve`):
    vectorised, with the two-step method (DQ2Steps, Alg. 2): the rotation is the smallest
    eigenvector of ``Σ E_iᵀE_i`` (eq 19, E_i from eq 7), the translation the least-squares
    solution of ``(R_Ai - I) t = R_X t_Bi - t_Ai``.
-2. **Scoring without a threshold (LMedS).** Every hypothesis is scored by the median over all
-   pairs of ``(r_rot/s_rot)² + (r_t/s_t)²``, where ``s`` is the smallest per-hypothesis median
+2. **Scoring without a threshold (LMedS).** Every hypothesis is scored by the median over the
+   pairs (a random subset of ``score_pairs`` for large N) of ``(r_rot/s_rot)² + (r_t/s_t)²``, where ``s`` is the smallest per-hypothesis median
    residual; the best hypothesis survives up to 50 % outliers.
 3. **Data-derived threshold.** For residual magnitudes the median is the MAD about zero;
    a pair is an inlier when both its residuals are ≤ ``k`` × the inliers' median residual
@@ -105,6 +105,14 @@ def minimal_hypotheses(motions_a: np.ndarray, motions_b: np.ndarray, sets: np.nd
     return X
 
 
+def _chunked_residuals(A: np.ndarray, B: np.ndarray, cand: np.ndarray,
+                       budget: int = 1 << 20) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`residuals_batch` over the candidates in chunks of about ``budget`` (candidate, pair) cells."""
+    step = max(1, budget // len(A))
+    parts = [residuals_batch(A, B, cand[i:i + step]) for i in range(0, len(cand), step)]
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+
 def _lmeds_best(rot: np.ndarray, trans: np.ndarray) -> int:
     """Index of the hypothesis with the least median of the normalised squared residuals."""
     tiny = np.finfo(float).tiny
@@ -125,7 +133,7 @@ def _inlier_mask(rot: np.ndarray, trans: np.ndarray, basis: np.ndarray, k: float
 def robust_solve(motions_a: np.ndarray, motions_b: np.ndarray, *, method: str = "dqopt",
                  alpha: float = 1.0, prior: Prior | None = None, hypotheses: int = 256,
                  sample_size: int = 3, k: float = 3.0, max_refinements: int = 10,
-                 seed: int = 0) -> RobustResult:
+                 score_pairs: int = 2000, seed: int = 0) -> RobustResult:
     """Estimate ``T_a_b`` from motion pairs of which a minority are gross outliers.
 
     Parameters
@@ -139,6 +147,10 @@ def robust_solve(motions_a: np.ndarray, motions_b: np.ndarray, *, method: str = 
         axes differ; 3 is more robust to noise).
     k:
         Inlier threshold in multiples of the inliers' median residual (rotation and translation).
+    max_refinements:
+        Cap on the solve / re-threshold rounds of step 4.
+    score_pairs:
+        Hypotheses are scored on a random subset of this many pairs when there are more.
     seed:
         Seed of the sampling; the result is deterministic for a given seed.
 
@@ -160,11 +172,12 @@ def robust_solve(motions_a: np.ndarray, motions_b: np.ndarray, *, method: str = 
                            "motion pairs, or solve without --robust")
     rng = np.random.default_rng(seed)
     cand = minimal_hypotheses(A, B, _sample_sets(n, sample_size, hypotheses, rng))
-    rot, trans = residuals_batch(A, B, cand)
-    best = _lmeds_best(rot, trans)
-    rot, trans = rot[best], trans[best]
-    half = np.argsort((rot / max(np.median(rot), 1e-300)) ** 2 + (trans / max(np.median(trans), 1e-300)) ** 2)
-    mask, tau_r, tau_t = _inlier_mask(rot, trans, half[: max(n // 2, sample_size)], k)
+    scored = np.sort(rng.choice(n, score_pairs, replace=False)) if n > score_pairs else slice(None)
+    best = _lmeds_best(*_chunked_residuals(A[scored], B[scored], cand))
+    r, t = residuals_batch(A, B, cand[best:best + 1])
+    rot, trans = r[0], t[0]
+    order = np.argsort((rot / max(np.median(rot), 1e-300)) ** 2 + (trans / max(np.median(trans), 1e-300)) ** 2)
+    mask, tau_r, tau_t = _inlier_mask(rot, trans, order[: max(n // 2, sample_size)], k)   # scale: best half
     solution, refinements = None, 0
     for refinements in range(1, max_refinements + 1):
         solution = solve(A, B, method=method, alpha=alpha, prior=prior, weights=mask.astype(float))
