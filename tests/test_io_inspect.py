@@ -47,7 +47,8 @@ def test_inspect_log(tmp_path, streams, kind):
     assert topics["/cam0/pose"] == {"topic": "/cam0/pose", "type": POSE, "encoding": enc, "count": len(a),
                                     "rate_hz": round(len(a) / (last - first) * 1e9, 3), "pose": True}
     assert topics["/odom"]["count"] == len(b) and topics["/odom"]["pose"]
-    assert topics["/tf"]["type"] == TF and topics["/tf"]["pose"]
+    assert topics["/tf"]["type"] == TF and not topics["/tf"]["pose"]           # two frame pairs
+    assert topics["/tf_static"]["type"] == TF and topics["/tf_static"]["pose"]  # one pair
     assert topics["/notes"]["type"] == "std_msgs/msg/String" and not topics["/notes"]["pose"]
     assert info["tf_frames"] == [{"parent": "base", "child": "cam1", "static": False, "count": len(b)},
                                  {"parent": "cam1", "child": "lens", "static": True, "count": 1},

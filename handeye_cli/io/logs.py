@@ -79,12 +79,15 @@ def read_topic(src: LogSource, topic: str, *, time_source: str = "header",
                        time_source=time_source, where=lambda i: f"message {i}")
 
 
-def _tf_tree(src: LogSource, infos: list[TopicInfo], time_source: str, quiet: bool) -> TfTree:
+def _tf_tree(src: LogSource, infos: list[TopicInfo], time_source: str,
+             quiet: bool) -> tuple[TfTree, dict[str, set[tuple[str, str]]]]:
+    """The TF tree of every TF topic, and the (parent, child) pairs each TF topic carries."""
     tree = TfTree(src.name)
-    tf_infos = [t for t in infos if t.msgtype in TF_TYPES]
-    for topic, recs in _records(src, tf_infos, "reading TF", time_source, quiet):
+    pairs: dict[str, set[tuple[str, str]]] = {t.topic: set() for t in infos if t.msgtype in TF_TYPES}
+    for topic, recs in _records(src, [t for t in infos if t.topic in pairs], "reading TF", time_source, quiet):
         tree.add(recs, static=is_static_topic(topic))
-    return tree
+        pairs[topic].update((r[1], r[2]) for r in recs)
+    return tree, pairs
 
 
 def read_frames(src: LogSource, parent: str, child: str, *, time_source: str = "header",
@@ -94,17 +97,23 @@ def read_frames(src: LogSource, parent: str, child: str, *, time_source: str = "
     if not any(t.msgtype in TF_TYPES for t in infos):
         raise HandEyeError("no TF topics (/tf, /tf_static) in this file", src.name,
                            f"read a pose topic instead; pose topics: {_pose_topics(infos)}")
-    return _tf_tree(src, infos, time_source, quiet).lookup(parent, child, time_source=time_source)
+    return _tf_tree(src, infos, time_source, quiet)[0].lookup(parent, child, time_source=time_source)
 
 
 def inspect_source(src: LogSource, quiet: bool = True) -> dict:
-    """Topics (type, encoding, count, mean rate over the log's span, pose-carrying?) and TF edges."""
+    """Topics (type, encoding, count, mean rate over the log's span, ``pose``: readable as one
+    pose stream with ``read_topic`` — a TF topic only when it carries a single frame pair) and
+    the TF edges."""
     infos = src.topics()
     span = src.span()
     duration = span[1] - span[0] if span else 0
+    tree, tf_pairs = _tf_tree(src, infos, "header", quiet)
+
+    def one_stream(t: TopicInfo) -> bool:
+        return t.msgtype in POSE_TYPES and (t.topic not in tf_pairs or len(tf_pairs[t.topic]) == 1)
+
     topics = [{"topic": t.topic, "type": t.msgtype, "encoding": t.encoding, "count": t.count,
                "rate_hz": round(t.count / duration * 1e9, 3) if duration else 0.0,
-               "pose": t.msgtype in POSE_TYPES} for t in sorted(infos, key=lambda t: t.topic)]
+               "pose": one_stream(t)} for t in sorted(infos, key=lambda t: t.topic)]
     return {"start_ns": span[0] if span else None, "end_ns": span[1] if span else None,
-            "duration_ns": duration, "topics": topics,
-            "tf_frames": _tf_tree(src, infos, "header", quiet).edges()}
+            "duration_ns": duration, "topics": topics, "tf_frames": tree.edges()}
