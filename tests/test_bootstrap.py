@@ -100,3 +100,46 @@ def test_vectorised_dqopt_matches_the_project_dqopt(scenario):
     Q = replicate_grams(A, B, counts, alpha=0.5)
     want = np.array([dq.to_transform(r.q, r.qd) for r in map(dqopt, replicate_problems(A, B, counts, alpha=0.5))])
     np.testing.assert_allclose(_solve_replicates(Q), want, atol=1e-9)
+
+
+def test_samples_bootstrap_accounts_for_pairs_sharing_poses():
+    """Keyframe pairs reuse each pose in many pairs: resampling poses (vertex bootstrap) must
+    spread wider than resampling pairs, and its intervals must contain the truth."""
+    from handeye_cli.pairs import make_pairs
+    from handeye_cli.sync import associate
+    from handeye_cli.synthetic import Rig, simulate_rig
+    hits, ratio = np.zeros(6), []
+    for seed in range(6):
+        X = random_transform(np.random.default_rng(seed), 0.3)
+        a, b = simulate_rig(Rig(X), duration_s=40, rate_a=30, rate_b=12, sigma_r=np.deg2rad(0.2),
+                            sigma_t=0.002, seed=seed)
+        pairs, _ = make_pairs(associate(a, b)[0], "keyframes", max_pairs=1000)
+        by_pairs = bootstrap(pairs.A, pairs.B, 200, seed=seed)
+        by_samples = bootstrap(pairs.A, pairs.B, 200, seed=seed, samples=(pairs.i, pairs.j))
+        ratio.append(np.r_[by_samples.rotation_std_deg / by_pairs.rotation_std_deg,
+                           by_samples.translation_std_m / by_pairs.translation_std_m])
+        hits += np.concatenate(by_samples.contains(X))
+    assert np.median(ratio) > 1.5, np.median(ratio, axis=0)
+    assert (hits >= 5).all(), hits
+
+
+def test_samples_weights_are_products_of_sample_counts():
+    from handeye_cli.analysis.bootstrap import _sample_counts
+    i, j = np.array([0, 0, 1, 5]), np.array([1, 2, 2, 7])
+    k, w = _sample_counts((i, j), np.arange(4), 3, np.random.default_rng(0))
+    assert k == 5 and w.shape == (3, 4)
+    k, w2 = _sample_counts((i, j), np.array([0, 2]), 3, np.random.default_rng(0))
+    assert k == 3 and w2.shape == (3, 2)
+    rng = np.random.default_rng(0)
+    c = rng.multinomial(5, np.full(5, 0.2), size=3).astype(float)       # nodes 0, 1, 2, 5, 7
+    np.testing.assert_array_equal(w, np.c_[c[:, 0] * c[:, 1], c[:, 0] * c[:, 2], c[:, 1] * c[:, 2], c[:, 3] * c[:, 4]])
+
+
+def test_dyadic_sandwich_reduces_to_the_plain_one_when_no_sample_is_shared():
+    X, A, B = _data(7, 60)
+    sol = solve(A, B)
+    plain = linear_covariance(A, B, sol.matrix)
+    distinct = linear_covariance(A, B, sol.matrix, samples=(np.arange(0, 120, 2), np.arange(1, 120, 2)))
+    np.testing.assert_allclose(distinct.covariance, plain.covariance * (120 / 114) * (54 / 60), rtol=1e-9)
+    chained = linear_covariance(A, B, sol.matrix, samples=(np.arange(60), np.arange(1, 61)))
+    assert not np.allclose(chained.covariance, plain.covariance)

@@ -11,7 +11,8 @@ rows ``K_i = [E_i, 0; αF_i, αE_i]`` (eqs 6–8) and the Lagrangian of §3.1,
 
 * Hessian along the constraint set: ``H = Dᵀ (Q - Λ) D``, ``Λ = [λI, μI; μI, 0]`` (λ, μ from eq 10);
 * per-pair score: ``g_i = Dᵀ K_iᵀ K_i x``;
-* covariance of δ: ``H⁻¹ (Σ g_i g_iᵀ) H⁻¹ · n/(n-6)`` — the sandwich form (with the HC1
+* covariance of δ: ``H⁻¹ (Σ g_i g_iᵀ) H⁻¹ · n/(n-6)`` (or the dyadic-robust sum over shared
+  pose samples) — the sandwich form (with the HC1
   degrees-of-freedom factor), valid whatever α is, because it measures the noise from the
   residuals instead of assuming that α weighs it correctly.
 
@@ -81,14 +82,31 @@ def _error_map(t: np.ndarray) -> np.ndarray:
     return T
 
 
+def _meat(G: np.ndarray, samples: tuple[np.ndarray, np.ndarray] | None) -> tuple[np.ndarray, int]:
+    """``Σ g gᵀ`` over independent units and their number: pairs, or — when pairs share pose
+    samples ``(i, j)`` — the dyadic-robust sum ``Σ_n s_n s_nᵀ - Σ_k g_k g_kᵀ`` with ``s_n`` the
+    summed scores of the pairs touching sample n (clipped to PSD)."""
+    if samples is None:
+        return G.T @ G, len(G)
+    i, j = (np.asarray(v).reshape(-1) for v in samples)
+    nodes, inv = np.unique(np.concatenate([i, j]), return_inverse=True)
+    S = np.zeros((len(nodes), G.shape[1]))
+    np.add.at(S, inv[: len(G)], G)
+    np.add.at(S, inv[len(G):], G)
+    lam, V = np.linalg.eigh(S.T @ S - G.T @ G)
+    return (V * np.clip(lam, 0.0, None)) @ V.T, len(nodes)
+
+
 def linear_covariance(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np.ndarray, *,
-                      alpha: float = 1.0, prior: Prior | None = None,
-                      weights: np.ndarray | None = None) -> LinearCovariance:
+                      alpha: float = 1.0, prior: Prior | None = None, weights: np.ndarray | None = None,
+                      samples: tuple[np.ndarray, np.ndarray] | None = None) -> LinearCovariance:
     """Sandwich covariance of the cost-(8) minimiser at ``T_a_b`` (which should be that minimiser).
 
     Parameters are those of :func:`handeye_cli.solvers.solve`; α in 1/m. The prior adds
-    curvature (eq 29) but no noise. Returns a :class:`LinearCovariance`; for a singular Hessian
-    the pseudo-inverse is used and ``singular`` is set.
+    curvature (eq 29) but no noise. ``samples = (i, j)`` (the pose samples each pair was formed
+    from) switches to the dyadic-robust form for pairs that share samples (see
+    :func:`handeye_cli.analysis.bootstrap`). Returns a :class:`LinearCovariance`; for a singular
+    Hessian the pseudo-inverse is used and ``singular`` is set.
     """
     A, B, w = validate_motions(motions_a, motions_b, weights)
     problem = build_problem(A, B, alpha=alpha, prior=prior, weights=w)
@@ -109,8 +127,9 @@ def linear_covariance(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np.nd
     ev = np.linalg.eigvalsh(H)
     singular = bool(ev[0] <= 1e-12 * max(abs(ev[-1]), 1e-300))
     Hinv = np.linalg.pinv(H, hermitian=True)
-    n = int(np.count_nonzero(w))
-    cov = Hinv @ (G.T @ G) @ Hinv * (n / (n - 6) if n > 12 else 2.0)        # HC1 correction
+    keep = w > 0
+    meat, n = _meat(G[keep], None if samples is None else tuple(np.asarray(v)[keep] for v in samples))
+    cov = Hinv @ meat @ Hinv * (n / (n - 6) if n > 12 else 2.0)              # HC1 correction
     Tm = _error_map(np.asarray(T_a_b, dtype=float)[:3, 3])
     Tinv = np.linalg.inv(Tm)
     return LinearCovariance(Tm @ cov @ Tm.T, Tinv.T @ H @ Tinv, singular)

@@ -244,7 +244,8 @@ def assess_observability(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np
                          alpha: float = 1.0, prior: Prior | None = None, weights: np.ndarray | None = None,
                          min_pairs: int = 10, min_rotation_deg: float = 1.0, small_rotation_deg: float = 2.0,
                          max_axis_spread_deg: float = 2.0, fixed_line_tolerance: float = 0.02,
-                         max_rotation_std_deg: float = 1.0, max_translation_std_m: float = 0.05) -> Observability:
+                         max_rotation_std_deg: float = 1.0, max_translation_std_m: float = 0.05,
+                         samples: tuple[np.ndarray, np.ndarray] | None = None) -> Observability:
     """Detect degenerate motion and name the unobservable directions of ``T_a_b``.
 
     Parameters
@@ -266,6 +267,9 @@ def assess_observability(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np
         Relative misfit below which single-axis motions count as rotations about one fixed line.
     max_rotation_std_deg, max_translation_std_m:
         Predicted standard deviations above these → ``ill_conditioned``.
+    samples:
+        Optional ``(i, j)`` pose-sample indices of each pair, for the dyadic-robust covariance
+        when pairs share samples (see :func:`.linear_covariance`).
 
     Returns
     -------
@@ -274,6 +278,7 @@ def assess_observability(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np
     A, B, w = validate_motions(motions_a, motions_b, weights)
     keep = w > 0
     A, B, w = A[keep], B[keep], w[keep]
+    samples = None if samples is None else tuple(np.asarray(v).reshape(-1)[keep] for v in samples)
     X = np.asarray(T_a_b, dtype=float) if T_a_b is not None else _estimate(A, B, alpha, prior, w)
     R_x = X[:3, :3]
     rotvec = Rotation.from_matrix(A[:, :3, :3]).as_rotvec()
@@ -297,7 +302,7 @@ def assess_observability(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np
         if spread < max_axis_spread_deg:
             found += _single_axis(A[rotating], len(A), axis, spread, max_axis_spread_deg, fixed_line_tolerance, R_x)
     try:
-        cov = linear_covariance(A, B, X, alpha=alpha, prior=prior, weights=w)
+        cov = linear_covariance(A, B, X, alpha=alpha, prior=prior, weights=w, samples=samples)
     except (HandEyeError, np.linalg.LinAlgError):
         cov = None
     if cov is not None:
