@@ -207,7 +207,10 @@ def _summary(doc: dict) -> str:
               "[default: 1,1].")
 @click.option("--robust", is_flag=True, default=None, help="Reject outlier pairs before the final solve.")
 @click.option("--bootstrap", type=int, metavar="N", help="Uncertainty from N bootstrap resamples.")
-@click.option("--strict", is_flag=True, default=None, help="Exit with code 3 when there are warnings.")
+@click.option("--strict", is_flag=True, default=None, help="Exit with code 3 when there are warnings "
+              "(degenerate motion, suspect residuals, doubtful time offset).")
+@click.option("--report", "report_file", type=click.Path(dir_okay=False), help="Write a self-contained HTML "
+              "report (trajectories, residuals, gates, uncertainty, warnings).")
 @click.option("--config", "config_file", type=click.Path(), help="YAML configuration (see configs/default.yaml); "
               "options given here override it.")
 @_apply(output_options)
@@ -223,6 +226,7 @@ def calibrate(inputs: tuple[str, ...], **o) -> None:
       handeye calibrate sample_data/rig.mcap --topic-a /cam0/pose --topic-b /cam1/pose
       handeye calibrate log.bag --frames-a world cam0 --frames-b odom imu --time-offset auto
       handeye calibrate a.tum b.tum --method dqopt -o extrinsic.json
+      handeye calibrate a.tum b.tum --robust --alpha auto --bootstrap 1000 --report report.html
     """
     from .pipeline import StreamSpec, calibrate_files
 
@@ -238,6 +242,10 @@ def calibrate(inputs: tuple[str, ...], **o) -> None:
     cfg = _gates_off(load_config(o["config_file"], _overrides(o)))
     result = calibrate_files(spec_a, spec_b, cfg, quiet=o["quiet"])
     doc = result.document()
+    if o["report_file"]:
+        from .report import write_report
+
+        write_report(o["report_file"], result, doc, result.bootstrap_deviations())
     emit(doc, o["output"], o["fmt"])
     if not o["quiet"]:
         click.echo(_summary(doc), err=True)

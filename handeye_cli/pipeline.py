@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .analysis import (BootstrapResult, Residuals, RobustResult, assess_observability, auto_alpha, bootstrap,
+                       pair_residuals, robust_solve)
 from .config import load_config
 from .errors import HandEyeError
 from .gates import pose_jump_gate
@@ -49,7 +51,9 @@ class Calibration:
     stream_a, stream_b: the streams as used (after inversion, before the time offset).
     synced: the samples that passed sync and gates; pairs: the motions solved.
     samples: what each stage read, kept and dropped; warnings: human-readable warnings.
-    diagnostics: extra result keys (time offset, …); inputs: what was read.
+    diagnostics: extra result keys (time offset, residuals, …); inputs: what was read.
+    residuals: per-pair residuals at the solution; weights: per-pair weights used (inlier mask
+    with ``robust``, else None); robust, bootstrap: those analyses' results when asked for.
     """
 
     solution: Solution
@@ -59,9 +63,13 @@ class Calibration:
     pairs: Pairs
     samples: dict
     config: dict
+    residuals: Residuals
     warnings: list[str] = field(default_factory=list)
     diagnostics: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)
+    weights: np.ndarray | None = None
+    robust: RobustResult | None = None
+    bootstrap: BootstrapResult | None = None
 
     @property
     def matrix(self) -> np.ndarray:
@@ -71,6 +79,12 @@ class Calibration:
     @property
     def frames(self) -> dict:
         return {"a": self.stream_a.child_frame_id or "a", "b": self.stream_b.child_frame_id or "b"}
+
+    def bootstrap_deviations(self) -> np.ndarray | None:
+        """(K, 6) bootstrap deviations of X: rotation vector [deg] (3), translation [m] (3)."""
+        if self.bootstrap is None:
+            return None
+        return np.c_[self.bootstrap.rotation_deltas_deg, self.bootstrap.translations_m - self.matrix[:3, 3]]
 
     def document(self) -> dict:
         """The result in the schema of DESIGN.md (what ``handeye calibrate`` prints)."""
@@ -134,14 +148,14 @@ def _prior(solver: dict) -> Prior | None:
     return Prior(read_extrinsic(solver["prior"]), float(w[0]), float(w[1]))
 
 
-def calibrate(stream_a: PoseStream, stream_b: PoseStream, config: dict | None = None, *,
-              inputs: dict | None = None) -> Calibration:
-    """Calibrate ``T_a_b`` from two pose streams ``T_wa_a(t)``, ``T_wb_b(t)`` (int64 ns stamps,
-    positions [m], quaternions x-y-z-w); ``config`` as :func:`handeye_cli.config.load_config`
-    returns (default: the defaults). Raises HandEyeError on data that cannot be calibrated."""
-    cfg = config or load_config()
-    sync, gates, pc, solver = cfg["sync"], cfg["gates"], cfg["pairs"], cfg["solver"]
-    offset_ns, offset_report, warnings = _time_offset(stream_a, stream_b, sync)
+# A result whose median residuals exceed these is almost certainly wrong data, not noise.
+_SUSPECT_ROTATION_DEG = 5.0
+_SUSPECT_TRANSLATION_M = 0.2
+
+
+def _pairs(stream_a: PoseStream, stream_b: PoseStream, cfg: dict, offset_ns: int) -> tuple[Synced, Pairs, dict]:
+    """Sync, gates and pair formation: (kept samples, pairs, counts of every stage)."""
+    sync, gates, pc = cfg["sync"], cfg["gates"], cfg["pairs"]
     synced, counts = associate(stream_a, stream_b, method=sync["method"],
                                max_dt_ns=int(round(float(sync["max_dt"]) * 1e9)), time_offset_ns=offset_ns)
     max_rot = gates["max_rotation_deg"]
@@ -154,12 +168,82 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, config: dict | None = 
     samples = {**counts, "duplicates_dropped_a": stream_a.duplicates_dropped,
                "duplicates_dropped_b": stream_b.duplicates_dropped, **jump_counts,
                "synced_kept": len(kept), **pair_counts}
-    if len(pairs) < max(int(solver["min_pairs"]), 2):
+    if len(pairs) < max(int(cfg["solver"]["min_pairs"]), 2):
         raise _too_few(pairs, samples, cfg)
-    solution = solve(pairs.A, pairs.B, method=solver["method"], alpha=float(solver["alpha"]),
-                     prior=_prior(solver))
-    return Calibration(solution, stream_a, stream_b, kept, pairs, samples, cfg, warnings=warnings,
-                       diagnostics={"time_offset": offset_report}, inputs=dict(inputs or {}))
+    return kept, pairs, samples
+
+
+def _is_suspect(res: Residuals, weights: np.ndarray | None) -> bool:
+    s = res.summary(None if weights is None else weights > 0)
+    return s.rotation_median_deg > _SUSPECT_ROTATION_DEG or s.translation_median_m > _SUSPECT_TRANSLATION_M
+
+
+def _inversion_hint(stream_a: PoseStream, stream_b: PoseStream, cfg: dict, offset_ns: int,
+                    res: Residuals) -> str:
+    """When the residuals are implausibly large, try each stream inverted: a stream of
+    ``T_sensor_world`` given as ``T_world_sensor`` is the most common set-up mistake."""
+    base = res.summary()
+    for name, a, b in (("b", stream_a, stream_b.inverted()), ("a", stream_a.inverted(), stream_b)):
+        try:
+            _, pairs, _ = _pairs(a, b, cfg, offset_ns)
+            alt = pair_residuals(pairs.A, pairs.B, solve(pairs.A, pairs.B).matrix).summary()
+        except HandEyeError:
+            continue
+        if alt.rotation_median_deg < base.rotation_median_deg / 5:
+            return (f"stream {name} looks inverted (T_sensor_world instead of T_world_sensor): inverted, the "
+                    f"median residuals drop from {base.rotation_median_deg:.2f}° / {base.translation_median_m:.3f} m "
+                    f"to {alt.rotation_median_deg:.2f}° / {alt.translation_median_m:.3f} m; rerun with --invert-{name} "
+                    f"(or --no-invert-{name} if it was inverted)")
+    return (f"large residuals (median {base.rotation_median_deg:.2f}° / {base.translation_median_m:.3f} m): the streams "
+            "may not be rigidly attached, be mis-synchronised (try --time-offset auto) or come from the wrong topics")
+
+
+def calibrate(stream_a: PoseStream, stream_b: PoseStream, config: dict | None = None, *,
+              inputs: dict | None = None) -> Calibration:
+    """Calibrate ``T_a_b`` from two pose streams ``T_wa_a(t)``, ``T_wb_b(t)`` (int64 ns stamps,
+    positions [m], quaternions x-y-z-w); ``config`` as :func:`handeye_cli.config.load_config`
+    returns (default: the defaults). Raises HandEyeError on data that cannot be calibrated.
+
+    Order: time offset → sync → gates → pairs → [robust: RANSAC inliers] → [α auto] → weighted
+    solve → observability warnings, residuals → [bootstrap].
+    """
+    cfg = config or load_config()
+    solver, analysis, seed = cfg["solver"], cfg["analysis"], int(cfg["pairs"]["seed"])
+    offset_ns, offset_report, warnings = _time_offset(stream_a, stream_b, cfg["sync"])
+    kept, pairs, samples = _pairs(stream_a, stream_b, cfg, offset_ns)
+    A, B, prior = pairs.A, pairs.B, _prior(solver)
+    diagnostics: dict = {"time_offset": offset_report}
+    auto = isinstance(solver["alpha"], str) and solver["alpha"].strip().lower() == "auto"
+    alpha = 1.0 if auto else float(solver["alpha"])
+
+    weights = robust = None
+    if analysis["robust"]:
+        robust = robust_solve(A, B, method=solver["method"], alpha=alpha, prior=prior, seed=seed)
+        weights = robust.inliers.astype(float)
+        diagnostics["robust"] = {**robust.as_dict(), "rejected_times_s": [
+            [pairs.t_i_ns[k] / 1e9, pairs.t_j_ns[k] / 1e9] for k in robust.rejected]}
+    if auto:
+        choice = auto_alpha(A, B, prior=prior, weights=weights)
+        alpha = choice.alpha
+        diagnostics["alpha_auto"] = choice.as_dict()
+    solution = solve(A, B, method=solver["method"], alpha=alpha, prior=prior, weights=weights)
+
+    ij = (pairs.i, pairs.j)
+    obs = assess_observability(A, B, solution.matrix, alpha=alpha, prior=prior, weights=weights, samples=ij)
+    warnings += [str(w) for w in obs.warnings]
+    diagnostics["observability"] = obs.as_dict()
+    res = pair_residuals(A, B, solution.matrix)
+    diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
+    if _is_suspect(res, weights):
+        warnings.append(_inversion_hint(stream_a, stream_b, cfg, offset_ns, res))
+    boot = None
+    if int(analysis["bootstrap"]) > 0:
+        boot = bootstrap(A, B, int(analysis["bootstrap"]), alpha=alpha, prior=prior, weights=weights,
+                         samples=ij, seed=seed)
+        diagnostics["uncertainty"] = {"method": "bootstrap over pose samples", **boot.as_dict()}
+    return Calibration(solution, stream_a, stream_b, kept, pairs, samples, cfg, res, warnings=warnings,
+                       diagnostics=diagnostics, inputs=dict(inputs or {}), weights=weights, robust=robust,
+                       bootstrap=boot)
 
 
 def calibrate_files(spec_a: StreamSpec, spec_b: StreamSpec, config: dict | None = None, *,
