@@ -148,9 +148,11 @@ def _prior(solver: dict) -> Prior | None:
     return Prior(read_extrinsic(solver["prior"]), float(w[0]), float(w[1]))
 
 
-# A result whose median residuals exceed these is almost certainly wrong data, not noise.
+# A result whose median residuals exceed these is almost certainly wrong data, not noise; a
+# pose-jump gate that drops more than this fraction of the samples is fighting the data.
 _SUSPECT_ROTATION_DEG = 5.0
 _SUSPECT_TRANSLATION_M = 0.2
+_SUSPECT_GATE_FRACTION = 0.25
 
 
 def _pairs(stream_a: PoseStream, stream_b: PoseStream, cfg: dict, offset_ns: int) -> tuple[Synced, Pairs, dict]:
@@ -173,29 +175,39 @@ def _pairs(stream_a: PoseStream, stream_b: PoseStream, cfg: dict, offset_ns: int
     return kept, pairs, samples
 
 
-def _is_suspect(res: Residuals, weights: np.ndarray | None) -> bool:
-    s = res.summary(None if weights is None else weights > 0)
-    return s.rotation_median_deg > _SUSPECT_ROTATION_DEG or s.translation_median_m > _SUSPECT_TRANSLATION_M
-
-
-def _inversion_hint(stream_a: PoseStream, stream_b: PoseStream, cfg: dict, offset_ns: int,
-                    res: Residuals) -> str:
-    """When the residuals are implausibly large, try each stream inverted: a stream of
-    ``T_sensor_world`` given as ``T_world_sensor`` is the most common set-up mistake."""
-    base = res.summary()
+def _data_warning(stream_a: PoseStream, stream_b: PoseStream, cfg: dict, offset_ns: int,
+                  res: Residuals, weights: np.ndarray | None, samples: dict) -> str | None:
+    """A warning when the data look wrong, not just noisy: implausibly large residuals, or a
+    pose-jump gate that drops much of the log. A stream of ``T_sensor_world`` given as
+    ``T_world_sensor`` (the most common set-up mistake) causes both, so each stream is tried
+    inverted and named when that fits far better."""
+    base = res.summary(None if weights is None else weights > 0)
+    dropped = samples["dropped_pose_jump"] / max(samples["synced"], 1)
+    large = base.rotation_median_deg > _SUSPECT_ROTATION_DEG or base.translation_median_m > _SUSPECT_TRANSLATION_M
+    if not (large or dropped > _SUSPECT_GATE_FRACTION):
+        return None
     for name, a, b in (("b", stream_a, stream_b.inverted()), ("a", stream_a.inverted(), stream_b)):
         try:
-            _, pairs, _ = _pairs(a, b, cfg, offset_ns)
+            _, pairs, alt_samples = _pairs(a, b, cfg, offset_ns)
             alt = pair_residuals(pairs.A, pairs.B, solve(pairs.A, pairs.B).matrix).summary()
         except HandEyeError:
             continue
-        if alt.rotation_median_deg < base.rotation_median_deg / 5:
+        better_fit = alt.rotation_median_deg < base.rotation_median_deg / 3
+        more_kept = alt_samples["synced_kept"] > 1.5 * samples["synced_kept"]
+        if (better_fit and alt_samples["synced_kept"] >= samples["synced_kept"]) or (
+                more_kept and alt.rotation_median_deg <= base.rotation_median_deg):
             return (f"stream {name} looks inverted (T_sensor_world instead of T_world_sensor): inverted, the "
-                    f"median residuals drop from {base.rotation_median_deg:.2f}° / {base.translation_median_m:.3f} m "
-                    f"to {alt.rotation_median_deg:.2f}° / {alt.translation_median_m:.3f} m; rerun with --invert-{name} "
-                    f"(or --no-invert-{name} if it was inverted)")
-    return (f"large residuals (median {base.rotation_median_deg:.2f}° / {base.translation_median_m:.3f} m): the streams "
-            "may not be rigidly attached, be mis-synchronised (try --time-offset auto) or come from the wrong topics")
+                    f"median residuals go from {base.rotation_median_deg:.2f}° / {base.translation_median_m:.3f} m to "
+                    f"{alt.rotation_median_deg:.2f}° / {alt.translation_median_m:.3f} m and the pose-jump gate keeps "
+                    f"{alt_samples['synced_kept']} samples instead of {samples['synced_kept']}; rerun with "
+                    f"--invert-{name} (or --no-invert-{name} if it was inverted)")
+    if large:
+        return (f"large residuals (median {base.rotation_median_deg:.2f}° / {base.translation_median_m:.3f} m): the "
+                "streams may not be rigidly attached, be mis-synchronised (try --time-offset auto) or come from "
+                "the wrong topics")
+    return (f"the pose-jump gate dropped {samples['dropped_pose_jump']} of {samples['synced']} samples "
+            f"({100 * dropped:.0f} %): the sensors move faster than its limits allow at this rate; raise "
+            "--max-jump / --max-jump-deg, or check the tracking")
 
 
 def calibrate(stream_a: PoseStream, stream_b: PoseStream, config: dict | None = None, *,
@@ -234,8 +246,9 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, config: dict | None = 
     diagnostics["observability"] = obs.as_dict()
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    if _is_suspect(res, weights):
-        warnings.append(_inversion_hint(stream_a, stream_b, cfg, offset_ns, res))
+    data_warning = _data_warning(stream_a, stream_b, cfg, offset_ns, res, weights, samples)
+    if data_warning:
+        warnings.append(data_warning)
     boot = None
     if int(analysis["bootstrap"]) > 0:
         boot = bootstrap(A, B, int(analysis["bootstrap"]), alpha=alpha, prior=prior, weights=weights,

@@ -119,12 +119,13 @@ def _smooth_trajectory(t: np.ndarray, motion: str, rng: np.random.Generator) -> 
 def simulate_rig(rig: Rig, *, duration_s: float = 60.0, rate_a: float = 30.0, rate_b: float = 20.0,
                  start_ns: int = 1_700_000_000_000_000_000, motion: str = "3d",
                  sigma_r: float = 0.0, sigma_t: float = 0.0, jumps: int = 0, seed: int = 0,
-                 T_wb_wa: np.ndarray | None = None) -> tuple[PoseStream, PoseStream]:
+                 T_wb_wa: np.ndarray | None = None, speed: float = 1.0) -> tuple[PoseStream, PoseStream]:
     """Two pose streams of a rigid rig: ``T_wa_a(t)`` and ``T_wb_b(t)`` with ``T_a_b`` fixed.
 
     Each stream has its own world frame (b's world is ``T_wb_wa`` away from a's), its own
     rate [Hz] and timing jitter, absolute pose noise (σr [rad], σt [m]) and ``jumps`` tracking
-    jumps (a sample displaced by 0.3–1 m and 20–60°).
+    jumps (a sample displaced by 0.3–1 m and 20–60°). ``speed`` scales how fast the rig moves
+    (1: up to ~2 m/s and ~1 rad/s; the excursions stay the same).
     """
     rng = np.random.default_rng(seed)
     traj_rng = np.random.default_rng(rng.integers(2**63))
@@ -145,7 +146,7 @@ def simulate_rig(rig: Rig, *, duration_s: float = 60.0, rate_a: float = 30.0, ra
 
     t_a, t_b = stamps(rate_a), stamps(rate_b)
     traj_seed = traj_rng.integers(2**63)
-    T_wa = _smooth_trajectory(t_a, motion, np.random.default_rng(traj_seed))
-    T_wb = G @ _smooth_trajectory(t_b, motion, np.random.default_rng(traj_seed)) @ rig.T_a_b
+    T_wa = _smooth_trajectory(speed * t_a, motion, np.random.default_rng(traj_seed))
+    T_wb = G @ _smooth_trajectory(speed * t_b, motion, np.random.default_rng(traj_seed)) @ rig.T_a_b
     return (stream(t_a, T_wa, "world_a", "a", 0),
             stream(t_b, T_wb, "world_b", "b", rig.time_offset_ns))

@@ -36,7 +36,7 @@ from handeye_cli.synthetic import Rig, simulate_rig  # noqa: E402
 
 SEED = 20240607
 SIM = {"duration_s": 75.0, "rate_a": 30.0, "rate_b": 12.0, "sigma_r_deg": 0.2, "sigma_t_m": 0.002,
-       "jumps_per_stream": 3}
+       "jumps_per_stream": 3, "speed": 0.5}
 LOG_DELAY_NS = 3_000_000          # recorder log time = header.stamp + 3 ms
 
 
@@ -56,7 +56,7 @@ def simulate() -> tuple[PoseStream, PoseStream]:
     """Stream a = ``T_world_cam0(t)``, stream b = ``T_odom_cam1(t)``."""
     return simulate_rig(Rig(X), duration_s=SIM["duration_s"], rate_a=SIM["rate_a"], rate_b=SIM["rate_b"],
                         sigma_r=np.deg2rad(SIM["sigma_r_deg"]), sigma_t=SIM["sigma_t_m"],
-                        jumps=SIM["jumps_per_stream"], seed=SEED, T_wb_wa=T_ODOM_WORLD)
+                        jumps=SIM["jumps_per_stream"], seed=SEED, T_wb_wa=T_ODOM_WORLD, speed=SIM["speed"])
 
 
 def edge_record(stamp_ns: int, parent: str, child: str, T: np.ndarray) -> tuple:
