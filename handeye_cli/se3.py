@@ -83,5 +83,5 @@ def is_rotation(R: np.ndarray, tol: float = 1e-6) -> np.ndarray:
     """Boolean mask: which (…, 3, 3) matrices are proper rotations within ``tol``."""
     R = np.asarray(R, dtype=float)
     ortho = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(axis=(-1, -2)) <= tol
-    det = np.einsum("...i,...i->...", R[..., 0, :], np.cross(R[..., 1, :], R[..., 2, :]))
+    det = np.linalg.det(R)
     return ortho & (np.abs(det - 1.0) <= tol)

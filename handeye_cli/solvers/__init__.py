@@ -15,7 +15,7 @@ from . import dualquat
 from .approximate import dq2ndord, dq2steps, dqconvrlx
 from .daniilidis import daniilidis
 from .optimal import dqitr, dqopt
-from .problem import Prior, Problem, build_problem, pair_blocks, validate_motions
+from .problem import Prior, Problem, build_problem, pair_blocks, problem_from_blocks, validate_motions
 
 __all__ = ["METHODS", "Prior", "Problem", "Solution", "build_problem", "solve", "dq_cost"]
 
@@ -113,19 +113,19 @@ def solve(motions_a: np.ndarray, motions_b: np.ndarray, method: str = "dqopt", a
     """
     if method not in METHODS:
         raise HandEyeError(f"unknown method {method!r}", "method", f"choose one of {', '.join(METHODS)}")
-    problem = build_problem(motions_a, motions_b, alpha=alpha, prior=prior, weights=weights)
+    A, B, w = validate_motions(motions_a, motions_b, weights)
+    E, F = pair_blocks(A, B)
+    problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)
     if prior is None:
         _check_determined(problem)
-    n = len(np.asarray(motions_a))
-    common = dict(method=method, alpha=float(alpha), pairs=n)
+    common = dict(method=method, alpha=float(alpha), pairs=len(A))
     if method in ("dqopt", "dqitr"):
         r = (dqopt if method == "dqopt" else dqitr)(problem)
         return Solution(dualquat.to_transform(r.q, r.qd), problem.cost(r.q, r.qd), lam=r.lam, mu=r.mu,
                         iterations=r.iterations, converged=r.converged,
                         details={"singular_m": r.singular_m}, **common)
     if method == "daniilidis":
-        A, B, w = validate_motions(motions_a, motions_b, weights)
-        q, qd = daniilidis(A, B, alpha=alpha, weights=w)
+        q, qd = daniilidis(E, F, alpha=alpha, weights=w)
         return Solution(dualquat.to_transform(q, qd), problem.cost(q, qd), **common)
     r = {"dq2steps": dq2steps, "dqconvrlx": dqconvrlx, "dq2ndord": dq2ndord}[method](problem)
     return Solution(dualquat.to_transform(r.q, r.qd), problem.cost(r.q, r.qd), mu=r.mu,

@@ -16,15 +16,14 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import HandEyeError
-from .problem import pair_blocks
 
 __all__ = ["daniilidis"]
 
 
-def daniilidis(motions_a: np.ndarray, motions_b: np.ndarray, alpha: float = 1.0,
+def daniilidis(E: np.ndarray, F: np.ndarray, alpha: float = 1.0,
                weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Return the dual quaternion ``(q, q')`` (x-y-z-w) of ``X = T_a_b`` by Daniilidis' SVD method."""
-    E, F = pair_blocks(motions_a, motions_b)
+    """The dual quaternion ``(q, q')`` (x-y-z-w) of ``X = T_a_b`` by Daniilidis' SVD method, from
+    the per-pair blocks ``E_i``, ``F_i`` (N, 4, 4) of :func:`~handeye_cli.solvers.problem.pair_blocks`."""
     n = len(E)
     T = np.zeros((n, 6, 8))
     T[:, :3, :4] = E[:, :3]

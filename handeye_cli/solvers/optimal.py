@@ -21,7 +21,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from .problem import Problem
 
@@ -58,9 +57,12 @@ def _f_and_slope(Z1: np.ndarray, Z2: np.ndarray, mu: float, lam: np.ndarray, V: 
     return float(f), float(q @ z2q + np.sum(coupling * coupling / gaps))
 
 
-def _mu_bracket(Z1: np.ndarray, Z2: np.ndarray) -> tuple[float, float]:
-    """Appendix C: every solution μ lies between the extreme generalised eigenvalues of (½Z1, Z2)."""
-    theta = scipy.linalg.eigh(0.5 * Z1, Z2, eigvals_only=True)
+def _mu_bracket(Z1: np.ndarray, Re: np.ndarray) -> tuple[float, float]:
+    """Appendix C: every solution μ lies between the extreme generalised eigenvalues of (½Z1, Z2).
+
+    With ``Z2 = M⁻¹ = Re⁻¹ Re⁻ᵀ`` (``E = Qe Re``) they are the eigenvalues of ``Re (½Z1) Reᵀ``.
+    """
+    theta = np.linalg.eigvalsh(Re @ (0.5 * Z1) @ Re.T)
     pad = 1e-12 * max(abs(theta[0]), abs(theta[-1]), 1e-300)
     return float(theta[0] - pad), float(theta[-1] + pad)
 
@@ -85,7 +87,10 @@ def kkt_polish(problem: Problem, q: np.ndarray, qd: np.ndarray, lam: float, mu: 
         J[4:8, 4:8] = M
         J[:4, 8], J[:4, 9], J[4:8, 9] = -q, -qd, -q
         J[8, :4], J[9, :4], J[9, 4:8] = -q, -qd, -q
-        step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        try:
+            step = np.linalg.solve(J, -r)
+        except np.linalg.LinAlgError:
+            step = np.linalg.lstsq(J, -r, rcond=None)[0]
         q_new, qd_new = q + step[:4], qd + step[4:8]
         n = np.linalg.norm(q_new)
         q_new, qd_new = q_new / n, qd_new / n
@@ -100,13 +105,18 @@ def kkt_polish(problem: Problem, q: np.ndarray, qd: np.ndarray, lam: float, mu: 
     return q, qd, float(lam), float(mu)
 
 
-def _result(problem: Problem, q: np.ndarray, mu: float, lam: float, iterations: int,
+def _result(problem: Problem, V: np.ndarray, mu: float, lam: np.ndarray, iterations: int,
             converged: bool) -> LineSearchResult:
-    """Complete ``q`` with its optimal dual part (eq 20) and polish the pair on the KKT system:
-    on ill-conditioned problems the eigenvector of Z(μ) carries an error ~ eps·|Z(μ)|/gap."""
+    """Complete the smallest eigenvector ``q`` of Z(μ) with its optimal dual part (eq 20, by least
+    squares: ``M⁻¹`` amplifies rounding when the cost is tiny). The eigenvector's error is about
+    eps·|Z(μ)|/gap; where that is not negligible (ill-conditioned problems), polish the pair on
+    the KKT system."""
+    q = V[:, 0]
     qd, _ = problem.dual_part(q)
-    q, qd, lam, mu = kkt_polish(problem, q, qd, lam, mu)
-    return LineSearchResult(q, qd, lam, mu, iterations, converged)
+    if _EPS * max(abs(lam[0]), abs(lam[-1])) > 1e-10 * (lam[1] - lam[0]):
+        q, qd, lam0, mu = kkt_polish(problem, q, qd, float(lam[0]), mu)
+        return LineSearchResult(q, qd, lam0, mu, iterations, converged)
+    return LineSearchResult(q, qd, float(lam[0]), float(mu), iterations, converged)
 
 
 def _singular(problem: Problem) -> LineSearchResult:
@@ -124,7 +134,7 @@ def dqopt(problem: Problem, max_iterations: int = 100) -> LineSearchResult:
     if not problem.M_is_regular:
         return _singular(problem)
     Z0, Z1, Z2 = problem.Z
-    lo, hi = _mu_bracket(Z1, Z2)
+    lo, hi = _mu_bracket(Z1, problem.R_factor)
     mu = min(max(0.0, lo), hi)
     lam, V = _smallest(Z0, Z1, Z2, mu)
     converged = False
@@ -150,7 +160,7 @@ def dqopt(problem: Problem, max_iterations: int = 100) -> LineSearchResult:
             break
         mu = new
         lam, V = _smallest(Z0, Z1, Z2, mu)
-    return _result(problem, V[:, 0], mu, float(lam[0]), it, converged)
+    return _result(problem, V, mu, lam, it, converged)
 
 
 def dqitr(problem: Problem, tolerance: float = 1e-12, max_iterations: int = 100) -> LineSearchResult:
@@ -175,4 +185,4 @@ def dqitr(problem: Problem, tolerance: float = 1e-12, max_iterations: int = 100)
         if done:
             converged = True
             break
-    return _result(problem, V[:, 0], mu, float(lam[0]), it, converged)
+    return _result(problem, V, mu, lam, it, converged)

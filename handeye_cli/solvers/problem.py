@@ -29,7 +29,7 @@ from .. import se3
 from ..errors import HandEyeError
 from . import dualquat as dq
 
-__all__ = ["Prior", "Problem", "build_problem", "validate_motions"]
+__all__ = ["Prior", "Problem", "build_problem", "pair_blocks", "problem_from_blocks", "validate_motions"]
 
 _G = np.diag([1.0, 1.0, 1.0, 0.0])
 
@@ -93,6 +93,11 @@ class Problem:
     def M_smallest_eigenvector(self) -> np.ndarray:
         """The eigenvector of M with the smallest eigenvalue (eq 19), from the SVD of E."""
         return self._qr[3][-1].copy()
+
+    @property
+    def R_factor(self) -> np.ndarray:
+        """The R of the thin QR factorisation ``E = Qe Re`` (so ``M = ReᵀRe``)."""
+        return self._qr[1]
 
     @cached_property
     def Z(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -177,11 +182,16 @@ def build_problem(motions_a: np.ndarray, motions_b: np.ndarray, alpha: float = 1
 
     ``alpha`` [1/m] weighs the translational residuals against the rotational ones.
     """
+    A, B, w = validate_motions(motions_a, motions_b, weights)
+    return problem_from_blocks(*pair_blocks(A, B), w, alpha=alpha, prior=prior)
+
+
+def problem_from_blocks(E: np.ndarray, F: np.ndarray, w: np.ndarray, alpha: float = 1.0,
+                        prior: Prior | None = None) -> Problem:
+    """:func:`build_problem` from the per-pair blocks of :func:`pair_blocks` and validated weights."""
     if not (np.isfinite(alpha) and alpha > 0):
         raise HandEyeError(f"alpha must be a positive number, got {alpha}", "alpha",
                            "pass e.g. alpha=1.0 (units 1/m)")
-    A, B, w = validate_motions(motions_a, motions_b, weights)
-    E, F = pair_blocks(A, B)
     sw = np.sqrt(w)[:, None, None]
     P = (E * sw).reshape(-1, 4)
     Fd = (alpha * F * sw).reshape(-1, 4)
