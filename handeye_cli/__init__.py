@@ -3,6 +3,9 @@
 Public API::
 
     handeye_cli.solve(motions_a, motions_b, method="dqopt", alpha=1.0, prior=None, weights=None)
+    handeye_cli.calibrate(stream_a, stream_b, config=None)          # two PoseStreams → Calibration
+    handeye_cli.calibrate_files(StreamSpec(path, topic=...), StreamSpec(...), config=None)
+    handeye_cli.load_config(path=None, overrides=None)               # defaults < file < overrides
 
 Conventions: ``T_a_b`` is the pose of frame b in frame a (maps points from b to a);
 quaternions are x-y-z-w; time is int64 nanoseconds; metres and radians.
@@ -12,5 +15,8 @@ __version__ = "0.1.0"
 from .errors import HandEyeError  # noqa: E402  (after __version__, which submodules import)
 from .solvers import METHODS, Prior, Solution, solve  # noqa: E402
 from .streams import PoseStream  # noqa: E402
+from .config import load_config  # noqa: E402
+from .pipeline import Calibration, StreamSpec, calibrate, calibrate_files  # noqa: E402
 
-__all__ = ["HandEyeError", "METHODS", "PoseStream", "Prior", "Solution", "solve", "__version__"]
+__all__ = ["HandEyeError", "METHODS", "PoseStream", "Prior", "Solution", "solve", "Calibration", "StreamSpec",
+           "calibrate", "calibrate_files", "load_config", "__version__"]

@@ -21,7 +21,6 @@ from .pairs import Pairs, make_pairs
 from .solvers import Prior, Solution, solve
 from .streams import PoseStream
 from .sync import Synced, associate
-from .timeoffset import estimate_time_offset
 
 __all__ = ["Calibration", "StreamSpec", "calibrate", "calibrate_files", "read_streams"]
 
@@ -110,6 +109,8 @@ def _time_offset(a: PoseStream, b: PoseStream, sync: dict) -> tuple[int, dict, l
     """The offset [ns] b's clock is ahead of a's, its report, and warnings about it."""
     value = sync["time_offset"]
     if isinstance(value, str) and value.strip().lower() == "auto":
+        from .timeoffset import estimate_time_offset    # scipy.signal: import only when used
+
         est = estimate_time_offset(a, b, max_offset_s=sync["max_time_offset"])
         return est.offset_ns, {"seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,
                                "coarse_seconds": est.coarse_ns / 1e9, "correlation": est.correlation,

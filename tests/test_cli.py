@@ -178,3 +178,55 @@ def test_errors_are_one_line_exit_2_and_leave_no_output(capsys, rig, args, messa
 def test_output_to_a_missing_folder_is_an_error(capsys, rig):
     code, _, err = run(capsys, "calibrate", rig["a"], rig["b"], "-o", "/nonexistent/dir/r.yaml")
     assert code == 2 and "output folder" in err
+
+
+def test_generic_csv_with_columns_from_the_config(capsys, rig, tmp_path):
+    """A CSV with its own column names, mapped by ``csv_columns`` in a config file."""
+    names = ["time_ms", "px", "py", "pz", "rx", "ry", "rz", "rw"]
+    paths = []
+    for name, stream in zip("ab", rig["streams"]):
+        p = tmp_path / f"{name}.csv"
+        data = np.c_[stream.stamps_ns / 1e6, stream.xyz, stream.quat_xyzw]
+        np.savetxt(p, data, delimiter=",", header=",".join(names), comments="", fmt="%.9f")
+        paths.append(p)
+    cfg = tmp_path / "columns.yaml"
+    cfg.write_text(yaml.safe_dump({"csv_columns": {"t": "time_ms", "t_unit": "ms", "x": "px", "y": "py", "z": "pz",
+                                                   "qx": "rx", "qy": "ry", "qz": "rz", "qw": "rw"}}))
+    code, out, err = run(capsys, "calibrate", *paths, "--config", cfg, "-q")
+    assert code == 0, err
+    rot, trans = _error(np.array(yaml.safe_load(out)["matrix"]), rig["X"])
+    assert rot < 0.1 and trans < 0.005
+
+
+def _truncated_mcap(d: Path) -> Path:
+    data = (ROOT / "sample_data" / "rig.mcap").read_bytes()
+    p = d / "truncated.mcap"
+    p.write_bytes(data[: len(data) // 2])
+    return p
+
+
+def _nan_tum(d: Path) -> Path:
+    lines = (ROOT / "sample_data" / "rig_a.tum").read_text().splitlines()
+    body = [i for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")]
+    fields = lines[body[10]].split()
+    lines[body[10]] = " ".join(fields[:4] + ["nan", "0", "0", "1"])
+    p = d / "nan.tum"
+    p.write_text("\n".join(lines) + "\n")
+    return p
+
+
+@pytest.mark.parametrize("make, extra, message", [
+    (_truncated_mcap, ["--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose"], "truncated.mcap"),
+    (_nan_tum, [str(ROOT / "sample_data" / "rig_b.tum")], "nan.tum"),
+    (lambda d: ROOT / "sample_data" / "rig.mcap", ["--topic-a", "/tf_static", "--topic-b", "/cam1/pose"], "/tf_static"),
+    (lambda d: ROOT / "sample_data" / "rig.mcap", ["--frames-a", "world", "nowhere", "--topic-b", "/cam1/pose"],
+     "nowhere"),
+    (lambda d: (d / "empty.tum").write_text("# nothing\n") and d / "empty.tum",
+     [str(ROOT / "sample_data" / "rig_b.tum")], "empty.tum"),
+])
+def test_bad_logs_give_one_line_exit_2_and_no_output(capsys, tmp_path, make, extra, message):
+    src = make(tmp_path)
+    out_file = tmp_path / "r.yaml"
+    code, out, err = run(capsys, "calibrate", src, *extra, "-o", out_file)
+    assert code == 2 and err.startswith("error: ") and err.count("\n") == 1 and message in err, err
+    assert out == "" and not out_file.exists()
