@@ -33,16 +33,19 @@ def emit(doc: dict, output: str | None, fmt: str | None) -> None:
         click.echo(text, nl=False)
 
 
+def _prior_weights(text: str) -> list[float]:
+    """``--prior-weights a,b`` → [a, b]."""
+    try:
+        a, b = (float(v) for v in text.split(","))
+    except ValueError:
+        raise HandEyeError(f"bad --prior-weights {text!r}", "--prior-weights",
+                           "give two non-negative numbers a,b, e.g. 1,1") from None
+    return [a, b]
+
+
 def parse_prior(path: str | None, weights: str) -> Prior | None:
     """``--prior FILE --prior-weights a,b`` → :class:`Prior` (eq 26), or None."""
-    if path is None:
-        return None
-    try:
-        a, b = (float(v) for v in weights.split(","))
-    except ValueError:
-        raise HandEyeError(f"bad --prior-weights {weights!r}", "--prior-weights",
-                           "give two non-negative numbers a,b, e.g. 1,1") from None
-    return Prior(read_extrinsic(path), a, b)
+    return None if path is None else Prior(read_extrinsic(path), *_prior_weights(weights))
 
 
 output_options = [
@@ -114,43 +117,30 @@ def solve_cmd(pairs_file: str, method: str, prior_file: str | None, prior_weight
 solve_cmd.name = "solve"
 
 
-def _number_or_auto(value: str | None, option: str) -> float | str | None:
-    if value is None or value.strip().lower() == "auto":
-        return value and "auto"
+def _number_or(word: str, value: str | None, option: str) -> float | str | None:
+    """A number, or the keyword ``word`` ('auto', 'off') kept as a string so that it overrides the
+    config; None when the option was not given."""
+    if value is None or value.strip().lower() == word:
+        return value and word
     try:
         return float(value)
     except ValueError:
-        raise HandEyeError(f"bad value {value!r}", option, "give a number or 'auto'") from None
-
-
-def _off_or_number(value: str | None, option: str) -> float | None | str:
-    """Gate limits: a number, or 'off' (returned as the string so that it overrides the config)."""
-    if value is None or value.strip().lower() == "off":
-        return value and "off"
-    try:
-        return float(value)
-    except ValueError:
-        raise HandEyeError(f"bad value {value!r}", option, "give a number or 'off'") from None
+        raise HandEyeError(f"bad value {value!r}", option, f"give a number or '{word}'") from None
 
 
 def _overrides(o: dict) -> dict:
     """Command-line options → the nested config keys they override (None = not given)."""
-    gates = {"max_translation": _off_or_number(o["max_jump"], "--max-jump"),
-             "max_rotation_deg": _off_or_number(o["max_jump_deg"], "--max-jump-deg")}
-    weights = None
-    if o["prior_weights"] is not None:
-        try:
-            weights = [float(v) for v in o["prior_weights"].split(",")]
-        except ValueError:
-            weights = o["prior_weights"]
+    gates = {"max_translation": _number_or("off", o["max_jump"], "--max-jump"),
+             "max_rotation_deg": _number_or("off", o["max_jump_deg"], "--max-jump-deg")}
+    weights = None if o["prior_weights"] is None else _prior_weights(o["prior_weights"])
     return {
         "time_source": o["time_source"], "invert_a": o["invert_a"], "invert_b": o["invert_b"],
         "sync": {"method": o["sync"], "max_dt": o["max_dt"],
-                 "time_offset": _number_or_auto(o["time_offset"], "--time-offset")},
+                 "time_offset": _number_or("auto", o["time_offset"], "--time-offset")},
         "gates": gates,
         "pairs": {"strategy": o["pairs"], "min_rotation_deg": o["min_rotation"], "max_pairs": o["max_pairs"],
                   "seed": o["seed"]},
-        "solver": {"method": o["method"], "alpha": _number_or_auto(o["alpha"], "--alpha"), "prior": o["prior_file"],
+        "solver": {"method": o["method"], "alpha": _number_or("auto", o["alpha"], "--alpha"), "prior": o["prior_file"],
                    "prior_weights": weights},
         "analysis": {"robust": o["robust"], "bootstrap": o["bootstrap"], "strict": o["strict"]},
     }
