@@ -24,14 +24,19 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from scipy.linalg import lapack
 
 from .. import se3
 from ..errors import HandEyeError
 from . import dualquat as dq
+from .dualquat import _L_INDEX, _L_SIGN
 
 __all__ = ["Prior", "Problem", "build_problem", "pair_blocks", "problem_from_blocks", "validate_motions"]
 
 _G = np.diag([1.0, 1.0, 1.0, 0.0])
+_UPPER8 = np.triu(np.ones((8, 8)))
+_EPS = np.finfo(float).eps
+_LWORK, _IWORK = (int(v) for v in lapack.dgelsd_lwork(4, 3, 1, -1)[:2])      # workspace of the 4x3 lstsq
 
 
 @dataclass(frozen=True)
@@ -59,16 +64,38 @@ class Problem:
     E: np.ndarray
 
     @cached_property
+    def _K(self) -> np.ndarray:
+        """``[E F]`` (L, 8), column-major for LAPACK; zero rows pad it to at least 8."""
+        n = len(self.E)
+        K = np.zeros((8, max(n, 8))).T
+        K[:n, :4] = self.E
+        K[:n, 4:] = self.F
+        return K
+
+    @cached_property
+    def _PtP(self) -> np.ndarray:
+        return self.P.T @ self.P
+
+    @cached_property
+    def form(self) -> np.ndarray:
+        """The 8x8 matrix ``[[M, Wᵀ], [W, S]]`` of cost (8) (+ prior, eq 29) in ``(q', q)`` order:
+        the cost is ``[q'; q]ᵀ form [q'; q]`` plus the prior's constant."""
+        K = self._K
+        Q = K.T @ K
+        Q[4:, 4:] += self._PtP
+        return Q
+
+    @property
     def S(self) -> np.ndarray:
-        return self.P.T @ self.P + self.F.T @ self.F
+        return self.form[4:, 4:]
 
-    @cached_property
+    @property
     def M(self) -> np.ndarray:
-        return self.E.T @ self.E
+        return self.form[:4, :4]
 
-    @cached_property
+    @property
     def W(self) -> np.ndarray:
-        return self.F.T @ self.E
+        return self.form[4:, :4]
 
     def cost(self, q: np.ndarray, qd: np.ndarray) -> float:
         """Cost (8) plus the prior terms at the dual quaternion ``q + ε q'``, summed from residuals."""
@@ -77,65 +104,133 @@ class Problem:
         return float(rot @ rot + dual @ dual)
 
     @cached_property
-    def _qr(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Thin QR of E, and the SVD (singular values, right vectors) of its R factor."""
-        Qe, Re = np.linalg.qr(self.E)
-        _, sv, Vt = np.linalg.svd(Re)
-        return Qe, Re, sv, Vt
+    def _R(self) -> np.ndarray:
+        """The 8x8 R of the thin QR factorisation ``[E F] = Q R = Q [[Re, G], [0, Rf]]``.
 
-    @property
+        Then ``E = Q₁ Re`` and ``F = Q₁ G + Q₂ Rf`` (``Q = [Q₁ Q₂]``), so ``M = ReᵀRe``,
+        ``W = GᵀRe`` and ``|F - Π_E F|² = RfᵀRf``: everything below is 4x4 algebra on R.
+        """
+        r, _, _, info = lapack.dgeqrf(self._K)
+        if info:
+            raise np.linalg.LinAlgError(f"QR factorisation failed (info {info})")
+        return r[:8] * _UPPER8
+
+    @cached_property
+    def _svd(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """SVD ``Re = U Σ Vᵀ`` (Σ: the singular values of E)."""
+        u, s, vt, info = lapack.dgesdd(self.R_factor)
+        if info:
+            raise np.linalg.LinAlgError(f"SVD did not converge (info {info})")
+        return u, s, vt
+
+    @cached_property
+    def _Rinv(self) -> np.ndarray | None:
+        """``Re⁻¹``, or None where Re is exactly singular."""
+        Rinv, info = lapack.dtrtri(self.R_factor)
+        return None if info else Rinv
+
+    @cached_property
     def M_is_regular(self) -> bool:
-        """Whether M = EᵀE is safely invertible (the paper's standing assumption below eq 10)."""
-        sv = self._qr[2]
-        return bool(sv[-1] > 1e-8 * max(sv[0], 1e-300))
+        """Whether M = EᵀE is safely invertible (the paper's standing assumption below eq 10):
+        the singular values of E satisfy ``σ_min > 1e-8 σ_max``.
+
+        ``σ_max ≤ |Re|_F`` and ``1/σ_min = |Re⁻¹|₂ ≤ |Re⁻¹|_F``, so ``|Re|_F |Re⁻¹|_F < 1e8`` settles
+        it without an SVD; only otherwise are the singular values computed.
+        """
+        Rinv = self._Rinv
+        if Rinv is not None:
+            Re = self.R_factor
+            if np.vdot(Re, Re) * np.vdot(Rinv, Rinv) < 1e16:
+                return True
+        sv = self._svd[1]
+        return bool(sv[-1] > _rank_tolerance(sv))
 
     @property
     def M_smallest_eigenvector(self) -> np.ndarray:
         """The eigenvector of M with the smallest eigenvalue (eq 19), from the SVD of E."""
-        return self._qr[3][-1].copy()
+        return self._svd[2][-1].copy()
 
     @property
     def R_factor(self) -> np.ndarray:
         """The R of the thin QR factorisation ``E = Qe Re`` (so ``M = ReᵀRe``)."""
-        return self._qr[1]
+        return self._R[:4, :4]
+
+    @cached_property
+    def _Zs(self) -> np.ndarray:
+        """``Z0, Z1, Z2`` stacked (3, 4, 4); see :attr:`Z`."""
+        Rinv = self._Rinv
+        if Rinv is None:
+            raise np.linalg.LinAlgError("M is singular")
+        R = self._R
+        Zs = np.empty((3, 4, 4))
+        Rf = R[4:, 4:]
+        np.matmul(Rf.T, Rf, out=Zs[0])
+        Zs[0] += self._PtP
+        WMinv = R[:4, 4:].T @ Rinv.T
+        np.add(WMinv, WMinv.T, out=Zs[1])
+        np.matmul(Rinv, Rinv.T, out=Zs[2])
+        return Zs
 
     @cached_property
     def Z(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``Z0 = S - W M⁻¹ Wᵀ``, ``Z1 = W M⁻¹ + M⁻¹ Wᵀ``, ``Z2 = M⁻¹`` (eq 13); needs a regular M.
 
-        With ``E = Qe Re``: ``Z2 = Re⁻¹ Re⁻ᵀ``, ``W M⁻¹ = (Qeᵀ F)ᵀ Re⁻ᵀ`` and
-        ``Z0 = PᵀP + |F - Qe Qeᵀ F|²`` (the paper's ``AᵀA + α² BᵀCB``), which is PSD by construction.
+        From ``[E F] = Q [[Re, G], [0, Rf]]`` (:attr:`_R`): ``Z2 = Re⁻¹ Re⁻ᵀ``, ``W M⁻¹ = Gᵀ Re⁻ᵀ`` and
+        ``Z0 = PᵀP + RfᵀRf`` (the paper's ``AᵀA + α² BᵀCB``), which is PSD by construction and
+        free of the cancellation in ``S - W M⁻¹ Wᵀ``.
         """
-        Qe, Re, _, _ = self._qr
-        G = Qe.T @ self.F
-        Rinv = np.linalg.inv(Re)
-        Fr = self.F - Qe @ G
-        WMinv = G.T @ Rinv.T
-        return self.P.T @ self.P + Fr.T @ Fr, WMinv + WMinv.T, Rinv @ Rinv.T
+        Zs = self._Zs
+        return Zs[0], Zs[1], Zs[2]
 
     @cached_property
     def Z0_relaxed(self) -> np.ndarray:
-        """Z0 also for a singular M: the Schur complement with the projector on E's column space."""
+        """Z0 also for a singular M: the Schur complement with the projector on E's column space.
+
+        With ``E = Q₁ Re`` and ``Re = U Σ Vᵀ``, E's numerical column space is ``Q₁ U_k``, so
+        ``F - Π_E F = Q₁ (G - U_k U_kᵀ G) + Q₂ Rf``.
+        """
         if self.M_is_regular:
             return self.Z[0]
-        U, sv, _ = np.linalg.svd(self.E, full_matrices=False)
-        U = U[:, sv > 1e-8 * max(sv[0], 1e-300)]
-        Fr = self.F - U @ (U.T @ self.F)
-        return self.P.T @ self.P + Fr.T @ Fr
+        U, sv, _ = self._svd
+        U = U[:, sv > _rank_tolerance(sv)]
+        R = self._R
+        G, Rf = R[:4, 4:], R[4:, 4:]
+        Gr = G - U @ (U.T @ G)
+        return self._PtP + Rf.T @ Rf + Gr.T @ Gr
+
+    def _dual(self, q: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`dual_part` in a given orthonormal basis (4, 3) of ``q``'s complement, without μ:
+        ``q'`` and, for μ, ``Re B``, ``G q`` and the coefficients ``y``."""
+        R = self._R
+        gq = R[:4, 4:] @ q
+        CB = R[:4, :4] @ basis
+        y, _, _, info = lapack.dgelsd(CB, -gq, _LWORK, _IWORK, _EPS * max(len(self.E), 3))
+        if info:
+            raise np.linalg.LinAlgError(f"least squares did not converge (info {info})")
+        y = y[:3]
+        return basis @ y, CB, gq, y
 
     def dual_part(self, q: np.ndarray) -> tuple[np.ndarray, float]:
         """The optimal ``q'`` for a given unit ``q`` under ``q·q' = 0``, and its multiplier μ.
 
-        Solves ``min |F q + E q'|²`` over ``q' ⊥ q`` by least squares in an orthonormal basis of
-        ``q``'s complement. With a regular M this is exactly eq 20, ``q' = M⁻¹ (μ - Wᵀ) q`` with μ
-        from eq 14, but it needs no inverse of M and stays defined when M is singular along ``q``
-        (noise-free data). Where the translation is truly unobservable the least-norm ``q'`` is returned.
+        Solves ``min |F q + E q'|²`` over ``q' = B y ⊥ q`` by least squares, with the orthonormal
+        basis ``B`` of ``q``'s complement formed by the first three columns of ``L(q)`` (orthogonal,
+        with ``L(q) e_w = q``). With ``[E F] = Q [[Re, G], [0, Rf]]`` (:attr:`_R`) that is the 4x3
+        problem ``min |Re B y + G q|`` (the rows ``Rf q`` do not depend on y), the same as the
+        (L x 3) one on E and F.
+        With a regular M this is exactly eq 20, ``q' = M⁻¹ (μ - Wᵀ) q`` with μ from eq 14, but it
+        needs no inverse of M and stays defined when M is singular along ``q`` (noise-free data).
+        Where the translation is truly unobservable the least-norm ``q'`` is returned.
         """
-        basis = np.linalg.svd(q[None, :])[2][1:].T          # (4, 3), orthonormal, ⊥ q
-        y = np.linalg.lstsq(self.E @ basis, -(self.F @ q), rcond=None)[0]
-        qd = basis @ y
-        mu = float(q @ (self.W.T @ q + self.M @ qd))         # from M q' + Wᵀ q = μ q (eq 10)
-        return qd, mu
+        q = np.asarray(q, dtype=float)
+        qd, CB, gq, y = self._dual(q, (q[_L_INDEX] * _L_SIGN)[:, :3])
+        # M q' + Wᵀ q = μ q (eq 10), with M = ReᵀRe and Wᵀ = ReᵀG: μ = (Re q)·(Re q' + G q)
+        return qd, float((self.R_factor @ q) @ (CB @ y + gq))
+
+
+def _rank_tolerance(sv: np.ndarray) -> float:
+    """Singular values of E below this count as zero (M singular)."""
+    return 1e-8 * max(sv[0], 1e-300)
 
 
 def validate_motions(motions_a: np.ndarray, motions_b: np.ndarray,
