@@ -233,11 +233,13 @@ def _rank_tolerance(sv: np.ndarray) -> float:
     return 1e-8 * max(sv[0], 1e-300)
 
 
-def validate_motions(motions_a: np.ndarray, motions_b: np.ndarray,
-                     weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Check shapes, finiteness and rotation blocks; return float arrays (N,4,4), (N,4,4), (N,)."""
-    A = np.asarray(motions_a, dtype=float)
-    B = np.asarray(motions_b, dtype=float)
+def _all_rigid(T: np.ndarray) -> bool:
+    """Whether every transform of a (N, 4, 4) stack is finite with a rotation block (both sensors at once)."""
+    return bool(np.isfinite(T).all() and se3.is_rotation(T[:, :3, :3], 1e-6).all())
+
+
+def _raise_first_bad(A: np.ndarray, B: np.ndarray) -> None:
+    """Raise the error for the first bad motion array: wrong shape, non-finite, or not a rotation."""
     for name, T in (("motions_a", A), ("motions_b", B)):
         if T.ndim != 3 or T.shape[1:] != (4, 4):
             raise HandEyeError(f"{name} has shape {T.shape}", name, "pass an array of shape (N, 4, 4)")
@@ -249,6 +251,16 @@ def validate_motions(motions_a: np.ndarray, motions_b: np.ndarray,
             bad = int(np.flatnonzero(~ok)[0])
             raise HandEyeError(f"{name}[{bad}] has a rotation block that is not a rotation", name,
                                "pass rigid transforms (orthonormal rotation, det +1)")
+
+
+def validate_motions(motions_a: np.ndarray, motions_b: np.ndarray,
+                     weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Check shapes, finiteness and rotation blocks; return float arrays (N,4,4), (N,4,4), (N,)."""
+    A = np.asarray(motions_a, dtype=float)
+    B = np.asarray(motions_b, dtype=float)
+    shapes_ok = A.ndim == B.ndim == 3 and A.shape[1:] == B.shape[1:] == (4, 4)
+    if not (shapes_ok and _all_rigid(np.concatenate((A, B)))):
+        _raise_first_bad(A, B)
     if len(A) != len(B):
         raise HandEyeError(f"motions_a has {len(A)} motions, motions_b {len(B)}", "motions",
                            "pass the same number of motions for both sensors")
