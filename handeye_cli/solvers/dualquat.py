@@ -41,60 +41,112 @@ def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return np.einsum("...ij,...j->...i", left(p), q)
 
 
-# Row p lists which of the ten values in _quaternions form the quaternion scaled by pivot p.
-_PIVOT_ROWS = np.array([[0, 4, 5, 7], [4, 1, 6, 8], [5, 6, 2, 9], [7, 8, 9, 3]])
+def _shepperd_matrix() -> np.ndarray:
+    """(16, 16): row 4p + i gives component i of the quaternion scaled by pivot p (``4·x_p·(x, y, z, w)``)
+    from a transform flattened row-major (``X[4i + j] = T_ij``); the diagonal rows 5p lack the 1 of
+    ``4x_p² = 1 ± R00 ± R11 ± R22``. The ten distinct values are 4x², 4y², 4z², 4w², R01 + R10,
+    R02 + R20, R12 + R21, R21 - R12, R02 - R20, R10 - R01."""
+    values = [{0: 1, 5: -1, 10: -1}, {0: -1, 5: 1, 10: -1}, {0: -1, 5: -1, 10: 1}, {0: 1, 5: 1, 10: 1},
+              {1: 1, 4: 1}, {2: 1, 8: 1}, {6: 1, 9: 1}, {9: 1, 6: -1}, {2: 1, 8: -1}, {4: 1, 1: -1}]
+    pivot_rows = [[0, 4, 5, 7], [4, 1, 6, 8], [5, 6, 2, 9], [7, 8, 9, 3]]
+    S = np.zeros((16, 16))
+    for p, rows in enumerate(pivot_rows):
+        for i, v in enumerate(rows):
+            for col, sign in values[v].items():
+                S[4 * p + i, col] = sign
+    return S
 
 
-def _quaternions(R: np.ndarray) -> np.ndarray:
-    """Unit quaternions (N, 4), x-y-z-w with w ≥ 0, of rotation matrices (N, 3, 3).
+def _dual_part_matrix() -> np.ndarray:
+    """(4, 12): ``q' = ½ (t, 0) ⊗ q`` from the products ``t_j q_k`` at 4j + k (vector part
+    ``½ (t w + t × v)``, scalar part ``-½ t·v``)."""
+    D = np.zeros((4, 12))
+    for j in range(3):
+        a, b = (j + 1) % 3, (j + 2) % 3
+        D[j, 4 * j + 3] = 0.5
+        D[j, 4 * a + b] += 0.5
+        D[j, 4 * b + a] -= 0.5
+        D[3, 4 * j + j] = -0.5
+    return D
 
-    Shepperd's method: of the four expressions ``4x², 4y², 4z², 4w²`` (from the trace and the
-    diagonal) the largest is taken as the pivot, so no division by a small number occurs. It is
-    what ``scipy``'s ``Rotation.from_matrix`` does for one matrix, without its per-call overhead
-    (which dominated building the problem for N = 100).
+
+_SHEPPERD = _shepperd_matrix()
+_DUAL = _dual_part_matrix()
+_PIVOTS = np.arange(4)[:, None]
+
+
+def _from_flat(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit dual quaternions ``(q, q')`` as (4, M) arrays of transforms flattened batch-last, X (16, M).
+
+    The rotation by Shepperd's method: of the four expressions ``4x², 4y², 4z², 4w²`` (from the
+    trace and the diagonal) the largest is taken as the pivot, so no division by a small number
+    occurs. It is what ``scipy``'s ``Rotation.from_matrix`` does for one matrix, without its per-call
+    overhead; with the batch on the last axis each step is one pass over contiguous rows.
+    Then ``q' = ½ (t, 0) ⊗ q`` (eq 2), with the sign that makes ``w ≥ 0``.
     """
-    d0, d1, d2 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
-    tr = d0 + d1 + d2
-    vals = np.stack([1 + 2 * d0 - tr, 1 + 2 * d1 - tr, 1 + 2 * d2 - tr, 1 + tr,     # 4x², 4y², 4z², 4w²
-                     R[:, 0, 1] + R[:, 1, 0], R[:, 0, 2] + R[:, 2, 0], R[:, 1, 2] + R[:, 2, 1],
-                     R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
-    k = np.argmax(vals[:, :4], axis=1)
-    q = np.take_along_axis(vals, _PIVOT_ROWS[k], axis=1)   # ∝ 4·pivot·(x, y, z, w)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    return np.where(q[:, 3:] < 0, -q, q)
+    G = _SHEPPERD @ X                                        # the four pivots' scaled quaternions
+    G[::5] += 1.0
+    pick = np.argmax(G[::5].T, axis=1) == _PIVOTS           # (4, M) one-hot
+    q = (G.reshape(4, 4, -1) * pick[:, None]).sum(0)         # ∝ 4·pivot·(x, y, z, w)
+    q *= np.where(q[3] < 0, -1.0, 1.0) / np.sqrt(np.einsum("im,im->m", q, q))
+    qd = _DUAL @ (X[3:12:4, None] * q).reshape(12, -1)
+    return q, qd
 
 
-_NEXT, _PREV = np.array([1, 2, 0]), np.array([2, 0, 1])
+def _block_matrix() -> np.ndarray:
+    """(8, 16): ``vec(L(p) - R(r)) = [p, r] @ _BLOCK`` for row vectors p, r (row-major 4x4)."""
+    B = np.zeros((8, 16))
+    for i in range(4):
+        for j in range(4):
+            B[_L_INDEX[i, j], 4 * i + j] += _L_SIGN[i, j]
+            B[4 + _R_INDEX[i, j], 4 * i + j] -= _R_SIGN[i, j]
+    return B
+
+
+_BLOCK = _block_matrix()
+
+
+def pair_difference_blocks(Ta: np.ndarray, Tb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``L(q_a) - R(q_b)`` and ``L(q'_a) - R(q'_b)`` (…, 4, 4) of the (broadcast) transforms
+    ``Ta``, ``Tb`` (…, 4, 4): both stacks are converted in one pass and the blocks formed by one product."""
+    Ta, Tb = np.broadcast_arrays(np.asarray(Ta, dtype=float), np.asarray(Tb, dtype=float))
+    shape = Ta.shape[:-2] + (4, 4)
+    a, b = Ta.reshape(-1, 16), Tb.reshape(-1, 16)
+    n = len(a)
+    q, qd = _from_flat(np.concatenate((a, b)).T.copy())
+    pairs = np.empty((2 * n, 8))                 # rows [q_a, q_b] for E, then [q'_a, q'_b] for F
+    pairs[:n, :4] = q[:, :n].T
+    pairs[:n, 4:] = q[:, n:].T
+    pairs[n:, :4] = qd[:, :n].T
+    pairs[n:, 4:] = qd[:, n:].T
+    blocks = pairs @ _BLOCK
+    return blocks[:n].reshape(shape), blocks[n:].reshape(shape)
 
 
 def from_transforms(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit dual quaternions ``(q, q')`` of transforms (…, 4, 4), scalar part of ``q`` ≥ 0 (eq 2)."""
     T = np.asarray(T, dtype=float)
-    flat = T.reshape(-1, 4, 4)
-    q = _quaternions(flat[:, :3, :3])
-    t = flat[:, :3, 3]
-    qd = np.empty_like(q)                      # ½ (t, 0) ⊗ q
-    v = q[:, :3]
-    cross = t[:, _NEXT] * v[:, _PREV] - t[:, _PREV] * v[:, _NEXT]          # t × v
-    qd[:, :3] = 0.5 * (t * q[:, 3:] + cross)
-    qd[:, 3] = -0.5 * np.einsum("ij,ij->i", t, q[:, :3])
+    q, qd = _from_flat(np.ascontiguousarray(T.reshape(-1, 16).T))
     shape = T.shape[:-2] + (4,)
-    return q.reshape(shape), qd.reshape(shape)
+    return q.T.reshape(shape).copy(), qd.T.reshape(shape).copy()
 
 
 def to_transform(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     """The 4x4 transform of a dual quaternion ``q + ε q'`` (normalised so |q| = 1).
 
-    The translation is ``t = 2 q' ⊗ q*`` (vector part), from eq 2.
+    The translation is ``t = 2 q' ⊗ q*`` (vector part), from eq 2. Written out on Python floats:
+    for one transform that is several times faster than the equivalent numpy calls.
     """
-    q = np.asarray(q, dtype=float)
-    qd = np.asarray(qd, dtype=float)
-    n = np.linalg.norm(q)
-    q, qd = q / n, qd / n
-    x, y, z, w = q
-    T = np.eye(4)
-    T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                 [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                 [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
-    T[:3, 3] = 2.0 * multiply(qd, conjugate(q))[:3]
-    return T
+    x, y, z, w = np.asarray(q, dtype=float).tolist()
+    a, b, c, d = np.asarray(qd, dtype=float).tolist()
+    s = 1.0 / (x * x + y * y + z * z + w * w)          # |q|⁻²: rotation terms are quadratic in q
+    x2, y2, z2 = 2.0 * x, 2.0 * y, 2.0 * z
+    xx, yy, zz = x * x2 * s, y * y2 * s, z * z2 * s
+    xy, xz, yz = x * y2 * s, x * z2 * s, y * z2 * s
+    xw, yw, zw = x2 * w * s, y2 * w * s, z2 * w * s
+    # 2 q' ⊗ q* / |q|² (vector part) = 2 (w a⃗ - d q⃗ - a⃗ × q⃗) / |q|²
+    s2 = 2.0 * s
+    return np.array([[1.0 - yy - zz, xy - zw, xz + yw, s2 * (w * a - d * x - (b * z - c * y))],
+                     [xy + zw, 1.0 - xx - zz, yz - xw, s2 * (w * b - d * y - (c * x - a * z))],
+                     [xz - yw, yz + xw, 1.0 - xx - yy, s2 * (w * c - d * z - (a * y - b * x))],
+                     [0.0, 0.0, 0.0, 1.0]])

@@ -278,9 +278,7 @@ def validate_motions(motions_a: np.ndarray, motions_b: np.ndarray,
 
 def pair_blocks(motions_a: np.ndarray, motions_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The per-pair blocks ``E_i = L(q_C) - R(q_H)`` and ``F_i = L(q'_C) - R(q'_H)`` (eqs 6–7), (N,4,4) each."""
-    qc, qcd = dq.from_transforms(motions_a)
-    qh, qhd = dq.from_transforms(motions_b)
-    return dq.left(qc) - dq.right(qh), dq.left(qcd) - dq.right(qhd)
+    return dq.pair_difference_blocks(motions_a, motions_b)
 
 
 def build_problem(motions_a: np.ndarray, motions_b: np.ndarray, alpha: float = 1.0,
