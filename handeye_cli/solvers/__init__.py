@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import lapack
 
 from ..errors import HandEyeError
 from . import dualquat
@@ -73,9 +74,10 @@ def _check_determined(problem: Problem) -> None:
     a third means a whole family of extrinsics fits exactly (e.g. planar motion: translation
     along the normal; a single rotation axis: rotation about it).
     """
-    Q = np.block([[problem.S, problem.W], [problem.W.T, problem.M]])
-    ev = np.linalg.eigvalsh(Q)
-    null = int(np.sum(ev <= 1e-13 * max(ev[-1], 1e-300)))
+    ev, _, info = lapack.dsyev(problem.form, compute_v=0)
+    if info:
+        raise np.linalg.LinAlgError(f"eigenvalue computation did not converge (info {info})")
+    null = int(np.count_nonzero(ev <= 1e-13 * max(ev[-1], 1e-300)))
     if null >= 3:
         raise HandEyeError("the motions cannot determine the extrinsic: a family of solutions fits "
                            "them exactly (all motions about one axis, or planar, or too few)",
