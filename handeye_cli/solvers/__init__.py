@@ -9,14 +9,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import lapack
 
 from ..errors import HandEyeError
 from . import dualquat
 from .approximate import dq2ndord, dq2steps, dqconvrlx
 from .daniilidis import daniilidis
 from .optimal import dqitr, dqopt
-from .problem import Prior, Problem, build_problem, pair_blocks, problem_from_blocks, validate_motions
+from .problem import Prior, Problem, build_problem, eigh, pair_blocks, problem_from_blocks, validate_motions
 
 __all__ = ["METHODS", "Prior", "Problem", "Solution", "build_problem", "solve", "dq_cost"]
 
@@ -74,9 +73,7 @@ def _check_determined(problem: Problem) -> None:
     a third means a whole family of extrinsics fits exactly (e.g. planar motion: translation
     along the normal; a single rotation axis: rotation about it).
     """
-    ev, _, info = lapack.dsyev(problem.form, compute_v=0)
-    if info:
-        raise np.linalg.LinAlgError(f"eigenvalue computation did not converge (info {info})")
+    ev, _ = eigh(problem.form, vectors=False)
     null = int(np.count_nonzero(ev <= 1e-13 * max(ev[-1], 1e-300)))
     if null >= 3:
         raise HandEyeError("the motions cannot determine the extrinsic: a family of solutions fits "

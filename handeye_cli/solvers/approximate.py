@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .problem import Problem
+from .problem import Problem, eigh
 
 __all__ = ["Approximation", "dq2steps", "dqconvrlx", "dq2ndord"]
 
@@ -25,7 +25,7 @@ class Approximation:
 
 
 def _with_dual(problem: Problem, q: np.ndarray, details: dict) -> Approximation:
-    q = q / np.linalg.norm(q)
+    q = q / np.sqrt(q @ q)
     qd, mu = problem.dual_part(q)
     return Approximation(q, qd, mu, details)
 
@@ -37,7 +37,7 @@ def dq2steps(problem: Problem) -> Approximation:
 
 def _z0_eigen(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
     """Eigenpairs of Z0 (eq 21), ascending; defined for a singular M too."""
-    return np.linalg.eigh(problem.Z0_relaxed)
+    return eigh(problem.Z0_relaxed)
 
 
 def dqconvrlx(problem: Problem) -> Approximation:
@@ -50,8 +50,8 @@ def dqconvrlx(problem: Problem) -> Approximation:
     q = V[:, 0]
     details = {"lower_bound": float(lam[0])}
     if problem.M_is_regular:
-        _, Z1, Z2 = problem.Z
-        details["gap_bound"] = float(0.25 * (q @ Z1 @ q) ** 2 / (q @ Z2 @ q))
+        z1, z2 = (problem._Zs[1:] @ q @ q).tolist()       # qᵀZ1q, qᵀZ2q
+        details["gap_bound"] = 0.25 * z1 * z1 / z2
     return _with_dual(problem, q, details)
 
 
@@ -68,12 +68,14 @@ def dq2ndord(problem: Problem) -> Approximation:
     lam, V = _z0_eigen(problem)
     if not problem.M_is_regular:
         return _with_dual(problem, V[:, 0], {"mu_2nd_order": 0.0})
-    _, Z1, Z2 = problem.Z
-    Z1e = V.T @ Z1 @ V                      # Z1^{ab}
-    Z2e = V.T @ Z2 @ V                      # Z2^{ab}
-    gaps = lam[0] - lam[1:]                 # λ_{0a}, a = 1..3 (negative)
-    c1 = Z1e[1:, 0] / gaps                  # Z1^{a0} / λ_{0a}
-    mu = 0.5 * Z1e[0, 0] / (Z2e[0, 0] - np.sum(Z1e[1:, 0] ** 2 / gaps))
-    inner = Z1e[1:, 1:] @ c1 - Z2e[1:, 0] - Z1e[0, 0] * c1
-    coeff = np.concatenate([[1.0 - 0.5 * mu * mu * np.sum(c1 * c1)], mu * c1 + mu * mu * inner / gaps])
+    # Z1^{ab}, Z2^{ab} as nested lists: the arithmetic on 4x4 numbers is cheaper in Python floats
+    Z1e, Z2e = (V.T @ problem._Zs[1:] @ V).tolist()
+    l0, *la = lam.tolist()
+    gaps = [l0 - l for l in la]                             # λ_{0a}, a = 1..3 (negative)
+    z10 = [Z1e[a][0] for a in (1, 2, 3)]                    # Z1^{a0}
+    c1 = [z / g for z, g in zip(z10, gaps)]                 # Z1^{a0} / λ_{0a}
+    mu = 0.5 * Z1e[0][0] / (Z2e[0][0] - sum(z * c for z, c in zip(z10, c1)))
+    inner = [sum(Z1e[a][b] * c1[b - 1] for b in (1, 2, 3)) - Z2e[a][0] - Z1e[0][0] * c1[a - 1] for a in (1, 2, 3)]
+    coeff = [1.0 - 0.5 * mu * mu * sum(c * c for c in c1)] + [mu * c + mu * mu * i / g
+                                                             for c, i, g in zip(c1, inner, gaps)]
     return _with_dual(problem, V @ coeff, {"mu_2nd_order": float(mu)})

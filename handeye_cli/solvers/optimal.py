@@ -21,9 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import lapack
 
-from .problem import Problem
+from .problem import Problem, eigh
 
 __all__ = ["LineSearchResult", "dqopt", "dqitr", "kkt_polish"]
 
@@ -43,18 +42,10 @@ class LineSearchResult:
     singular_m: bool = False
 
 
-def _eigh(Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """All eigenpairs of a symmetric 4x4, ascending (LAPACK ``dsyev`` without numpy's per-call overhead)."""
-    lam, V, info = lapack.dsyev(Z)
-    if info:
-        raise np.linalg.LinAlgError(f"eigenvalue computation did not converge (info {info})")
-    return lam, V
-
-
 def _smallest(Zs: np.ndarray, mu: float) -> tuple[np.ndarray, np.ndarray]:
     """All eigenpairs of Z(μ) = Z0 + μ Z1 - μ² Z2 (eq 12), ascending; column 0 is the smallest.
     ``Zs`` is ``(Z0, Z1, Z2)`` stacked and flattened, (3, 16)."""
-    return _eigh(np.dot((1.0, mu, -mu * mu), Zs).reshape(4, 4))
+    return eigh(np.dot((1.0, mu, -mu * mu), Zs).reshape(4, 4))
 
 
 def _f_and_slope(Z12: np.ndarray, mu: float, lam: np.ndarray, V: np.ndarray) -> tuple[float, float, list, float]:
@@ -94,9 +85,7 @@ def _mu_bracket(Z1: np.ndarray, Re: np.ndarray) -> tuple[float, float]:
 
     With ``Z2 = M⁻¹ = Re⁻¹ Re⁻ᵀ`` (``E = Qe Re``) they are the eigenvalues of ``Re (½Z1) Reᵀ``.
     """
-    theta, _, info = lapack.dsyev(Re @ (0.5 * Z1) @ Re.T, compute_v=0)
-    if info:
-        raise np.linalg.LinAlgError(f"eigenvalue computation did not converge (info {info})")
+    theta, _ = eigh(Re @ (0.5 * Z1) @ Re.T, vectors=False)
     lo, hi = theta[0], theta[-1]
     pad = 1e-12 * max(abs(lo), abs(hi), 1e-300)
     return float(lo - pad), float(hi + pad)
@@ -157,7 +146,7 @@ def _result(problem: Problem, V: np.ndarray, mu: float, lam: np.ndarray, iterati
 def _singular(problem: Problem) -> LineSearchResult:
     """M singular: start from the relaxed solution (exact at μ = 0 on noise-free data, §3.1.2) and
     polish on the KKT system, which needs no inverse of M."""
-    lam, V = _eigh(problem.Z0_relaxed)
+    lam, V = eigh(problem.Z0_relaxed)
     q = V[:, 0]
     qd, mu = problem.dual_part(q)
     q, qd, lam0, mu = kkt_polish(problem, q, qd, float(lam[0]), mu)
@@ -180,7 +169,7 @@ def dqopt(problem: Problem, max_iterations: int = 100) -> LineSearchResult:
     Zs = problem._Zs
     Z12 = Zs[1:]
     n1, n2 = float(np.vdot(Zs[1], Zs[1])) ** 0.5, float(np.vdot(Zs[2], Zs[2])) ** 0.5      # Frobenius
-    lam, V = _eigh(Zs[0])
+    lam, V = eigh(Zs[0])
     Zs = Zs.reshape(3, 16)
     lo, hi = -np.inf, np.inf
     bracketed = False

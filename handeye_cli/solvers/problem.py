@@ -228,6 +228,16 @@ class Problem:
         return qd, float((self.R_factor @ q) @ (CB @ y + gq))
 
 
+def eigh(A: np.ndarray, vectors: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (ascending) and eigenvectors (columns) of a small symmetric matrix: LAPACK
+    ``dsyev`` called directly, without the per-call overhead of ``np.linalg.eigh`` (several times
+    the work at 4x4). With ``vectors=False`` the second item is meaningless."""
+    lam, V, info = lapack.dsyev(A, compute_v=int(vectors))
+    if info:
+        raise np.linalg.LinAlgError(f"eigenvalue computation did not converge (info {info})")
+    return lam, V
+
+
 def _rank_tolerance(sv: np.ndarray) -> float:
     """Singular values of E below this count as zero (M singular)."""
     return 1e-8 * max(sv[0], 1e-300)
