@@ -109,7 +109,9 @@ _BLOCK = _block_matrix()
 def pair_difference_blocks(Ta: np.ndarray, Tb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``L(q_a) - R(q_b)`` and ``L(q'_a) - R(q'_b)`` (…, 4, 4) of the (broadcast) transforms
     ``Ta``, ``Tb`` (…, 4, 4): both stacks are converted in one pass and the blocks formed by one product."""
-    Ta, Tb = np.broadcast_arrays(np.asarray(Ta, dtype=float), np.asarray(Tb, dtype=float))
+    Ta, Tb = np.asarray(Ta, dtype=float), np.asarray(Tb, dtype=float)
+    if Ta.shape != Tb.shape:
+        Ta, Tb = np.broadcast_arrays(Ta, Tb)
     shape = Ta.shape[:-2] + (4, 4)
     a, b = Ta.reshape(-1, 16), Tb.reshape(-1, 16)
     n = len(a)

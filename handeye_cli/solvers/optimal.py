@@ -48,7 +48,7 @@ def _smallest(Zs: np.ndarray, mu: float) -> tuple[np.ndarray, np.ndarray]:
     return eigh(np.dot((1.0, mu, -mu * mu), Zs).reshape(4, 4))
 
 
-def _f_and_slope(Z12: np.ndarray, mu: float, lam: np.ndarray, V: np.ndarray) -> tuple[float, float, list, float]:
+def _f_and_slope(Z12: np.ndarray, mu: float, lam: list, V: np.ndarray) -> tuple[float, float, list, float]:
     """``f(μ)`` of eq 18, its derivative from second-order eigenvalue perturbation, the first-order
     change of the eigenvector q₀ per unit μ in the eigenbasis, and the (floored) gap λ₁ - λ₀.
 
@@ -57,7 +57,7 @@ def _f_and_slope(Z12: np.ndarray, mu: float, lam: np.ndarray, V: np.ndarray) -> 
     The arithmetic on the four numbers is done in Python floats, cheaper than numpy calls at this size.
     """
     z1, z2 = (V[:, 0] @ Z12 @ V).tolist()          # q₀ᵀZ1qₐ, q₀ᵀZ2qₐ
-    l0, l1, l2, l3 = lam.tolist()
+    l0, l1, l2, l3 = lam
     floor = _EPS * max(abs(l3), 1.0)
     tm = 2.0 * mu
     c1, c2, c3 = z1[1] - tm * z2[1], z1[2] - tm * z2[2], z1[3] - tm * z2[3]
@@ -129,15 +129,15 @@ def kkt_polish(problem: Problem, q: np.ndarray, qd: np.ndarray, lam: float, mu: 
     return q, qd, float(lam), float(mu)
 
 
-def _result(problem: Problem, V: np.ndarray, mu: float, lam: np.ndarray, iterations: int,
+def _result(problem: Problem, V: np.ndarray, mu: float, lam: list, iterations: int,
             converged: bool) -> LineSearchResult:
-    """Complete the smallest eigenvector ``q`` of Z(μ) with its optimal dual part (eq 20, by least
-    squares: ``M⁻¹`` amplifies rounding when the cost is tiny). The eigenvector's error is about
-    eps·|Z(μ)|/gap; where that is not negligible (ill-conditioned problems), polish the pair on
-    the KKT system."""
+    """Complete the smallest eigenvector ``q`` of Z(μ) (M regular) with its optimal dual part (eq 20,
+    by least squares: ``M⁻¹`` amplifies rounding when the cost is tiny). The eigenvector's error is
+    about eps·|Z(μ)|/gap; where that is not negligible (ill-conditioned problems), polish the pair
+    on the KKT system. ``lam``: the eigenvalues as a list."""
     q = V[:, 0]
-    qd = problem._dual(q, V[:, 1:])[0]                 # the other eigenvectors: a basis of q's complement
-    l0, l1, _, l3 = lam.tolist()
+    qd = problem._dual(q, V[:, 1:], full_rank=True)[0]     # the other eigenvectors: a basis of q's complement
+    l0, l1, _, l3 = lam
     if _EPS * max(abs(l0), abs(l3)) > 1e-10 * (l1 - l0):
         q, qd, l0, mu = kkt_polish(problem, q, qd, l0, mu)
     return LineSearchResult(q, qd, l0, float(mu), iterations, converged)
@@ -157,8 +157,8 @@ def dqopt(problem: Problem, max_iterations: int = 100) -> LineSearchResult:
     """Algorithm 1 (DQOpt): the global minimiser of cost (8), to machine precision.
 
     Newton's method on the increasing function f (eq 18) from μ = 0, safeguarded by bisection:
-    every evaluation narrows a sign bracket, and from the second step on (or as soon as a step
-    would leave it) the bracket is also cut to the bounds of appendix C. A step δ so small that
+    every evaluation narrows a sign bracket, and once a step would leave it, or the second step is
+    not already negligible, the bracket is also cut to the bounds of appendix C. A step δ so small that
     the second-order change of the eigenvector, about ``δ² (|Z1 - 2μZ2|²/gap² + |Z2|/gap)``, is
     below rounding is not taken with another eigendecomposition but by first-order perturbation,
     ``q₀ + δ Σ c_a/(λ₀ - λ_a) qₐ``. On noisy data that is the second step: the first, from μ = 0,
@@ -170,6 +170,7 @@ def dqopt(problem: Problem, max_iterations: int = 100) -> LineSearchResult:
     Z12 = Zs[1:]
     n1, n2 = float(np.vdot(Zs[1], Zs[1])) ** 0.5, float(np.vdot(Zs[2], Zs[2])) ** 0.5      # Frobenius
     lam, V = eigh(Zs[0])
+    lam = lam.tolist()
     Zs = Zs.reshape(3, 16)
     lo, hi = -np.inf, np.inf
     bracketed = False
@@ -185,26 +186,28 @@ def dqopt(problem: Problem, max_iterations: int = 100) -> LineSearchResult:
             lo = mu
         else:
             hi = mu
+        # a step whose second-order effect on the eigenvector is below rounding
+        negligible = _EPS / (((n1 + 2.0 * abs(mu) * n2) / gap) ** 2 + n2 / gap)
         new = mu - f / slope
-        if lo < new < hi:
-            step = new - mu
-            if step * step * (((n1 + 2.0 * abs(mu) * n2) / gap) ** 2 + n2 / gap) <= _EPS:
-                V = _rotated(V, step, dq)
-                lam = lam.copy()
-                lam[0] += step * (-2.0 * f - step * slope)         # λ₀ to second order
-                mu = new
-                converged = True
-                break
-        if not bracketed and (it > 1 or not lo < new < hi):
-            blo, bhi = _mu_bracket(Z12[0], problem.R_factor)
-            lo, hi, bracketed = max(lo, blo), min(hi, bhi), True
-        if not lo < new < hi:
-            new = 0.5 * (lo + hi)
+        if not (lo < new < hi and (it == 1 or bracketed or (new - mu) ** 2 <= negligible)):
+            if not bracketed:
+                blo, bhi = _mu_bracket(Z12[0], problem.R_factor)
+                lo, hi, bracketed = max(lo, blo), min(hi, bhi), True
+            if not lo < new < hi:
+                new = 0.5 * (lo + hi)
+        step = new - mu
+        if step * step <= negligible:
+            V = _rotated(V, step, dq)
+            lam[0] += step * (-2.0 * f - step * slope)             # λ₀ to second order
+            mu = new
+            converged = True
+            break
         if bracketed and hi - lo <= 4.0 * _EPS * max(abs(lo), abs(hi)):
             converged = True
             break
         mu = new
         lam, V = _smallest(Zs, mu)
+        lam = lam.tolist()
     return _result(problem, V, mu, lam, it, converged)
 
 
@@ -233,4 +236,4 @@ def dqitr(problem: Problem, tolerance: float = 1e-12, max_iterations: int = 100)
         if done:
             converged = True
             break
-    return _result(problem, V, mu, lam, it, converged)
+    return _result(problem, V, mu, lam.tolist(), it, converged)

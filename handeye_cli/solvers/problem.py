@@ -198,15 +198,23 @@ class Problem:
         Gr = G - U @ (U.T @ G)
         return self._PtP + Rf.T @ Rf + Gr.T @ Gr
 
-    def _dual(self, q: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _dual(self, q: np.ndarray, basis: np.ndarray, full_rank: bool = False
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`dual_part` in a given orthonormal basis (4, 3) of ``q``'s complement, without μ:
-        ``q'`` and, for μ, ``Re B``, ``G q`` and the coefficients ``y``."""
+        ``q'`` and, for μ, ``Re B``, ``G q`` and the coefficients ``y``.
+
+        ``full_rank`` (M regular, so ``Re B`` has full column rank with ``cond ≤ cond(Re) < 1e8``)
+        lets the least squares be solved by QR (``dgels``) instead of the rank-revealing SVD."""
         R = self._R
         gq = R[:4, 4:] @ q
         CB = R[:4, :4] @ basis
-        y, _, _, info = lapack.dgelsd(CB, -gq, _LWORK, _IWORK, _EPS * max(len(self.E), 3))
+        info = 1
+        if full_rank:
+            _, y, info = lapack.dgels(CB, -gq)
         if info:
-            raise np.linalg.LinAlgError(f"least squares did not converge (info {info})")
+            y, _, _, info = lapack.dgelsd(CB, -gq, _LWORK, _IWORK, _EPS * max(len(self.E), 3))
+            if info:
+                raise np.linalg.LinAlgError(f"least squares did not converge (info {info})")
         y = y[:3]
         return basis @ y, CB, gq, y
 
