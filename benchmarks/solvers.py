@@ -41,7 +41,7 @@ def timing(repeats: int) -> None:
     rows = {}
     for n in sizes:
         A, B = motion_pairs(n, X, rng, sigma_r=SIGMA_R, sigma_t=SIGMA_T)
-        reps = max(5, repeats * 100 // n)
+        reps = max(15, repeats * 100 // n)
         for m in METHODS:
             solve(A, B, method=m)                       # warm-up
         # Interleave methods so that machine load affects them alike.
