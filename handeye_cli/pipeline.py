@@ -94,15 +94,17 @@ class Calibration:
 def read_streams(spec_a: StreamSpec, spec_b: StreamSpec, config: dict | None = None, *,
                  quiet: bool = True) -> tuple[PoseStream, PoseStream]:
     """Read streams a and b (``T_world_sensor``), inverted where the config says so."""
-    from .io import read_stream      # the readers pull in mcap/rosbags: import them only when reading
+    from .io import detect_format, read_log_streams, read_stream   # mcap/rosbags: import only when reading
+    from .io.detect import LOG_FORMATS
 
     cfg = config or load_config()
-    streams = []
-    for spec, invert in ((spec_a, cfg["invert_a"]), (spec_b, cfg["invert_b"])):
-        s = read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=cfg["time_source"],
-                        columns=cfg["csv_columns"], quiet=quiet)
-        streams.append(s.inverted() if invert else s)
-    return streams[0], streams[1]
+    if spec_a.path == spec_b.path and detect_format(spec_a.path) in LOG_FORMATS:     # one pass over the log
+        a, b = read_log_streams(spec_a.path, [(spec_a.topic, spec_a.frames), (spec_b.topic, spec_b.frames)],
+                                time_source=cfg["time_source"], quiet=quiet)
+    else:
+        a, b = (read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=cfg["time_source"],
+                            columns=cfg["csv_columns"], quiet=quiet) for spec in (spec_a, spec_b))
+    return (a.inverted() if cfg["invert_a"] else a), (b.inverted() if cfg["invert_b"] else b)
 
 
 def _time_offset(a: PoseStream, b: PoseStream, sync: dict) -> tuple[int, dict, list[str]]:

@@ -14,13 +14,13 @@ from typing import Iterator, Sequence
 from ..errors import HandEyeError
 from ..streams import PoseStream
 from .detect import LOG_FORMATS, detect_format, existing
-from .logs import inspect_source, read_frames, read_topic
+from .logs import Request, inspect_source, read_requests
 from .mcap_reader import McapSource
 from .rosbag_reader import BagSource
 from .source import LogSource
 from .text import read_text
 
-__all__ = ["read_stream", "inspect_log", "detect_format"]
+__all__ = ["read_stream", "read_log_streams", "inspect_log", "detect_format"]
 
 _TIME_SOURCES = ("header", "log")
 
@@ -69,14 +69,32 @@ def read_stream(paths: str | Path | Sequence[str | Path], *, topic: str | None =
                                "file per stream", ", ".join(map(str, plist)),
                                "drop --topic/--frames and pass one text file per stream")
         return read_text(plist[0], fmts[0], columns)
-    if (topic is None) == (frames is None):
-        raise HandEyeError("give exactly one of a topic or a (parent, child) frame pair",
-                           ", ".join(map(str, plist)), "use --topic-a/--topic-b or --frames-a/--frames-b")
+    return _read_log(plist, fmts, [(topic, frames)], time_source, quiet)[0]
+
+
+def read_log_streams(paths: str | Path | Sequence[str | Path], requests: Sequence[Request], *,
+                     time_source: str = "header", quiet: bool = True) -> list[PoseStream]:
+    """Several streams of one log (MCAP, ROS bags; several paths = split ROS 1 bags) in a single
+    pass, one per request ``(topic, None)`` or ``(None, (parent, child))``, each as
+    :func:`read_stream` returns it. Raises HandEyeError on any bad input."""
+    plist = [existing(p) for p in ([paths] if isinstance(paths, (str, Path)) else list(paths))]
+    fmts = [detect_format(p) for p in plist]
+    if time_source not in _TIME_SOURCES:
+        raise HandEyeError(f"unknown time source {time_source!r}", "time_source", "use 'header' or 'log'")
+    if not plist or fmts[0] not in LOG_FORMATS:
+        raise HandEyeError("not a log (MCAP, ROS 1 or ROS 2 bag)", ", ".join(map(str, plist)) or "read_log_streams",
+                           "read text files one stream at a time with read_stream")
+    return _read_log(plist, fmts, requests, time_source, quiet)
+
+
+def _read_log(plist: list[Path], fmts: list[str], requests: Sequence[Request], time_source: str,
+              quiet: bool) -> list[PoseStream]:
+    for topic, frames in requests:
+        if (topic is None) == (frames is None):
+            raise HandEyeError("give exactly one of a topic or a (parent, child) frame pair",
+                               ", ".join(map(str, plist)), "use --topic-a/--topic-b or --frames-a/--frames-b")
     with _open_log(plist, fmts) as src:
-        if topic is not None:
-            return read_topic(src, topic, time_source=time_source, quiet=quiet)
-        parent, child = frames
-        return read_frames(src, parent, child, time_source=time_source, quiet=quiet)
+        return read_requests(src, requests, time_source=time_source, quiet=quiet)
 
 
 def inspect_log(path: str | Path, *, quiet: bool = True) -> dict:

@@ -1,7 +1,7 @@
 """Format-independent reading of an open log: one pose topic, a TF frame pair, or an overview."""
 from __future__ import annotations
 
-from typing import Iterator
+from typing import Iterator, Optional, Sequence
 
 from ..errors import HandEyeError
 from ..streams import PoseStream
@@ -11,7 +11,7 @@ from .progress import progress
 from .source import LogSource, TopicInfo
 from .tf import TfTree
 
-__all__ = ["read_topic", "read_frames", "inspect_source", "is_static_topic"]
+__all__ = ["read_requests", "inspect_source", "is_static_topic"]
 
 _BATCH = 4096   # messages between progress-bar updates
 
@@ -54,10 +54,10 @@ def _records(src: LogSource, infos: list[TopicInfo], label: str, time_source: st
         bar.update(n % _BATCH)
 
 
-def read_topic(src: LogSource, topic: str, *, time_source: str = "header",
-               quiet: bool = True) -> PoseStream:
-    """The poses ``T_frame_child`` on ``topic`` (child = child_frame_id, else the topic name)."""
-    infos = src.topics()
+Request = tuple[Optional[str], Optional[tuple[str, str]]]   # (topic, None) or (None, (parent, child))
+
+
+def _check_topic(src: LogSource, infos: list[TopicInfo], topic: str) -> None:
     info = next((t for t in infos if t.topic == topic), None)
     if info is None:
         raise HandEyeError(f"unknown topic {topic!r}", src.name, f"pose topics in this file: {_pose_topics(infos)}")
@@ -65,9 +65,9 @@ def read_topic(src: LogSource, topic: str, *, time_source: str = "header",
         raise HandEyeError(f"unsupported message type {info.msgtype!r}", f"{src.name}:{topic}",
                            f"supported types: {', '.join(sorted(POSE_TYPES))}; "
                            f"pose topics in this file: {_pose_topics(infos)}")
-    buf = PoseBuffer()
-    for _, recs in _records(src, [info], f"reading {topic}", time_source, quiet):
-        buf.add(recs)
+
+
+def _topic_stream(src: LogSource, topic: str, buf: PoseBuffer, time_source: str) -> PoseStream:
     source = f"{src.name}:{topic}"
     if len(buf.pairs) > 1:
         pairs = ", ".join(f"{p or '?'}->{c or '?'}" for p, c in list(buf.pairs)[:8])
@@ -77,6 +77,34 @@ def read_topic(src: LogSource, topic: str, *, time_source: str = "header",
     stamps, xyz, quat = buf.arrays()
     return make_stream(stamps, xyz, quat, source=source, frame_id=frame, child_frame_id=child or topic,
                        time_source=time_source, where=lambda i: f"message {i}")
+
+
+def read_requests(src: LogSource, requests: Sequence[Request], *, time_source: str = "header",
+                  quiet: bool = True) -> list[PoseStream]:
+    """Several pose streams of one log in a single pass over it, one per request: ``(topic, None)``
+    reads the poses ``T_frame_child`` on a pose topic (child = child_frame_id, else the topic
+    name); ``(None, (parent, child))`` resolves ``T_parent_child(t)`` through the TF topics
+    (TFMessage, Foxglove FrameTransform(s))."""
+    infos = src.topics()
+    wanted = {topic for topic, _ in requests if topic is not None}
+    for topic in wanted:
+        _check_topic(src, infos, topic)
+    tf_topics = set()
+    if any(frames is not None for _, frames in requests):
+        tf_topics = {t.topic for t in infos if t.msgtype in TF_TYPES}
+        if not tf_topics:
+            raise HandEyeError("no TF topics (/tf, /tf_static) in this file", src.name,
+                               f"read a pose topic instead; pose topics: {_pose_topics(infos)}")
+    buffers = {topic: PoseBuffer() for topic in wanted}
+    tree = TfTree(src.name)
+    label = "reading " + ", ".join(sorted(wanted) + (["TF"] if tf_topics else []))
+    for topic, recs in _records(src, [t for t in infos if t.topic in wanted | tf_topics], label, time_source, quiet):
+        if topic in buffers:
+            buffers[topic].add(recs)
+        if topic in tf_topics:
+            tree.add(recs, static=is_static_topic(topic))
+    return [_topic_stream(src, topic, buffers[topic], time_source) if topic is not None
+            else tree.lookup(*frames, time_source=time_source) for topic, frames in requests]
 
 
 def _tf_tree(src: LogSource, infos: list[TopicInfo], time_source: str,
@@ -90,19 +118,9 @@ def _tf_tree(src: LogSource, infos: list[TopicInfo], time_source: str,
     return tree, pairs
 
 
-def read_frames(src: LogSource, parent: str, child: str, *, time_source: str = "header",
-                quiet: bool = True) -> PoseStream:
-    """``T_parent_child(t)`` resolved through the TF topics (TFMessage, Foxglove FrameTransform(s))."""
-    infos = src.topics()
-    if not any(t.msgtype in TF_TYPES for t in infos):
-        raise HandEyeError("no TF topics (/tf, /tf_static) in this file", src.name,
-                           f"read a pose topic instead; pose topics: {_pose_topics(infos)}")
-    return _tf_tree(src, infos, time_source, quiet)[0].lookup(parent, child, time_source=time_source)
-
-
 def inspect_source(src: LogSource, quiet: bool = True) -> dict:
     """Topics (type, encoding, count, mean rate over the log's span, ``pose``: readable as one
-    pose stream with ``read_topic`` — a TF topic only when it carries a single frame pair) and
+    pose stream with ``read_requests`` — a TF topic only when it carries a single frame pair) and
     the TF edges."""
     infos = src.topics()
     span = src.span()
