@@ -135,6 +135,7 @@ def _overrides(o: dict) -> dict:
     weights = None if o["prior_weights"] is None else _prior_weights(o["prior_weights"])
     return {
         "time_source": o["time_source"], "invert_a": o["invert_a"], "invert_b": o["invert_b"],
+        "name_a": o["name_a"], "name_b": o["name_b"],
         "sync": {"method": o["sync"], "max_dt": o["max_dt"],
                  "time_offset": _number_or("auto", o["time_offset"], "--time-offset")},
         "gates": gates,
@@ -175,6 +176,9 @@ def _summary(doc: dict) -> str:
 @click.option("--invert-a/--no-invert-a", default=None, help="Invert stream a first (it records T_sensor_world, "
               "e.g. a camera observing a target).")
 @click.option("--invert-b/--no-invert-b", default=None, help="Invert stream b first.")
+@click.option("--name-a", metavar="FRAME", help="Name of frame a in the result and the ROS snippet [default: the "
+              "stream's child frame, else its topic].")
+@click.option("--name-b", metavar="FRAME", help="Name of frame b in the result.")
 @click.option("--time-source", type=click.Choice(["header", "log"]), help="Stamps: header.stamp or log time "
               "[default: header].")
 @click.option("--time-offset", metavar="SECONDS|auto", help="How far b's clock is ahead of a's, or 'auto' to "

@@ -19,6 +19,8 @@ DEFAULTS: dict[str, Any] = {
     "time_source": "header",
     "invert_a": False,
     "invert_b": False,
+    "name_a": None,
+    "name_b": None,
     "csv_columns": None,
     "sync": {"method": "interpolate", "max_dt": 0.1, "time_offset": 0.0, "max_time_offset": None},
     "gates": {"max_translation": 0.10, "max_rotation_deg": 11.5},

@@ -77,7 +77,9 @@ class Calibration:
 
     @property
     def frames(self) -> dict:
-        return {"a": self.stream_a.child_frame_id or "a", "b": self.stream_b.child_frame_id or "b"}
+        """Names of frames a and b: ``name_a``/``name_b`` from the config, else the streams' child frames."""
+        return {"a": self.config["name_a"] or self.stream_a.child_frame_id or "a",
+                "b": self.config["name_b"] or self.stream_b.child_frame_id or "b"}
 
     def bootstrap_deviations(self) -> np.ndarray | None:
         """(K, 6) bootstrap deviations of X: rotation vector [deg] (3), translation [m] (3)."""

@@ -55,3 +55,13 @@ def test_unknown_topic_lists_the_pose_topics(capsys, monkeypatch, tmp_path):
                                                 "--topic-b", "/cam1/pose", "-o", str(tmp_path / "r.yaml")])
     assert code == 2 and err.count("\n") == 1 and "/cam0/pose" in err and "/nope" in err
     assert not (tmp_path / "r.yaml").exists()
+
+
+def test_frame_names_from_the_command_line_reach_the_result_and_ros_snippet(capsys, monkeypatch):
+    code, out, _ = _run(capsys, monkeypatch, ["calibrate", "sample_data/rig.mcap", "--topic-a", "/cam0/pose",
+                                              "--topic-b", "/cam1/pose", "--name-a", "cam0", "--name-b", "cam1",
+                                              "--format", "json", "-q"])
+    assert code == 0
+    doc = json.loads(out)
+    assert doc["frames"] == {"a": "cam0", "b": "cam1"}
+    assert doc["ros2_static_transform"].endswith("--frame-id cam0 --child-frame-id cam1")
