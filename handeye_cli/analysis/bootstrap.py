@@ -99,12 +99,7 @@ def _prior_gram(A: np.ndarray, B: np.ndarray, alpha: float, prior: Prior | None)
     if prior is None:
         return np.zeros((8, 8))
     with_p, without = (build_problem(A, B, alpha, p) for p in (prior, None))
-    return _full_gram(with_p) - _full_gram(without)
-
-
-def _full_gram(p: Problem) -> np.ndarray:
-    """``[[M, Wᵀ], [W, S]]`` of a problem (``[q'; q]`` order)."""
-    return np.block([[p.M, p.W.T], [p.W, p.S]])
+    return with_p.form - without.form
 
 
 def replicate_grams(motions_a: np.ndarray, motions_b: np.ndarray, counts: np.ndarray,
