@@ -136,7 +136,9 @@ def _too_few(pairs: Pairs, samples: dict, cfg: dict) -> HandEyeError:
              f"gave {samples['candidate_pairs']} candidate pairs with strategy {p['strategy']}")
     stage = max((("the timestamp gate", samples["dropped_timestamp_gate"] + samples["dropped_outside_span"]),
                  ("the pose-jump gate", samples["dropped_pose_jump"])), key=lambda x: x[1])
-    if samples["synced_kept"] >= 2 * cfg["solver"]["min_pairs"]:
+    if samples["candidate_pairs"] >= cfg["solver"]["min_pairs"]:
+        fix = f"the cap of {p['max_pairs']} pairs keeps too few: raise pairs.max_pairs (--max-pairs)"
+    elif samples["synced_kept"] >= 2 * cfg["solver"]["min_pairs"]:
         fix = (f"the motion rotates too little between samples: lower pairs.min_rotation_deg "
                f"(now {p['min_rotation_deg']}) or try --pairs all / consecutive")
     else:

@@ -230,3 +230,8 @@ def test_bad_logs_give_one_line_exit_2_and_no_output(capsys, tmp_path, make, ext
     code, out, err = run(capsys, "calibrate", src, *extra, "-o", out_file)
     assert code == 2 and err.startswith("error: ") and err.count("\n") == 1 and message in err, err
     assert out == "" and not out_file.exists()
+
+
+def test_a_cap_that_keeps_too_few_pairs_says_so(capsys, rig):
+    code, _, err = run(capsys, "calibrate", rig["a"], rig["b"], "--max-pairs", "2")
+    assert code == 2 and "raise pairs.max_pairs" in err and err.count("\n") == 1
