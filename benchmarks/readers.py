@@ -38,7 +38,7 @@ READERS = {"handeye": "handeye read_stream", "anyreader": "rosbags AnyReader"}
 def build(path: Path, n_poses: int, n_images: int) -> None:
     """An MCAP with ``n_poses`` PoseStamped on /pose and ``n_images`` ~100 KB Images on /camera/image."""
     from _logs import POSE, ROS2_STORE, Channel, pose_channel, records, write_mcap
-    from handeye_cli.synthetic import Rig, simulate_rig
+    from handeye_cli.simulation import Rig, simulate_rig
 
     rate = 200.0
     a, _ = simulate_rig(Rig(np.eye(4)), duration_s=n_poses / rate, rate_a=rate, rate_b=1.0, seed=1)

@@ -1,6 +1,6 @@
 """Benchmark of ``estimate_time_offset`` against the issue-4 target and the existing tools.
 
-Each seeded trial simulates a rigid rig (:func:`handeye_cli.synthetic.simulate_rig`): stream a at
+Each seeded trial simulates a rigid rig (:func:`handeye_cli.simulation.simulate_rig`): stream a at
 100 Hz for ``--duration`` s, stream b at 30 Hz covering only a ``--b-duration`` s stretch of it (as
 in the anchors' protocol, notes/anchors.md d3), both with absolute pose noise σ = ``--sigma-deg``
 and ``--sigma-mm``, and b's clock ahead of a's by an offset drawn uniformly in ±``--max-offset`` s,
@@ -19,8 +19,8 @@ import time
 
 import numpy as np
 
-from handeye_cli.synthetic import Rig, random_transform, simulate_rig
-from handeye_cli.timeoffset import estimate_time_offset
+from handeye_cli.simulation import Rig, random_transform, simulate_rig
+from handeye_cli.stages.timeoffset import estimate_time_offset
 
 TARGET_MS = 1.0
 ANCHORS = ("kinhec estimate_time_offset: <= 2 ms, only inside its default +-0.5 s search window",

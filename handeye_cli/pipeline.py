@@ -14,13 +14,13 @@ from .analysis import (BootstrapResult, Residuals, RobustResult, assess_observab
                        pair_residuals, robust_solve)
 from .config import load_config
 from .errors import HandEyeError
-from .gates import pose_jump_gate
-from .output import result_document
-from .pairfile import read_extrinsic
-from .pairs import Pairs, make_pairs
+from .stages.gates import pose_jump_gate
+from .output.document import result_document
+from .io.pairfile import read_extrinsic
+from .stages.pairs import Pairs, make_pairs
 from .solvers import Prior, Solution, solve
 from .streams import PoseStream
-from .sync import Synced, associate
+from .stages.sync import Synced, associate
 
 __all__ = ["Calibration", "StreamSpec", "calibrate", "calibrate_files", "read_streams"]
 
@@ -113,7 +113,7 @@ def _time_offset(a: PoseStream, b: PoseStream, sync: dict) -> tuple[int, dict, l
     """The offset [ns] b's clock is ahead of a's, its report, and warnings about it."""
     value = sync["time_offset"]
     if isinstance(value, str) and value.strip().lower() == "auto":
-        from .timeoffset import estimate_time_offset    # scipy.signal: import only when used
+        from .stages.timeoffset import estimate_time_offset    # scipy.signal: import only when used
 
         est = estimate_time_offset(a, b, max_offset_s=sync["max_time_offset"])
         return est.offset_ns, {"seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,

@@ -32,7 +32,7 @@ from _logs import (FOX_POSE, FOX_POSES, FOX_TF, FOX_TFS, ODOM, POSE, POSE_COV, T
                    write_tum)
 from handeye_cli import se3  # noqa: E402
 from handeye_cli.streams import PoseStream  # noqa: E402
-from handeye_cli.synthetic import Rig, simulate_rig  # noqa: E402
+from handeye_cli.simulation import Rig, simulate_rig  # noqa: E402
 
 SEED = 20240607
 SIM = {"duration_s": 75.0, "rate_a": 30.0, "rate_b": 12.0, "sigma_r_deg": 0.2, "sigma_t_m": 0.002,

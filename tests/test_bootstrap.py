@@ -11,7 +11,7 @@ from handeye_cli.errors import HandEyeError
 from handeye_cli.solvers import Prior, build_problem, solve
 from handeye_cli.solvers import dualquat as dq
 from handeye_cli.solvers.optimal import dqopt
-from handeye_cli.synthetic import motion_pairs, random_transform
+from handeye_cli.simulation import motion_pairs, random_transform
 
 SIGMA_R, SIGMA_T = np.deg2rad(0.57), 0.01
 
@@ -105,9 +105,9 @@ def test_vectorised_dqopt_matches_the_project_dqopt(scenario):
 def test_samples_bootstrap_accounts_for_pairs_sharing_poses():
     """Keyframe pairs reuse each pose in many pairs: resampling poses (vertex bootstrap) must
     spread wider than resampling pairs, and its intervals must contain the truth."""
-    from handeye_cli.pairs import make_pairs
-    from handeye_cli.sync import associate
-    from handeye_cli.synthetic import Rig, simulate_rig
+    from handeye_cli.stages.pairs import make_pairs
+    from handeye_cli.stages.sync import associate
+    from handeye_cli.simulation import Rig, simulate_rig
     hits, ratio = np.zeros(6), []
     for seed in range(6):
         X = random_transform(np.random.default_rng(seed), 0.3)

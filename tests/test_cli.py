@@ -10,8 +10,8 @@ import yaml
 
 from handeye_cli import se3
 from handeye_cli.cli import main
-from handeye_cli.pairfile import read_extrinsic
-from handeye_cli.synthetic import Rig, motion_pairs, random_transform, simulate_rig
+from handeye_cli.io.pairfile import read_extrinsic
+from handeye_cli.simulation import Rig, motion_pairs, random_transform, simulate_rig
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -13,7 +13,7 @@ from handeye_cli import se3
 from handeye_cli.cli import main
 from handeye_cli.config import load_config
 from handeye_cli.pipeline import calibrate
-from handeye_cli.synthetic import Rig, simulate_rig
+from handeye_cli.simulation import Rig, simulate_rig
 
 X = se3.from_xyz_quat(np.array([0.2, -0.1, 0.15]), np.array([0.1, -0.3, 0.2, 0.9]))
 

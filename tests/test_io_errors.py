@@ -12,7 +12,7 @@ from _logs import (FOX_POSES, LOG_KINDS, POSE, TF, Channel, json_message, pose_c
                    write_euroc, write_log, write_mcap, write_tum)
 from handeye_cli.errors import HandEyeError
 from handeye_cli.io import inspect_log, read_stream
-from handeye_cli.synthetic import Rig, simulate_rig
+from handeye_cli.simulation import Rig, simulate_rig
 
 ZERO_Q = (0.0, 0.0, 0.0, 0.0)
 NAN_Q = (float("nan"), 0.0, 0.0, 1.0)

@@ -11,7 +11,7 @@ import pytest
 from _logs import LOG_KINDS, ODOM, POSE, ROS2_STORE, TF, Channel, pose_channel, records, write_csv, \
     write_euroc, write_log, write_mcap, write_tum
 from handeye_cli.io import inspect_log, read_stream
-from handeye_cli.synthetic import Rig, simulate_rig
+from handeye_cli.simulation import Rig, simulate_rig
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ from _logs import (JSON_POSE_TYPES, LOG_KINDS, ODOM, POSE, POSE_COV, ROS_POSE_TY
                    write_mcap, write_tum)
 from handeye_cli.io import detect_format, read_stream
 from handeye_cli.streams import PoseStream
-from handeye_cli.synthetic import Rig, simulate_rig
+from handeye_cli.simulation import Rig, simulate_rig
 
 TOL = 1e-12
 CHILD_IN_MESSAGE = {TRANSFORM, ODOM, TF, "foxglove.FrameTransform", "foxglove.FrameTransforms"}

@@ -7,11 +7,11 @@ import pytest
 
 from handeye_cli import se3
 from handeye_cli.errors import HandEyeError
-from handeye_cli.gates import pose_jump_gate
-from handeye_cli.pairs import keyframes, make_pairs
+from handeye_cli.stages.gates import pose_jump_gate
+from handeye_cli.stages.pairs import keyframes, make_pairs
 from handeye_cli.solvers import solve
-from handeye_cli.sync import Synced, associate
-from handeye_cli.synthetic import Rig, random_transform, simulate_rig
+from handeye_cli.stages.sync import Synced, associate
+from handeye_cli.simulation import Rig, random_transform, simulate_rig
 
 X = random_transform(np.random.default_rng(21), 0.3)
 MIN_ROT = np.deg2rad(10)

@@ -13,8 +13,8 @@ import pytest
 
 from handeye_cli.errors import HandEyeError
 from handeye_cli.pipeline import calibrate
-from handeye_cli.report import world_alignment, write_report
-from handeye_cli.synthetic import Rig, random_transform, simulate_rig
+from handeye_cli.output.report import world_alignment, write_report
+from handeye_cli.simulation import Rig, random_transform, simulate_rig
 
 WARNING = "translation along z of frame a is unobservable: spread < 0.4° & more"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

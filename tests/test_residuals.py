@@ -7,7 +7,7 @@ from handeye_cli import se3
 from handeye_cli.analysis import extrinsic_error, pair_residuals, summarize
 from handeye_cli.analysis.residuals import Residuals
 from handeye_cli.errors import HandEyeError
-from handeye_cli.synthetic import motion_pairs, random_transform
+from handeye_cli.simulation import motion_pairs, random_transform
 
 
 def _rot(rotvec):

@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 from handeye_cli import PoseStream, se3
 from handeye_cli.config import load_config
 from handeye_cli.pipeline import calibrate
-from handeye_cli.synthetic import perturb
+from handeye_cli.simulation import perturb
 
 ROOT = Path(__file__).resolve().parents[1]
 

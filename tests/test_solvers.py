@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 import handeye_cli
 from handeye_cli import se3
 from handeye_cli.solvers import METHODS, Prior, solve
-from handeye_cli.synthetic import motion_pairs, random_transform
+from handeye_cli.simulation import motion_pairs, random_transform
 
 import _dq_reference as ref
 

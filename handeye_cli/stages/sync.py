@@ -5,7 +5,7 @@ stamps are int64 nanoseconds. The result :class:`Synced` holds both streams at a
 
 Time offset sign: ``time_offset_ns`` is how far b's clock is **ahead** of a's. b's sample
 stamped ``s`` was taken at a's time ``s - time_offset_ns``. This matches
-:class:`handeye_cli.synthetic.Rig`'s ``time_offset_ns`` (b's clock reads ``t + offset``), so
+:class:`handeye_cli.simulation.Rig`'s ``time_offset_ns`` (b's clock reads ``t + offset``), so
 passing the rig's true offset aligns the streams.
 
 Timestamp gate: a sample is kept only when every b sample used lies within ``max_dt`` of the a
@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import se3
-from .errors import HandEyeError
-from .streams import PoseStream
+from .. import se3
+from ..errors import HandEyeError
+from ..streams import PoseStream
 
 __all__ = ["Association", "Synced", "associate", "interpolate", "METHODS"]
 
@@ -170,7 +170,7 @@ def associate(a: PoseStream, b: PoseStream, *, method: str = "interpolate", max_
     max_dt_ns: the timestamp gate [ns]: a sample is kept only when every b sample used lies within
         this distance of the a stamp (the paper's 0.1 s).
     time_offset_ns: how far b's clock is ahead of a's [ns]: b's sample stamped ``s`` belongs to
-        a's time ``s - time_offset_ns`` (the convention of ``synthetic.Rig.time_offset_ns``).
+        a's time ``s - time_offset_ns`` (the convention of ``simulation.Rig.time_offset_ns``).
 
     Returns
     -------

@@ -10,12 +10,12 @@ import traceback
 
 import click
 
-from . import __version__
-from .errors import HandEyeError
-from .config import load_config
-from .output import FORMATS, format_for_path, plain, render, result_document, write_atomic
-from .pairfile import read_extrinsic, read_pairs
-from .solvers import METHODS, Prior, solve
+from .. import __version__
+from ..errors import HandEyeError
+from ..config import load_config
+from ..output.document import FORMATS, format_for_path, plain, render, result_document, write_atomic
+from ..io.pairfile import read_extrinsic, read_pairs
+from ..solvers import METHODS, Prior, solve
 
 _CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 
@@ -222,7 +222,7 @@ def calibrate(inputs: tuple[str, ...], **o) -> None:
       handeye calibrate a.tum b.tum --method dqopt -o extrinsic.json
       handeye calibrate a.tum b.tum --robust --alpha auto --bootstrap 1000 --report report.html
     """
-    from .pipeline import StreamSpec, calibrate_files
+    from ..pipeline import StreamSpec, calibrate_files
 
     if len(inputs) > 2:
         raise HandEyeError(f"{len(inputs)} inputs given", " ".join(inputs),
@@ -237,7 +237,7 @@ def calibrate(inputs: tuple[str, ...], **o) -> None:
     result = calibrate_files(spec_a, spec_b, cfg, quiet=o["quiet"])
     doc = result.document()
     if o["report_file"]:
-        from .report import write_report
+        from ..output.report import write_report
 
         write_report(o["report_file"], result, doc, result.bootstrap_deviations())
     emit(doc, o["output"], o["fmt"])
@@ -283,7 +283,7 @@ def inspect(input_file: str, fmt: str, quiet: bool) -> None:
       handeye inspect sample_data/rig.mcap
       handeye inspect sample_data/rig_ros2 --format json
     """
-    from .io import inspect_log
+    from ..io import inspect_log
 
     info = plain(inspect_log(input_file, quiet=quiet))
     click.echo(_inspect_text(info) if fmt == "text" else render(info, fmt), nl=False)

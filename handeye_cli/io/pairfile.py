@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from . import se3
-from .errors import HandEyeError
+from .. import se3
+from ..errors import HandEyeError
 
 __all__ = ["CSV_COLUMNS", "read_pairs", "write_pairs_csv", "read_extrinsic"]
 

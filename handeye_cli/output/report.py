@@ -29,16 +29,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import __version__, se3
-from .analysis.residuals import pair_residuals
-from .errors import HandEyeError
-from .output import write_atomic
+from .. import __version__, se3
+from ..analysis.residuals import pair_residuals
+from ..errors import HandEyeError
+from .document import write_atomic
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from .pipeline import Calibration
-    from .sync import Synced
+    from ..pipeline import Calibration
+    from ..stages.sync import Synced
 
 __all__ = ["write_report", "world_alignment", "render_report"]
 

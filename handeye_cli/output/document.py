@@ -19,9 +19,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from . import __version__
-from .errors import HandEyeError
-from .solvers import Solution
+from .. import __version__
+from ..errors import HandEyeError
+from ..solvers import Solution
 
 __all__ = ["FORMATS", "result_document", "render", "write_atomic", "format_for_path", "plain"]
 

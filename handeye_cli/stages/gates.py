@@ -10,14 +10,14 @@ Why the raw streams and not the synchronised samples: interpolating b at a's sta
 bad b sample over its neighbours (a ramp of partial jumps, each possibly under the limits, that
 hides the jump), and nearest association repeats it at several a stamps. So the gate runs on
 each stream's own samples and the kept samples are associated again with the settings of the
-:class:`~handeye_cli.sync.Synced` being gated (its ``source``); a Synced built without a source
+:class:`~handeye_cli.stages.sync.Synced` being gated (its ``source``); a Synced built without a source
 is gated as two streams sampled at its stamps.
 
 Recovery rule (a real re-localisation shifts every later pose): when ``accept_after``
 consecutive samples are all jumps relative to the last kept sample *and* consistent with
 each other (each within the limits of its predecessor), the tracker has settled on a new
 level: those samples are kept and start a new ``segment``. Interpolation never bridges a
-segment boundary and motions are only formed within a segment (see :mod:`handeye_cli.pairs`),
+segment boundary and motions are only formed within a segment (see :mod:`handeye_cli.stages.pairs`),
 so no motion spans the jump. A data gap long enough for the sensor to move beyond the limits
 is treated the same way.
 """
@@ -26,8 +26,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .errors import HandEyeError
-from .streams import PoseStream
+from ..errors import HandEyeError
+from ..streams import PoseStream
 from .sync import Association, Synced, associate_raw
 
 __all__ = ["pose_jump_gate", "stream_jump_gate"]
@@ -118,7 +118,7 @@ def pose_jump_gate(synced: Synced, *, max_translation_m: float | None = 0.10,
 
     Parameters
     ----------
-    synced: the associated streams (from :func:`handeye_cli.sync.associate`).
+    synced: the associated streams (from :func:`handeye_cli.stages.sync.associate`).
     max_translation_m, max_rotation_rad, accept_after: as in :func:`stream_jump_gate`, for both streams.
 
     Returns

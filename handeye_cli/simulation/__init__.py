@@ -10,8 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import se3
-from .streams import PoseStream
+from .. import se3
+from ..streams import PoseStream
 
 __all__ = ["random_transform", "perturb", "motion_pairs", "Rig", "simulate_rig", "SCENARIOS"]
 

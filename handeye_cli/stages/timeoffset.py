@@ -1,6 +1,6 @@
 """Estimate the clock offset between two rigidly attached pose streams, without knowing the extrinsic.
 
-Sign convention (as :func:`handeye_cli.sync.associate` and ``synthetic.Rig``): ``offset_ns`` is
+Sign convention (as :func:`handeye_cli.stages.sync.associate` and ``simulation.Rig``): ``offset_ns`` is
 how far b's clock is ahead of a's; b's sample stamped ``s`` was taken at a's time ``s - offset``.
 
 Method
@@ -34,8 +34,8 @@ import numpy as np
 from scipy import ndimage, optimize, signal
 from scipy.spatial.transform import Rotation
 
-from .errors import HandEyeError
-from .streams import PoseStream
+from ..errors import HandEyeError
+from ..streams import PoseStream
 from .sync import interpolate
 
 __all__ = ["TimeOffset", "estimate_time_offset", "angular_velocity", "MIN_CORRELATION"]

@@ -2,7 +2,7 @@
 
 ``A_k = T_wa_a(t_i)⁻¹ T_wa_a(t_j)`` and ``B_k = T_wb_b(t_i)⁻¹ T_wb_b(t_j)`` (i < j), so that
 ``A_k X = X B_k`` with ``X = T_a_b``. Motions never span two tracking segments (see
-:mod:`handeye_cli.gates`).
+:mod:`handeye_cli.stages.gates`).
 
 Strategies (``strategy`` string):
 
@@ -35,8 +35,8 @@ from typing import Callable
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import se3
-from .errors import HandEyeError
+from .. import se3
+from ..errors import HandEyeError
 from .sync import Synced
 
 __all__ = ["Pairs", "make_pairs", "STRATEGIES"]
@@ -50,7 +50,7 @@ class Pairs:
     """Relative motions of both sensors between synced samples ``i[k] < j[k]``.
 
     A: (N, 4, 4) motions of a, ``T_a(t_i)⁻¹ T_a(t_j)``; B: (N, 4, 4) motions of b, likewise.
-    i, j: int64 indices into the :class:`~handeye_cli.sync.Synced` they came from.
+    i, j: int64 indices into the :class:`~handeye_cli.stages.sync.Synced` they came from.
     t_i_ns, t_j_ns: int64 stamps [ns] of the two samples.
     """
 

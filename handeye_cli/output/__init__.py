@@ -1,0 +1,1 @@
+"""Results out: the result document, its YAML/JSON text and atomic writes, and the HTML report."""
