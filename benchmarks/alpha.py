@@ -18,8 +18,8 @@ import time
 import numpy as np
 
 from handeye_cli.analysis import auto_alpha, extrinsic_error, residual_ratio_alpha
-from handeye_cli.solvers import solve
 from handeye_cli.simulation import motion_pairs, random_transform
+from handeye_cli.solvers import solve
 
 SIGMA_R, SIGMA_T = np.deg2rad(0.57), 0.01
 SWEEP = np.logspace(-2.0, 1.7, 25)
@@ -40,7 +40,7 @@ def run(scenario: str, trials: int, n: int) -> None:
         t_auto += time.perf_counter() - t0
         a_rr = residual_ratio_alpha(A, B).alpha
         chosen.append((a_auto, a_rr))
-        for name, a in zip(rows, (a_auto, a_rr, 1.0)):
+        for name, a in zip(rows, (a_auto, a_rr, 1.0), strict=True):
             rows[name] += extrinsic_error(solve(A, B, alpha=a).matrix, X)
     sweep /= trials
     best = sweep.min(axis=0)

@@ -25,8 +25,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from handeye_cli.analysis import bootstrap, linear_covariance
-from handeye_cli.solvers import solve
 from handeye_cli.simulation import motion_pairs, random_transform
+from handeye_cli.solvers import solve
 
 SIGMA_R, SIGMA_T = np.deg2rad(0.57), 0.01
 
@@ -74,9 +74,9 @@ def coverage(n: int, trials: int, replicates: int) -> None:
 
 
 def rig_trial(seed: int, strategy: str, replicates: int) -> list[np.ndarray]:
+    from handeye_cli.simulation import Rig, simulate_rig
     from handeye_cli.stages.pairs import make_pairs
     from handeye_cli.stages.sync import associate
-    from handeye_cli.simulation import Rig, simulate_rig
     X = random_transform(np.random.default_rng(seed), 0.3)
     a, b = simulate_rig(Rig(X), duration_s=40, rate_a=30, rate_b=12, sigma_r=np.deg2rad(0.2), sigma_t=0.002,
                         seed=seed)

@@ -25,6 +25,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 def build(path: Path, minutes: float, X: np.ndarray, offset_ns: int) -> None:
     from _logs import POSE, pose_channel, records, write_mcap
+
     from handeye_cli.simulation import Rig, simulate_rig
 
     a, b = simulate_rig(Rig(X, offset_ns), duration_s=60 * minutes, rate_a=100, rate_b=30, speed=0.5,

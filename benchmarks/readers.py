@@ -38,6 +38,7 @@ READERS = {"handeye": "handeye read_stream", "anyreader": "rosbags AnyReader"}
 def build(path: Path, n_poses: int, n_images: int) -> None:
     """An MCAP with ``n_poses`` PoseStamped on /pose and ``n_images`` ~100 KB Images on /camera/image."""
     from _logs import POSE, ROS2_STORE, Channel, pose_channel, records, write_mcap
+
     from handeye_cli.simulation import Rig, simulate_rig
 
     rate = 200.0

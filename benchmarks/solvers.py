@@ -15,8 +15,8 @@ import time
 
 import numpy as np
 
-from handeye_cli.solvers import METHODS, solve
 from handeye_cli.simulation import motion_pairs, random_transform
+from handeye_cli.solvers import METHODS, solve
 
 SIGMA_R, SIGMA_T = np.deg2rad(0.57), 0.01
 PAPER_US = {"dqopt": 299, "dq2ndord": 155, "daniilidis": 92, "dqconvrlx": 77, "dq2steps": 63}

@@ -12,11 +12,11 @@ quaternions are x-y-z-w; time is int64 nanoseconds; metres and radians.
 """
 __version__ = "0.1.0"
 
-from .errors import HandEyeError  # noqa: E402  (after __version__, which submodules import)
-from .solvers import METHODS, Prior, Solution, solve  # noqa: E402
-from .streams import PoseStream  # noqa: E402
-from .config import load_config  # noqa: E402
-from .pipeline import Calibration, StreamSpec, calibrate, calibrate_files  # noqa: E402
+from .config import load_config
+from .errors import HandEyeError
+from .pipeline import Calibration, StreamSpec, calibrate, calibrate_files
+from .solvers import METHODS, Prior, Solution, solve
+from .streams import PoseStream
 
 __all__ = ["HandEyeError", "METHODS", "PoseStream", "Prior", "Solution", "solve", "Calibration", "StreamSpec",
            "calibrate", "calibrate_files", "load_config", "__version__"]

@@ -1,10 +1,20 @@
-"""The one exception type handeye raises for bad input.
+"""The exceptions handeye raises for bad input, one subclass per kind of failure.
 
-Every user-facing failure is a :class:`HandEyeError`: a ``ValueError`` subclass whose
-message has the form ``<what> (<where>): <how to fix>``, so the CLI can print it as one
-line and exit with code 2.
+Every user-facing failure is a :class:`HandEyeError`: a ``ValueError`` subclass whose message has
+the form ``<what> (<where>): <how to fix>``, so the CLI prints it as one line and exits with
+code 2. Callers that fall back on a failure catch the precise subclass:
+
+* :class:`ConfigError` — an option or configuration value is invalid;
+* :class:`ReadError` — a file is missing, unreadable, damaged or of the wrong kind;
+* :class:`DataError` — the data were read but cannot be calibrated (empty stream, no time
+  overlap, no sample passes a gate), with the subclasses :class:`TooFewPairsError` and
+  :class:`UnderdeterminedError` (the motions cannot determine the extrinsic);
+* :class:`WriteError` — a result or report could not be written.
 """
 from __future__ import annotations
+
+__all__ = ["HandEyeError", "ConfigError", "ReadError", "DataError", "TooFewPairsError", "UnderdeterminedError",
+           "WriteError"]
 
 
 class HandEyeError(ValueError):
@@ -28,3 +38,27 @@ class HandEyeError(ValueError):
         if fix:
             text += f": {fix}"
         super().__init__(text)
+
+
+class ConfigError(HandEyeError):
+    """An invalid option: a configuration file, command-line flag or keyword argument."""
+
+
+class ReadError(HandEyeError):
+    """An input that cannot be read: missing, empty, damaged, or not of a supported kind."""
+
+
+class DataError(HandEyeError):
+    """Data that were read but cannot be calibrated (no overlap, empty stream, gates drop everything)."""
+
+
+class TooFewPairsError(DataError):
+    """Too few motion pairs are left after sync, gates and pair selection."""
+
+
+class UnderdeterminedError(DataError):
+    """The motions cannot determine the extrinsic (a family of solutions fits them exactly)."""
+
+
+class WriteError(HandEyeError):
+    """A result, report or other output could not be written."""

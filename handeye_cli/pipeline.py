@@ -10,17 +10,25 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .analysis import (BootstrapResult, Residuals, RobustResult, assess_observability, auto_alpha, bootstrap,
-                       pair_residuals, robust_solve)
+from .analysis import (
+    BootstrapResult,
+    Residuals,
+    RobustResult,
+    assess_observability,
+    auto_alpha,
+    bootstrap,
+    pair_residuals,
+    robust_solve,
+)
 from .config import load_config
 from .errors import HandEyeError
-from .stages.gates import pose_jump_gate
-from .output.document import result_document
 from .io.pairfile import read_extrinsic
-from .stages.pairs import Pairs, make_pairs
+from .output.document import result_document
 from .solvers import Prior, Solution, solve
-from .streams import PoseStream
+from .stages.gates import pose_jump_gate
+from .stages.pairs import Pairs, make_pairs
 from .stages.sync import Synced, associate
+from .streams import PoseStream
 
 __all__ = ["Calibration", "StreamSpec", "calibrate", "calibrate_files", "read_streams"]
 
@@ -96,7 +104,7 @@ class Calibration:
 def read_streams(spec_a: StreamSpec, spec_b: StreamSpec, config: dict | None = None, *,
                  quiet: bool = True) -> tuple[PoseStream, PoseStream]:
     """Read streams a and b (``T_world_sensor``), inverted where the config says so."""
-    from .io import detect_format, read_log_streams, read_stream   # mcap/rosbags: import only when reading
+    from .io import detect_format, read_log_streams, read_stream  # mcap/rosbags: import only when reading
     from .io.detect import LOG_FORMATS
 
     cfg = config or load_config()
@@ -113,7 +121,7 @@ def _time_offset(a: PoseStream, b: PoseStream, sync: dict) -> tuple[int, dict, l
     """The offset [ns] b's clock is ahead of a's, its report, and warnings about it."""
     value = sync["time_offset"]
     if isinstance(value, str) and value.strip().lower() == "auto":
-        from .stages.timeoffset import estimate_time_offset    # scipy.signal: import only when used
+        from .stages.timeoffset import estimate_time_offset  # scipy.signal: import only when used
 
         est = estimate_time_offset(a, b, max_offset_s=sync["max_time_offset"])
         return est.offset_ns, {"seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,

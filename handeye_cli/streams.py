@@ -55,7 +55,7 @@ class PoseStream:
         return len(self.stamps_ns)
 
     @classmethod
-    def from_matrices(cls, stamps_ns: np.ndarray, T: np.ndarray, **kw) -> "PoseStream":
+    def from_matrices(cls, stamps_ns: np.ndarray, T: np.ndarray, **kw) -> PoseStream:
         """Build a stream from (N, 4, 4) transforms ``T_frame_child``."""
         xyz, quat = se3.to_xyz_quat(np.asarray(T).reshape(-1, 4, 4))
         return cls(stamps_ns, xyz, quat, **kw)
@@ -64,17 +64,17 @@ class PoseStream:
         """(N, 4, 4) homogeneous transforms ``T_frame_child``."""
         return se3.from_xyz_quat(self.xyz, self.quat_xyzw).reshape(-1, 4, 4)
 
-    def inverted(self) -> "PoseStream":
+    def inverted(self) -> PoseStream:
         """The stream of inverse poses ``T_child_frame`` (e.g. camera-observes-target → target-in-camera)."""
         xyz, quat = se3.to_xyz_quat(se3.inverse(self.matrices()))
         return replace(self, xyz=xyz, quat_xyzw=quat, frame_id=self.child_frame_id,
                        child_frame_id=self.frame_id)
 
-    def select(self, mask_or_index: np.ndarray) -> "PoseStream":
+    def select(self, mask_or_index: np.ndarray) -> PoseStream:
         """A stream with only the samples selected by a boolean mask or index array."""
         return replace(self, stamps_ns=self.stamps_ns[mask_or_index], xyz=self.xyz[mask_or_index],
                        quat_xyzw=self.quat_xyzw[mask_or_index])
 
-    def shifted(self, offset_ns: int) -> "PoseStream":
+    def shifted(self, offset_ns: int) -> PoseStream:
         """The same stream with ``offset_ns`` added to every stamp."""
         return replace(self, stamps_ns=self.stamps_ns + np.int64(offset_ns))

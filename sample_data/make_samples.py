@@ -27,12 +27,29 @@ from scipy.spatial.transform import Rotation
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-from _logs import (FOX_POSE, FOX_POSES, FOX_TF, FOX_TFS, ODOM, POSE, POSE_COV, TF, TRANSFORM,  # noqa: E402
-                   Channel, pose_channel, records, write_bag1, write_bag2, write_euroc, write_mcap,
-                   write_tum)
+from _logs import (  # noqa: E402
+    FOX_POSE,
+    FOX_POSES,
+    FOX_TF,
+    FOX_TFS,
+    ODOM,
+    POSE,
+    POSE_COV,
+    TF,
+    TRANSFORM,
+    Channel,
+    pose_channel,
+    records,
+    write_bag1,
+    write_bag2,
+    write_euroc,
+    write_mcap,
+    write_tum,
+)
+
 from handeye_cli import se3  # noqa: E402
-from handeye_cli.streams import PoseStream  # noqa: E402
 from handeye_cli.simulation import Rig, simulate_rig  # noqa: E402
+from handeye_cli.streams import PoseStream  # noqa: E402
 
 SEED = 20240607
 SIM = {"duration_s": 75.0, "rate_a": 30.0, "rate_b": 12.0, "sigma_r_deg": 0.2, "sigma_t_m": 0.002,

@@ -13,15 +13,18 @@ Also used by ``sample_data/make_samples.py`` and ``benchmarks/readers.py``.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import numpy as np
-from mcap.writer import CompressionType, Writer as McapWriter
+from mcap.writer import CompressionType
+from mcap.writer import Writer as McapWriter
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag1 import Writer as Bag1Writer
-from rosbags.rosbag2 import StoragePlugin, Writer as Bag2Writer
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Bag2Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
@@ -63,7 +66,7 @@ def records(stream: PoseStream, frame: str | None = None, child: str | None = No
     f = stream.frame_id if frame is None else frame
     c = stream.child_frame_id if child is None else child
     return [(int(t), f, c, *map(float, p), *map(float, q))
-            for t, p, q in zip(stream.stamps_ns, stream.xyz, stream.quat_xyzw)]
+            for t, p, q in zip(stream.stamps_ns, stream.xyz, stream.quat_xyzw, strict=True)]
 
 
 def pose_channel(topic: str, msgtype: str, recs: Sequence[Record], log_offset_ns: int = 0) -> Channel:

@@ -4,8 +4,8 @@ import pytest
 
 from handeye_cli.analysis import auto_alpha, extrinsic_error, residual_ratio_alpha
 from handeye_cli.analysis.alpha import DEFAULT_GRID
-from handeye_cli.solvers import solve
 from handeye_cli.simulation import motion_pairs, random_transform
+from handeye_cli.solvers import solve
 
 SIGMA_R, SIGMA_T = np.deg2rad(0.57), 0.01
 SWEEP = np.logspace(-2.0, 1.7, 12)

@@ -184,7 +184,7 @@ def test_generic_csv_with_columns_from_the_config(capsys, rig, tmp_path):
     """A CSV with its own column names, mapped by ``csv_columns`` in a config file."""
     names = ["time_ms", "px", "py", "pz", "rx", "ry", "rz", "rw"]
     paths = []
-    for name, stream in zip("ab", rig["streams"]):
+    for name, stream in zip("ab", rig["streams"], strict=True):
         p = tmp_path / f"{name}.csv"
         data = np.c_[stream.stamps_ns / 1e6, stream.xyz, stream.quat_xyzw]
         np.savetxt(p, data, delimiter=",", header=",".join(names), comments="", fmt="%.9f")

@@ -90,7 +90,7 @@ def test_robust_rejects_outlier_pairs(tmp_path):
     # Corrupt 10 % of the samples of b after the gates would let them through: swap in poses of
     # another time (mis-associated samples) — small steps, so the pose-jump gate cannot see them.
     rng = np.random.default_rng(0)
-    xyz, quat = b.xyz.copy(), b.quat_xyzw.copy()
+    xyz, _quat = b.xyz.copy(), b.quat_xyzw.copy()
     bad = rng.choice(np.arange(5, len(b) - 5), size=len(b) // 10, replace=False)
     xyz[bad] += rng.normal(0, 0.03, (len(bad), 3))
     from dataclasses import replace

@@ -7,11 +7,11 @@ import pytest
 
 from handeye_cli import se3
 from handeye_cli.errors import HandEyeError
+from handeye_cli.simulation import Rig, random_transform, simulate_rig
 from handeye_cli.stages.gates import pose_jump_gate, stream_jump_gate
 from handeye_cli.stages.pairs import make_pairs
-from handeye_cli.streams import PoseStream
 from handeye_cli.stages.sync import Synced, associate
-from handeye_cli.simulation import Rig, random_transform, simulate_rig
+from handeye_cli.streams import PoseStream
 
 X = random_transform(np.random.default_rng(11), 0.3)
 RIG = dict(duration_s=20, rate_a=100, rate_b=30, seed=5)

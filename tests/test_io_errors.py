@@ -6,10 +6,22 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _logs import (
+    FOX_POSES,
+    LOG_KINDS,
+    POSE,
+    TF,
+    Channel,
+    json_message,
+    pose_channel,
+    records,
+    write_euroc,
+    write_log,
+    write_mcap,
+    write_tum,
+)
 from mcap.reader import make_reader
 
-from _logs import (FOX_POSES, LOG_KINDS, POSE, TF, Channel, json_message, pose_channel, records,
-                   write_euroc, write_log, write_mcap, write_tum)
 from handeye_cli.errors import HandEyeError
 from handeye_cli.io import inspect_log, read_stream
 from handeye_cli.simulation import Rig, simulate_rig

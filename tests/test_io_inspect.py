@@ -7,9 +7,22 @@ import sys
 
 import numpy as np
 import pytest
+from _logs import (
+    LOG_KINDS,
+    ODOM,
+    POSE,
+    ROS2_STORE,
+    TF,
+    Channel,
+    pose_channel,
+    records,
+    write_csv,
+    write_euroc,
+    write_log,
+    write_mcap,
+    write_tum,
+)
 
-from _logs import LOG_KINDS, ODOM, POSE, ROS2_STORE, TF, Channel, pose_channel, records, write_csv, \
-    write_euroc, write_log, write_mcap, write_tum
 from handeye_cli.io import inspect_log, read_stream
 from handeye_cli.simulation import Rig, simulate_rig
 

@@ -3,13 +3,29 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _logs import (
+    JSON_POSE_TYPES,
+    LOG_KINDS,
+    ODOM,
+    POSE,
+    POSE_COV,
+    ROS_POSE_TYPES,
+    TF,
+    TRANSFORM,
+    Channel,
+    pose_channel,
+    records,
+    write_bag1,
+    write_csv,
+    write_euroc,
+    write_log,
+    write_mcap,
+    write_tum,
+)
 
-from _logs import (JSON_POSE_TYPES, LOG_KINDS, ODOM, POSE, POSE_COV, ROS_POSE_TYPES, TF, TRANSFORM,
-                   Channel, pose_channel, records, write_bag1, write_csv, write_euroc, write_log,
-                   write_mcap, write_tum)
 from handeye_cli.io import detect_format, read_stream
-from handeye_cli.streams import PoseStream
 from handeye_cli.simulation import Rig, simulate_rig
+from handeye_cli.streams import PoseStream
 
 TOL = 1e-12
 CHILD_IN_MESSAGE = {TRANSFORM, ODOM, TF, "foxglove.FrameTransform", "foxglove.FrameTransforms"}
@@ -183,6 +199,6 @@ def test_generic_csv_round_trip(tmp_path, truth, names, t_scale, columns):
 def test_csv_seconds_exact_to_the_nanosecond(tmp_path, truth):
     path = tmp_path / "s.csv"
     rows = [f"{t // 10**9}.{t % 10**9:09d},{x!r},{y!r},{z!r},0,0,0,1"
-            for t, (x, y, z) in zip(truth.stamps_ns.tolist(), truth.xyz.tolist())]
+            for t, (x, y, z) in zip(truth.stamps_ns.tolist(), truth.xyz.tolist(), strict=True)]
     path.write_text("time,tx,ty,tz,qx,qy,qz,qw\n" + "\n".join(rows) + "\n")
     np.testing.assert_array_equal(read_stream(path).stamps_ns, truth.stamps_ns)

@@ -59,11 +59,8 @@ def _selections():
 
 @pytest.mark.parametrize("name, how, sel", list(_selections()), ids=lambda v: str(v))
 def test_every_sample_reads_back_the_rig(rig, name, how, sel):
-    for stream, truth in zip(sel, rig):
-        if how == "file":
-            s = read_stream(SAMPLES / stream)
-        else:
-            s = read_stream(SAMPLES / name, **{how: stream})
+    for stream, truth in zip(sel, rig, strict=True):
+        s = read_stream(SAMPLES / stream) if how == "file" else read_stream(SAMPLES / name, **{how: stream})
         np.testing.assert_array_equal(s.stamps_ns, truth.stamps_ns)
         np.testing.assert_allclose(s.matrices(), truth.matrices(), rtol=0, atol=1e-12)
 

@@ -13,9 +13,9 @@ from collections import defaultdict
 
 import numpy as np
 import pytest
+from _logs import LOG_KINDS, TF, Channel, write_log, write_mcap
 from scipy.spatial.transform import Rotation
 
-from _logs import LOG_KINDS, TF, Channel, write_log, write_mcap
 from handeye_cli import se3
 from handeye_cli.errors import HandEyeError
 from handeye_cli.io import inspect_log, read_stream
@@ -63,7 +63,7 @@ def tf_channels(slash: str = "", dynamic_type: str = TF, static_type: str = TF) 
     by_stamp: dict[int, list[tuple]] = defaultdict(list)
     for edge in DYNAMIC:
         t = stamps(edge)
-        for ti, T in zip(t, edge_truth(edge, t)):
+        for ti, T in zip(t, edge_truth(edge, t), strict=True):
             by_stamp[int(ti)].append(rec(edge, ti, T, slash))
     static = [rec(e, START, edge_truth(e, np.array([START]))[0], slash) for e in STATIC]
     return [Channel("/tf", dynamic_type, [(t + LOG_DELAY_NS, r) for t, r in sorted(by_stamp.items())]),
@@ -139,7 +139,7 @@ def test_inspect_lists_tf_tree(tf_log):
 def test_tf_message_topic_of_one_edge_reads_as_topic(tmp_path):
     edge = ("arm", "tool")
     t = stamps(edge)
-    msgs = [(int(ti), [rec(edge, ti, T)]) for ti, T in zip(t, edge_truth(edge, t))]
+    msgs = [(int(ti), [rec(edge, ti, T)]) for ti, T in zip(t, edge_truth(edge, t), strict=True)]
     s = read_stream(write_mcap(tmp_path / "one.mcap", [Channel("/tf", TF, msgs)]), topic="/tf")
     assert_poses(s, edge_truth(edge, t))
     assert (s.frame_id, s.child_frame_id) == edge

@@ -7,8 +7,8 @@ from scipy.spatial.transform import Rotation
 
 from handeye_cli import se3
 from handeye_cli.analysis import assess_observability, describe_direction
-from handeye_cli.solvers import Prior
 from handeye_cli.simulation import motion_pairs, random_transform
+from handeye_cli.solvers import Prior
 
 Z = np.array([0.0, 0.0, 1.0])
 X_AXIS = np.array([1.0, 0.0, 0.0])

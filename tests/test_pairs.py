@@ -7,11 +7,11 @@ import pytest
 
 from handeye_cli import se3
 from handeye_cli.errors import HandEyeError
+from handeye_cli.simulation import Rig, random_transform, simulate_rig
+from handeye_cli.solvers import solve
 from handeye_cli.stages.gates import pose_jump_gate
 from handeye_cli.stages.pairs import keyframes, make_pairs
-from handeye_cli.solvers import solve
 from handeye_cli.stages.sync import Synced, associate
-from handeye_cli.simulation import Rig, random_transform, simulate_rig
 
 X = random_transform(np.random.default_rng(21), 0.3)
 MIN_ROT = np.deg2rad(10)
@@ -30,7 +30,7 @@ def brute_force(s: Synced, min_rotation: float) -> set[tuple[int, int]]:
     """Every i < j in one segment whose motion of a rotates by ≥ ``min_rotation``."""
     i, j = np.triu_indices(len(s), 1)
     ok = (se3.rotation_angle(se3.relative(s.T_a[i], s.T_a[j])) >= min_rotation) & (s.segment[i] == s.segment[j])
-    return set(zip(i[ok].tolist(), j[ok].tolist()))
+    return set(zip(i[ok].tolist(), j[ok].tolist(), strict=True))
 
 
 def check_motions(s: Synced, pairs) -> None:
@@ -57,7 +57,7 @@ def test_all_is_every_pair_rotating_enough(synced: Synced) -> None:
     pairs, counts = make_pairs(synced, "all", max_pairs=10**6)
     check_motions(synced, pairs)
     expected = brute_force(synced, MIN_ROT)
-    assert set(zip(pairs.i.tolist(), pairs.j.tolist())) == expected
+    assert set(zip(pairs.i.tolist(), pairs.j.tolist(), strict=True)) == expected
     assert counts["candidate_pairs"] == counts["pairs"] == len(expected) > 1000
 
 
@@ -73,7 +73,7 @@ def test_keyframes_move_enough_between_each_other(synced: Synced) -> None:
     rot, trans = np.deg2rad(20), 0.25
     kf = keyframes(synced, rot, trans)
     assert kf[0] == 0 and len(kf) < len(synced) / 2
-    for k0, k1 in zip(kf[:-1], kf[1:]):
+    for k0, k1 in zip(kf[:-1], kf[1:], strict=True):
         moved = [se3.rotation_angle(se3.relative(T[k0], T[k1])) >= rot or
                  np.linalg.norm(T[k1, :3, 3] - T[k0, :3, 3]) >= trans for T in (synced.T_a, synced.T_b)]
         assert any(moved) or synced.segment[k1] != synced.segment[k0]
@@ -93,11 +93,11 @@ def test_random_is_seeded(synced: Synced) -> None:
     other, _ = make_pairs(synced, "random:400", seed=8)
     check_motions(synced, first)
     assert len(first) == counts["pairs"] == 400
-    keys = set(zip(first.i.tolist(), first.j.tolist()))
+    keys = set(zip(first.i.tolist(), first.j.tolist(), strict=True))
     assert len(keys) == 400 and keys <= brute_force(synced, MIN_ROT)
     np.testing.assert_array_equal(first.i, again.i)
     np.testing.assert_array_equal(first.j, again.j)
-    assert keys != set(zip(other.i.tolist(), other.j.tolist()))
+    assert keys != set(zip(other.i.tolist(), other.j.tolist(), strict=True))
 
 
 def test_cap_is_deterministic_and_spread_over_the_recording(synced: Synced) -> None:

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from handeye_cli.errors import HandEyeError
-from handeye_cli.pipeline import calibrate
 from handeye_cli.output.report import world_alignment, write_report
+from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
 
 WARNING = "translation along z of frame a is unobservable: spread < 0.4° & more"

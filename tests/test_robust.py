@@ -4,8 +4,8 @@ import pytest
 
 from handeye_cli.analysis import extrinsic_error, robust_solve
 from handeye_cli.errors import HandEyeError
-from handeye_cli.solvers import solve
 from handeye_cli.simulation import motion_pairs, random_transform
+from handeye_cli.solvers import solve
 
 SIGMA_R, SIGMA_T = np.deg2rad(0.57), 0.01
 

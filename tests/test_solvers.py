@@ -2,6 +2,7 @@
 the paper's Table 1 behaviour, and the frame conventions."""
 from __future__ import annotations
 
+import _dq_reference as ref
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
@@ -9,10 +10,8 @@ from scipy.spatial.transform import Rotation
 
 import handeye_cli
 from handeye_cli import se3
-from handeye_cli.solvers import METHODS, Prior, solve
 from handeye_cli.simulation import motion_pairs, random_transform
-
-import _dq_reference as ref
+from handeye_cli.solvers import METHODS, Prior, solve
 
 SIGMA_R, SIGMA_T = np.deg2rad(0.57), 0.01    # the paper's noise levels (appendix D.2)
 

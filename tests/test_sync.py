@@ -8,9 +8,9 @@ from scipy.spatial.transform import Rotation
 
 from handeye_cli import se3
 from handeye_cli.errors import HandEyeError
-from handeye_cli.streams import PoseStream
-from handeye_cli.stages.sync import associate, interpolate
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
+from handeye_cli.stages.sync import associate, interpolate
+from handeye_cli.streams import PoseStream
 
 T0 = 1_700_000_000_000_000_000        # epoch-scale stamps [ns]: float seconds would lose precision
 VEL = np.array([0.3, -0.2, 0.1])      # [m/s]

@@ -8,12 +8,12 @@ from scipy.spatial.transform import Rotation
 
 from handeye_cli import se3
 from handeye_cli.errors import HandEyeError
-from handeye_cli.stages.pairs import make_pairs
-from handeye_cli.solvers import solve
-from handeye_cli.streams import PoseStream
-from handeye_cli.stages.sync import associate
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
+from handeye_cli.solvers import solve
+from handeye_cli.stages.pairs import make_pairs
+from handeye_cli.stages.sync import associate
 from handeye_cli.stages.timeoffset import MIN_CORRELATION, estimate_time_offset
+from handeye_cli.streams import PoseStream
 
 X = random_transform(np.random.default_rng(31), 0.3)
 NOISE = dict(sigma_r=np.deg2rad(0.1), sigma_t=0.002)      # realistic tracking noise: 0.1°, 2 mm

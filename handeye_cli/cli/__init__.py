@@ -11,10 +11,10 @@ import traceback
 import click
 
 from .. import __version__
-from ..errors import HandEyeError
 from ..config import load_config
-from ..output.document import FORMATS, format_for_path, plain, render, result_document, write_atomic
+from ..errors import HandEyeError
 from ..io.pairfile import read_extrinsic, read_pairs
+from ..output.document import FORMATS, format_for_path, plain, render, result_document, write_atomic
 from ..solvers import METHODS, Prior, solve
 
 _CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}

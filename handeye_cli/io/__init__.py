@@ -7,9 +7,9 @@ stamps sorted ascending, positions [m], unit quaternions x-y-z-w.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator, Sequence
 
 from ..errors import HandEyeError
 from ..streams import PoseStream

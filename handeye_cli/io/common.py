@@ -5,8 +5,8 @@ import importlib
 import json
 import struct
 from array import array
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from typing import Callable, Iterator, Sequence
 
 import numpy as np
 from mcap.exceptions import McapError

@@ -1,7 +1,7 @@
 """Format-independent reading of an open log: one pose topic, a TF frame pair, or an overview."""
 from __future__ import annotations
 
-from typing import Iterator, Optional, Sequence
+from collections.abc import Iterator, Sequence
 
 from ..errors import HandEyeError
 from ..streams import PoseStream
@@ -54,7 +54,7 @@ def _records(src: LogSource, infos: list[TopicInfo], label: str, time_source: st
         bar.update(n % _BATCH)
 
 
-Request = tuple[Optional[str], Optional[tuple[str, str]]]   # (topic, None) or (None, (parent, child))
+Request = tuple[str | None, tuple[str, str] | None]   # (topic, None) or (None, (parent, child))
 
 
 def _check_topic(src: LogSource, infos: list[TopicInfo], topic: str) -> None:

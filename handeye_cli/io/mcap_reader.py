@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import json
 from collections import defaultdict
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any, BinaryIO, Iterator, Sequence
+from typing import Any, BinaryIO
 
 from mcap.reader import SeekingReader, make_reader
 from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
@@ -55,7 +56,7 @@ class McapSource:
                       and all(ch.message_encoding == "cdr" for ch in summary.channels.values())
                       and all(sc.encoding in _ROS2_SCHEMAS for sc in summary.schemas.values()))
 
-    def __enter__(self) -> "McapSource":
+    def __enter__(self) -> McapSource:
         return self
 
     def __exit__(self, *exc: object) -> None:

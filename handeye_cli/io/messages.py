@@ -9,8 +9,9 @@ translation in metres, Hamilton quaternion in x-y-z-w order, stamp in int64 nano
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 __all__ = ["Spec", "SPECS", "LISTS", "POSE_TYPES", "TF_TYPES", "normalize_type", "get_field",
            "extract", "pose_decoder", "PoseRecord", "UnsupportedContent"]

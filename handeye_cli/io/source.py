@@ -1,8 +1,9 @@
 """The interface every log container (MCAP, ROS bags) offers to the generic log readers."""
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Callable, Iterator, Protocol, Sequence
+from typing import Protocol
 
 from .messages import PoseRecord
 

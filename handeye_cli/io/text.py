@@ -15,9 +15,9 @@ Every line is one pose ``T_world_sensor``; the file name becomes the child frame
 from __future__ import annotations
 
 import re
+from collections.abc import Callable, Iterator
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
-from typing import Callable, Iterator
 
 import numpy as np
 

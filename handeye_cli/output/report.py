@@ -129,7 +129,7 @@ def _table(value: Any) -> str:
     return f"<table>{rows}</table>"
 
 
-def _figure(fig: "Figure", alt: str, caption: str) -> str:
+def _figure(fig: Figure, alt: str, caption: str) -> str:
     """Render a matplotlib figure to a base64 PNG ``<figure>``."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=DPI)
@@ -138,7 +138,7 @@ def _figure(fig: "Figure", alt: str, caption: str) -> str:
             f"<figcaption>{caption}</figcaption></figure>")
 
 
-def _new_figure(width: float, height: float) -> "Figure":
+def _new_figure(width: float, height: float) -> Figure:
     try:
         from matplotlib.figure import Figure
     except ImportError:  # pragma: no cover - depends on the environment
@@ -152,7 +152,7 @@ def _thin(n: int) -> np.ndarray:
     return np.arange(n) if n <= MAX_PLOT_POINTS else np.linspace(0, n - 1, MAX_PLOT_POINTS).astype(int)
 
 
-def _extrinsic(calibration: "Calibration", document: dict) -> np.ndarray:
+def _extrinsic(calibration: Calibration, document: dict) -> np.ndarray:
     """``T_a_b`` as the result document states it (what the user gets), else the calibration's."""
     try:
         X = np.asarray(document["matrix"], dtype=float)
@@ -166,7 +166,7 @@ def _extrinsic(calibration: "Calibration", document: dict) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------
 # trajectories
 
-def world_alignment(synced: "Synced", T_a_b: np.ndarray) -> np.ndarray:
+def world_alignment(synced: Synced, T_a_b: np.ndarray) -> np.ndarray:
     """The transform ``T_wa_wb`` from b's world to a's world implied by the extrinsic.
 
     Each synced sample gives ``T_wa_wb(t) = T_wa_a(t) · X · T_wb_b(t)⁻¹``; the estimate is their
@@ -184,7 +184,7 @@ def world_alignment(synced: "Synced", T_a_b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _trajectory_section(calibration: "Calibration", X: np.ndarray) -> str:
+def _trajectory_section(calibration: Calibration, X: np.ndarray) -> str:
     synced = calibration.synced
     if len(synced) == 0:
         return "<p class='note'>No synced samples: the trajectories cannot be aligned.</p>"
@@ -202,7 +202,7 @@ def _trajectory_section(calibration: "Calibration", X: np.ndarray) -> str:
     fig = _new_figure(12.0, 4.0)
     axes = fig.subplots(1, 3, width_ratios=[1, 1, 1.25])
     ia, ib = _thin(len(p_a)), _thin(len(p_b))
-    for ax, (i, j, name) in zip(axes[:2], ((0, 1, "xy"), (0, 2, "xz"))):
+    for ax, (i, j, name) in zip(axes[:2], ((0, 1, "xy"), (0, 2, "xz")), strict=True):
         ax.plot(p_a[ia, i], p_a[ia, j], "-", color=COLOR_A, lw=2.4, alpha=0.45, label="a")
         ax.plot(p_b[ib, i], p_b[ib, j], "--", color=COLOR_B, lw=0.9, label="b · X⁻¹ in a's world")
         ax.set_xlabel(f"{name[0]} [m]")
@@ -239,7 +239,7 @@ def _rejected_mask(document: dict, n: int) -> np.ndarray:
     return mask
 
 
-def _residual_section(calibration: "Calibration", document: dict, X: np.ndarray) -> str:
+def _residual_section(calibration: Calibration, document: dict, X: np.ndarray) -> str:
     pairs = calibration.pairs
     if len(pairs) == 0:
         return "<p class='note'>No motion pairs.</p>"
@@ -301,7 +301,7 @@ def _samples_section(samples: Any) -> str:
             ax.set_xscale("log")
         top = max(values.max(), 1.0)
         ax.set_xlim(right=top * (4.0 if log else 1.25))
-        for yi, v in zip(y, values):
+        for yi, v in zip(y, values, strict=True):
             ax.text(max(v, 0.8 if log else 0.0), yi, f" {_fmt(v)}", va="center", fontsize=8)
         ax.set_title(title)
         ax.grid(alpha=0.3, axis="x")
@@ -345,7 +345,7 @@ def _bootstrap_section(deviations: np.ndarray | None) -> str:
 # ----------------------------------------------------------------------------------------------
 # header
 
-def _header(calibration: "Calibration", document: dict, X: np.ndarray) -> str:
+def _header(calibration: Calibration, document: dict, X: np.ndarray) -> str:
     rot = Rotation.from_matrix(X[:3, :3])
     q = rot.as_quat(canonical=True)
     t = X[:3, 3]
@@ -406,7 +406,7 @@ def _tables(document: dict) -> str:
 # ----------------------------------------------------------------------------------------------
 # entry points
 
-def render_report(calibration: "Calibration", document: dict,
+def render_report(calibration: Calibration, document: dict,
                   bootstrap_deviations: np.ndarray | None = None) -> str:
     """The report as one HTML string (see :func:`write_report`)."""
     document = document if isinstance(document, dict) else {}
@@ -432,7 +432,7 @@ def render_report(calibration: "Calibration", document: dict,
             f"<body><main>{''.join(body)}</main><script>{_SCRIPT}</script></body></html>\n")
 
 
-def write_report(path: str | Path, calibration: "Calibration", document: dict,
+def write_report(path: str | Path, calibration: Calibration, document: dict,
                  bootstrap_deviations: np.ndarray | None = None) -> None:
     """Write a self-contained HTML report of ``calibration`` to ``path`` (atomically).
 

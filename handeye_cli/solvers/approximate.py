@@ -73,9 +73,9 @@ def dq2ndord(problem: Problem) -> Approximation:
     l0, *la = lam.tolist()
     gaps = [l0 - l for l in la]                             # λ_{0a}, a = 1..3 (negative)
     z10 = [Z1e[a][0] for a in (1, 2, 3)]                    # Z1^{a0}
-    c1 = [z / g for z, g in zip(z10, gaps)]                 # Z1^{a0} / λ_{0a}
-    mu = 0.5 * Z1e[0][0] / (Z2e[0][0] - sum(z * c for z, c in zip(z10, c1)))
+    c1 = [z / g for z, g in zip(z10, gaps, strict=True)]                 # Z1^{a0} / λ_{0a}
+    mu = 0.5 * Z1e[0][0] / (Z2e[0][0] - sum(z * c for z, c in zip(z10, c1, strict=True)))
     inner = [sum(Z1e[a][b] * c1[b - 1] for b in (1, 2, 3)) - Z2e[a][0] - Z1e[0][0] * c1[a - 1] for a in (1, 2, 3)]
     coeff = [1.0 - 0.5 * mu * mu * sum(c * c for c in c1)] + [mu * c + mu * mu * i / g
-                                                             for c, i, g in zip(c1, inner, gaps)]
+                                                             for c, i, g in zip(c1, inner, gaps, strict=True)]
     return _with_dual(problem, V @ coeff, {"mu_2nd_order": float(mu)})

@@ -72,7 +72,7 @@ class Synced:
     def __len__(self) -> int:
         return len(self.stamps_ns)
 
-    def select(self, mask_or_index: np.ndarray) -> "Synced":
+    def select(self, mask_or_index: np.ndarray) -> Synced:
         """The samples selected by a boolean mask or an index array."""
         m = mask_or_index
         return Synced(self.stamps_ns[m], self.T_a[m], self.T_b[m], self.dt_ns[m], self.segment[m], self.source)
