@@ -16,7 +16,7 @@ median residuals (rotation [deg], translation [m]) with those of the streams as 
   rigid rig (median above ``_PLAUSIBLE_DEG`` or ``_PLAUSIBLE_M``).
 
 Policy (used by the pipeline): an inverted verdict is the first warning, so ``--strict`` exits 3.
-An overwhelming one refuses the result (:meth:`InversionVerdict.error`, exit 2) unless the user
+An overwhelming one refuses the result (:meth:`InversionVerdict.refusal`, exit 2) unless the user
 set that stream's ``--invert-*`` / ``--no-invert-*`` explicitly. An extrinsic computed from an
 inverted stream is not slightly off but meaningless, and results are consumed by machines that do
 not read warnings; a ≥ 10-fold better fit of the inverted stream does not occur on correct data
@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 from .. import se3
 from ..errors import DataError, HandEyeError
 from ..solvers import solve
-from .residuals import ResidualSummary, pair_residuals
+from .residuals import pair_residuals
 
 __all__ = ["Candidate", "InversionVerdict", "check_inversion"]
 
@@ -87,33 +87,34 @@ class InversionVerdict:
                          f"({c.ratio:.3g}× better)" for c in self.candidates)
         return f"the median residuals go from {self.given[0]:.3g}° / {self.given[1]:.3g} m to {alts}"
 
-    def _fix(self) -> str:
-        if len(self.candidates) == 1:
-            return f"rerun with {self.candidates[0].flag}"
+    @staticmethod
+    def _fix(candidates: list[Candidate] | tuple[Candidate, ...]) -> str:
+        if len(candidates) == 1:
+            return f"rerun with {candidates[0].flag}"
         return ("the fit cannot tell which one; rerun with the flag of the stream that holds T_sensor_world "
-                f"(a camera's target detections do): {' or '.join(c.flag for c in self.candidates)}")
+                f"(a camera's target detections do): {' or '.join(c.flag for c in candidates)}")
 
     def message(self) -> str:
         """The one-line warning, with the numbers and the flags."""
         who = f"stream {self.streams[0]}" if len(self.candidates) == 1 else "stream a or b"
-        return f"{who} looks inverted (T_sensor_world instead of T_world_sensor): {self._evidence()}; {self._fix()}"
+        return (f"{who} looks inverted (T_sensor_world instead of T_world_sensor): {self._evidence()}; "
+                f"{self._fix(self.candidates)}")
 
-    def error(self) -> DataError:
-        """The refusal for an overwhelming verdict when the user set no invert flag explicitly."""
-        keep = " ".join(f"--{'no-' if c.flag.startswith('--invert') else ''}invert-{c.stream}"
-                        for c in self.candidates)
+    def refusal(self, explicit: tuple[bool, bool]) -> DataError | None:
+        """The error refusing the result, when the verdict is overwhelming and the user did not set the
+        invert flag of a candidate stream explicitly (``explicit``: for streams a and b); else None."""
+        open_ = [c for c in self.candidates if not explicit["ab".index(c.stream)]]
+        if not (self.overwhelming and open_):
+            return None
+        keep = " ".join(f"--{'no-' if c.flag.startswith('--invert') else ''}invert-{c.stream}" for c in open_)
         return DataError("a stream is almost certainly inverted (T_sensor_world instead of T_world_sensor); "
-                         "no result was written", self._evidence(),
-                         f"{self._fix()}; or pass {keep} to keep the streams as they are")
+                         "no result was written", self._evidence(), f"{self._fix(open_)}; or pass {keep} to use "
+                         "the streams as they are")
 
     def as_dict(self) -> dict:
         """Plain dict for the result file."""
         return {"given_median": {"rotation_deg": self.given[0], "translation_m": self.given[1]},
                 "candidates": [c.as_dict() for c in self.candidates], "overwhelming": self.overwhelming}
-
-
-def _medians(summary: ResidualSummary) -> tuple[float, float]:
-    return summary.rotation_median_deg, summary.translation_median_m
 
 
 def _fit(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64], j: NDArray[np.int64],
@@ -124,25 +125,25 @@ def _fit(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64
         X = solve(A, B, method=method, alpha=alpha).matrix
     except HandEyeError:
         return None
-    return _medians(pair_residuals(A, B, X).summary())
+    summary = pair_residuals(A, B, X).summary()
+    return summary.rotation_median_deg, summary.translation_median_m
 
 
 def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64],
-                    j: NDArray[np.int64], given: ResidualSummary | None = None, *, method: str = "dqopt",
-                    alpha: float = 1.0, inverted_now: tuple[bool, bool] = (False, False)) -> InversionVerdict | None:
+                    j: NDArray[np.int64], *, method: str = "dqopt", alpha: float = 1.0,
+                    inverted_now: tuple[bool, bool] = (False, False)) -> InversionVerdict | None:
     """Whether stream a or b fits far better inverted (see the module docstring).
 
     Parameters
     ----------
     T_a, T_b: (N, 4, 4) synced absolute poses ``T_wa_a``, ``T_wb_b`` (samples or stations).
     i, j: int64 (M,) the sample pairs the calibration used (motions ``T(t_i)⁻¹ T(t_j)``).
-    given: the residual summary of the calibration as given (over its inliers); solved here when None.
     method, alpha: the solver used for the comparison fits.
     inverted_now: whether streams a and b were already inverted by the user (to name the right flag).
 
     Returns the verdict (both streams as candidates when their inversions fit alike), or None.
     """
-    base = _medians(given) if given is not None else _fit(T_a, T_b, i, j, method, alpha)
+    base = _fit(T_a, T_b, i, j, method, alpha)
     if base is None:
         return None
     found = []

@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import DataError
 from .problem import pair_blocks, validate_motions
 
-__all__ = ["ScaleSolution", "solve_with_scale"]
+__all__ = ["ScaleSolution", "scale_translations", "solve_with_scale"]
 
 _MAX_RELATIVE_STD = 0.5      # a scale known worse than ±50 % is not determined
 
@@ -49,6 +49,13 @@ class ScaleSolution:
         """The result's ``scale`` block."""
         return {"value": self.scale, "std": self.scale_std, "linear": self.linear_scale,
                 "meaning": "metres per unit of stream b"}
+
+
+def scale_translations(T: NDArray[np.float64], scale: float) -> NDArray[np.float64]:
+    """Copies of transforms (…, 4, 4) with their translations multiplied by ``scale``."""
+    out = np.array(T, dtype=float)
+    out[..., :3, 3] *= scale
+    return out
 
 
 def _rotation(A: NDArray[np.float64], B: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -79,12 +79,14 @@ class Stations:
     def __len__(self) -> int:
         return len(self.synced)
 
-    def counts(self) -> dict:
-        """Counts for the result's ``samples``: stations and the samples they averaged."""
-        return {"stations": len(self), "station_kind": self.kind,
-                "station_samples_a": int(self.samples_a.sum()), "station_samples_b": int(self.samples_b.sum()),
-                "station_outliers": int((self.samples_a - self.inliers_a).sum()
-                                        + (self.samples_b - self.inliers_b).sum())}
+    def as_dict(self) -> dict:
+        """The result's ``stations`` block: how many, of which kind, the samples averaged and the
+        median scatter within a station (rotation [deg], translation [m]) per stream."""
+        return {"count": len(self), "kind": self.kind, "pose_jump_gate": "not applied",
+                "samples_a": int(self.samples_a.sum()), "samples_b": int(self.samples_b.sum()),
+                "outliers": int((self.samples_a - self.inliers_a).sum() + (self.samples_b - self.inliers_b).sum()),
+                "median_spread_a": [float(v) for v in np.median(self.spread_a, axis=0)],
+                "median_spread_b": [float(v) for v in np.median(self.spread_b, axis=0)]}
 
 
 @dataclass(frozen=True)
