@@ -221,12 +221,12 @@ def _with_scale(kept: Synced, pairs: Pairs, options: Options, diagnostics: dict[
 
 
 def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float) -> InversionVerdict | None:
-    """The inversion check; raises its refusal when the evidence is overwhelming and the user did not
-    choose the stream's ``--invert-*`` / ``--no-invert-*`` explicitly."""
+    """The inversion check; raises its refusal when the evidence is overwhelming and the user set no
+    ``--invert-*`` / ``--no-invert-*`` flag explicitly."""
     read = options.read
     verdict = check_inversion(kept.T_a, kept.T_b, pairs.i, pairs.j, alpha=alpha,
                               inverted_now=(bool(read.invert_a), bool(read.invert_b)))
-    refusal = verdict and verdict.refusal((read.invert_a is not None, read.invert_b is not None))
+    refusal = verdict and verdict.refusal(read.invert_a is not None or read.invert_b is not None)
     if refusal:
         raise refusal
     return verdict

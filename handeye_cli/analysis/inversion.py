@@ -17,7 +17,7 @@ median residuals (rotation [deg], translation [m]) with those of the streams as 
 
 Policy (used by the pipeline): an inverted verdict is the first warning, so ``--strict`` exits 3.
 An overwhelming one refuses the result (:meth:`InversionVerdict.refusal`, exit 2) unless the user
-set that stream's ``--invert-*`` / ``--no-invert-*`` explicitly. An extrinsic computed from an
+set an ``--invert-*`` / ``--no-invert-*`` flag explicitly. An extrinsic computed from an
 inverted stream is not slightly off but meaningless, and results are consumed by machines that do
 not read warnings; a ≥ 10-fold better fit of the inverted stream does not occur on correct data
 (it needs residuals far above the noise that vanish under inversion), so refusing costs a correct
@@ -88,7 +88,7 @@ class InversionVerdict:
         return f"the median residuals go from {self.given[0]:.3g}° / {self.given[1]:.3g} m to {alts}"
 
     @staticmethod
-    def _fix(candidates: list[Candidate] | tuple[Candidate, ...]) -> str:
+    def _fix(candidates: tuple[Candidate, ...]) -> str:
         if len(candidates) == 1:
             return f"rerun with {candidates[0].flag}"
         return ("the fit cannot tell which one; rerun with the flag of the stream that holds T_sensor_world "
@@ -100,16 +100,16 @@ class InversionVerdict:
         return (f"{who} looks inverted (T_sensor_world instead of T_world_sensor): {self._evidence()}; "
                 f"{self._fix(self.candidates)}")
 
-    def refusal(self, explicit: tuple[bool, bool]) -> DataError | None:
-        """The error refusing the result, when the verdict is overwhelming and the user did not set the
-        invert flag of a candidate stream explicitly (``explicit``: for streams a and b); else None."""
-        open_ = [c for c in self.candidates if not explicit["ab".index(c.stream)]]
-        if not (self.overwhelming and open_):
+    def refusal(self, explicit: bool) -> DataError | None:
+        """The error refusing the result when the verdict is overwhelming and the user set no invert
+        flag explicitly (``explicit``: any of --invert-a/--no-invert-a/--invert-b/--no-invert-b); else None."""
+        if not self.overwhelming or explicit:
             return None
-        keep = " ".join(f"--{'no-' if c.flag.startswith('--invert') else ''}invert-{c.stream}" for c in open_)
+        first = self.candidates[0]
+        keep = f"--{'no-' if first.flag.startswith('--invert') else ''}invert-{first.stream}"
         return DataError("a stream is almost certainly inverted (T_sensor_world instead of T_world_sensor); "
-                         "no result was written", self._evidence(), f"{self._fix(open_)}; or pass {keep} to use "
-                         "the streams as they are")
+                         "no result was written", self._evidence(), f"{self._fix(self.candidates)}; or pass "
+                         f"{keep} to use the streams as they are")
 
     def as_dict(self) -> dict:
         """Plain dict for the result file."""
@@ -160,4 +160,4 @@ def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArr
     found.sort(key=lambda c: -c.ratio)
     found = [c for c in found if c.ratio >= found[0].ratio / _BETTER]      # alike fits: the data cannot tell
     implausible = base[0] > _PLAUSIBLE_DEG or base[1] > _PLAUSIBLE_M
-    return InversionVerdict(base, tuple(found), bool(found[-1].ratio >= _OVERWHELMING and implausible))
+    return InversionVerdict(base, tuple(found), bool(found[0].ratio >= _OVERWHELMING and implausible))
