@@ -56,8 +56,8 @@ def data_warning(res: Residuals, weights: np.ndarray | None, samples: SampleCoun
         return None
     if large:
         return (f"large residuals (median {base.rotation_median_deg:.2f}° / {base.translation_median_m:.3f} m): the "
-                "streams may not be rigidly attached, be mis-synchronised (try --time-offset auto) or come from "
-                "the wrong topics")
+                "streams may not be rigidly attached, be mis-synchronised (try --time-offset auto), come from "
+                "the wrong topics, or b's translations have another scale (monocular odometry: --scale auto)")
     return (f"the pose-jump gate dropped {samples.dropped_pose_jump} of {samples.synced} samples "
             f"({100 * dropped:.0f} %): the sensors move faster than its limits allow at this rate; raise "
             "--max-jump / --max-jump-deg, or check the tracking")
