@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from .. import se3
+from ..solvers import dualquat as dq
 from ..streams import PoseStream
 from .sync import Synced
 
@@ -98,10 +99,16 @@ class _Runs:
     sparse: bool
 
 
+def _angle_deg(q1: NDArray[np.float64], q2: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rotation angle [deg] between unit quaternions (rows, x-y-z-w), exact near 0 (q ~ -q)."""
+    d = np.minimum(np.sum((q1 - q2) ** 2, axis=-1), np.sum((q1 + q2) ** 2, axis=-1))
+    return np.rad2deg(4.0 * np.arcsin(np.clip(0.5 * np.sqrt(d), 0.0, 1.0)))
+
+
 def _steps(stream: PoseStream) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Rotation [deg] and translation [m] between consecutive samples."""
-    r = Rotation.from_quat(stream.quat_xyzw)
-    return np.rad2deg((r[:-1].inv() * r[1:]).magnitude()), np.linalg.norm(np.diff(stream.xyz, axis=0), axis=1)
+    q = stream.quat_xyzw
+    return _angle_deg(q[:-1], q[1:]), np.linalg.norm(np.diff(stream.xyz, axis=0), axis=1)
 
 
 def _runs_of(mask: NDArray[np.bool_]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -121,11 +128,13 @@ def _sparse_runs(stream: PoseStream, min_stations: int, sparse_rotation_deg: flo
 
 
 def _noise(stream: PoseStream) -> tuple[float, float]:
-    """Robust per-axis noise σ of rotation [deg] and translation [m] from second differences."""
+    """Robust per-axis noise σ of rotation [deg] and translation [m] from second differences
+    (rotation steps as small-angle rotation vectors ``2 sign(w) vec(q_i* ⊗ q_i+1)``)."""
     if len(stream) < 3:
         return 0.0, 0.0
-    r = Rotation.from_quat(stream.quat_xyzw)
-    d_rot = np.diff((r[:-1].inv() * r[1:]).as_rotvec(), axis=0)
+    q = stream.quat_xyzw
+    step = np.einsum("nij,nj->ni", dq.left(dq.conjugate(q[:-1])), q[1:])
+    d_rot = np.diff(2.0 * step[:, :3] * np.sign(step[:, 3:]), axis=0)
     d_pos = np.diff(stream.xyz, n=2, axis=0)
     scale = 1.4826 / np.sqrt(6.0)           # MAD → σ, and Var(x₋ − 2x + x₊) = 6σ²
     return float(np.rad2deg(np.median(np.abs(d_rot))) * scale), float(np.median(np.abs(d_pos)) * scale)
@@ -139,8 +148,7 @@ def _dwell_runs(stream: PoseStream, min_dwell_s: float) -> _Runs:
     later = np.searchsorted(stream.stamps_ns, stream.stamps_ns + int(min_dwell_s * 1e9), side="left")
     i = np.flatnonzero(later < n)
     j = later[i]
-    r = Rotation.from_quat(stream.quat_xyzw)
-    rest = ((np.rad2deg((r[i].inv() * r[j]).magnitude()) <= tol_deg)
+    rest = ((_angle_deg(stream.quat_xyzw[i], stream.quat_xyzw[j]) <= tol_deg)
             & (np.linalg.norm(stream.xyz[j] - stream.xyz[i], axis=1) <= tol_m) & (j > i + 1))
     cover = np.zeros(n + 1, dtype=np.int64)
     np.add.at(cover, i[rest], 1)
