@@ -8,7 +8,8 @@ residuals are far larger than the noise. With exactly one stream inverted, the r
 
 :func:`check_inversion` re-solves the same sample pairs ``(i, j)`` with each stream's poses
 inverted (relative rotation angles do not change, so the same pairs stay valid) and compares the
-median residuals (rotation [deg], translation [m]) with those of the streams as given:
+median residuals (rotation [deg], translation [m]) with those of the streams as given (on at most
+``_MAX_PAIRS`` pairs spread over the list):
 
 * **inverted**: inverting the stream lowers one median at least ``_BETTER``-fold and raises
   neither by more than ``_NOT_WORSE``;
@@ -43,6 +44,7 @@ _NOT_WORSE = 1.25
 _OVERWHELMING = 10.0
 _PLAUSIBLE_DEG = 0.5
 _PLAUSIBLE_M = 0.02
+_MAX_PAIRS = 500
 _TINY = (1e-9, 1e-12)        # floors [deg, m] so that noise-free fits compare as finite ratios
 
 
@@ -143,6 +145,9 @@ def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArr
 
     Returns the verdict (both streams as candidates when their inversions fit alike), or None.
     """
+    if len(i) > _MAX_PAIRS:                 # medians of a spread-out subset decide as well, 3 solves stay cheap
+        keep = np.linspace(0, len(i) - 1, _MAX_PAIRS).astype(np.int64)
+        i, j = i[keep], j[keep]
     base = _fit(T_a, T_b, i, j, method, alpha)
     if base is None:
         return None
