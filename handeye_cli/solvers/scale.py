@@ -74,7 +74,7 @@ def _linear(A: NDArray[np.float64], B: NDArray[np.float64], R_X: NDArray[np.floa
     M[:, :, 3] = -B[:, :3, 3] @ R_X.T
     rhs = -A[:, :3, 3]
     sol, *_ = np.linalg.lstsq((M * sw[:, None, None]).reshape(-1, 4), (rhs * sw[:, None]).reshape(-1), rcond=None)
-    return sol[:3], float(sol[3])
+    return np.asarray(sol[:3], dtype=np.float64), float(sol[3])
 
 
 def _residuals(p: NDArray[np.float64], A: NDArray[np.float64], B: NDArray[np.float64], R0: Rotation,
