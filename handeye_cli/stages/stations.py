@@ -71,10 +71,10 @@ class Stations:
     synced: Synced
     kind: str
     samples_a: NDArray[np.int64]
-    samples_b: NDArray[np.int64]
     inliers_a: NDArray[np.int64]
-    inliers_b: NDArray[np.int64]
     spread_a: NDArray[np.float64]
+    samples_b: NDArray[np.int64]
+    inliers_b: NDArray[np.int64]
     spread_b: NDArray[np.float64]
 
     def __len__(self) -> int:
@@ -238,14 +238,16 @@ def detect_stations(a: PoseStream, b: PoseStream, *, time_offset_ns: int = 0, ma
     covered = sum(t1 - t0 for _, _, t0, t1 in matches)
     if not (ra.sparse or rb.sparse) and covered < min_rest_fraction * max(span, 1):
         return None
-    per_a, per_b = ([_robust_mean(stream, *_in_window(stream, runs, run, t0, t1, int(max_dt_ns)))
-                     for run, t0, t1 in runs_at] for stream, runs, runs_at in
-                    ((a, ra, [(k, t0, t1) for k, _, t0, t1 in matches]),
-                     (b, rb, [(m, t0, t1) for _, m, t0, t1 in matches])))
+    slack = int(max_dt_ns)
+    per_a = [_robust_mean(a, *_in_window(a, ra, k, t0, t1, slack)) for k, _, t0, t1 in matches]
+    per_b = [_robust_mean(b, *_in_window(b, rb, m, t0, t1, slack)) for _, m, t0, t1 in matches]
     t0s, t1s = (np.array([x[i] for x in matches], dtype=np.int64) for i in (2, 3))
     synced = Synced((t0s + t1s) // 2, np.array([p.T for p in per_a]), np.array([p.T for p in per_b]), t1s - t0s)
     kind = "sparse" if ra.sparse and rb.sparse else "dwell" if not (ra.sparse or rb.sparse) else "mixed"
-    ints = [np.array([getattr(p, f) for p in per], dtype=np.int64) for per in (per_a, per_b)
-            for f in ("samples", "inliers")]
-    return Stations(synced, kind, ints[0], ints[2], ints[1], ints[3],
-                    np.array([p.spread for p in per_a]), np.array([p.spread for p in per_b]))
+    return Stations(synced, kind, *_columns(per_a), *_columns(per_b))
+
+
+def _columns(per: list[_Average]) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+    """Samples, inliers and spreads of one stream's station averages, as arrays."""
+    return (np.array([p.samples for p in per], dtype=np.int64), np.array([p.inliers for p in per], dtype=np.int64),
+            np.array([p.spread for p in per], dtype=np.float64))
