@@ -28,12 +28,13 @@ silently was rejected: it would hide a set-up error that also affects other tool
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .. import se3
-from ..errors import DataError, HandEyeError
+from ..errors import DataError
 from ..solvers import solve
 from .residuals import pair_residuals
 
@@ -59,7 +60,7 @@ class Candidate:
     ratio: float
     flag: str
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """Plain dict for the result file."""
         return {"stream": self.stream, "rotation_median_deg": self.inverted[0],
                 "translation_median_m": self.inverted[1], "ratio": self.ratio, "flag": self.flag}
@@ -113,7 +114,7 @@ class InversionVerdict:
                          "no result was written", self._evidence(), f"{self._fix(self.candidates)}; or pass "
                          f"{keep} to use the streams as they are")
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """Plain dict for the result file."""
         return {"given_median": {"rotation_deg": self.given[0], "translation_m": self.given[1]},
                 "candidates": [c.as_dict() for c in self.candidates], "overwhelming": self.overwhelming}
@@ -125,7 +126,7 @@ def _fit(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64
     A, B = se3.relative(T_a[i], T_a[j]), se3.relative(T_b[i], T_b[j])
     try:
         X = solve(A, B, method=method, alpha=alpha).matrix
-    except HandEyeError:
+    except DataError:
         return None
     summary = pair_residuals(A, B, X).summary()
     return summary.rotation_median_deg, summary.translation_median_m

@@ -125,7 +125,7 @@ def _visible(T_cam_target: NDArray[np.float64], fov_deg: float = 30.0) -> NDArra
     dist = np.linalg.norm(p, axis=1)
     in_view = p[:, 2] > dist * np.cos(np.deg2rad(fov_deg))
     facing = -np.einsum("ni,ni->n", T_cam_target[:, :3, 2], p) > 0.5 * dist     # target z towards the camera
-    return (dist > 0.15) & (dist < 1.2) & in_view & facing
+    return np.asarray((dist > 0.15) & (dist < 1.2) & in_view & facing, dtype=bool)
 
 
 def _stations(rng: np.random.Generator, n: int, setup: str, mounted: NDArray[np.float64],

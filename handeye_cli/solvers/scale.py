@@ -62,7 +62,7 @@ def _rotation(A: NDArray[np.float64], B: NDArray[np.float64], w: NDArray[np.floa
     """R_X from the rotational residuals only: eigenvector of ``Σ w EᵀE`` with the smallest eigenvalue."""
     E, _ = pair_blocks(A, B)
     _, vectors = np.linalg.eigh(np.einsum("n,nki,nkj->ij", w, E, E))
-    return Rotation.from_quat(vectors[:, 0]).as_matrix()
+    return np.asarray(Rotation.from_quat(vectors[:, 0]).as_matrix(), dtype=np.float64)
 
 
 def _linear(A: NDArray[np.float64], B: NDArray[np.float64], R_X: NDArray[np.float64],
@@ -83,7 +83,7 @@ def _residuals(p: NDArray[np.float64], A: NDArray[np.float64], B: NDArray[np.flo
     R_X = (Rotation.from_rotvec(p[:3]) * R0).as_matrix()
     rot = Rotation.from_matrix(np.swapaxes(R_X @ B[:, :3, :3], 1, 2) @ A[:, :3, :3] @ R_X).as_rotvec()
     trans = A[:, :3, :3] @ p[3:6] + A[:, :3, 3] - np.exp(p[6]) * B[:, :3, 3] @ R_X.T - p[3:6]
-    return (np.c_[rot, alpha * trans] * sw[:, None]).ravel()
+    return np.asarray(np.c_[rot, alpha * trans] * sw[:, None], dtype=np.float64).ravel()
 
 
 def _undetermined(why: str) -> DataError:

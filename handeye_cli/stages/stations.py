@@ -37,6 +37,7 @@ pairs relative to one base station are three times worse).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -80,7 +81,7 @@ class Stations:
     def __len__(self) -> int:
         return len(self.synced)
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """The result's ``stations`` block: how many, of which kind, the samples averaged and the
         median scatter within a station (rotation [deg], translation [m]) per stream."""
         return {"count": len(self), "kind": self.kind, "pose_jump_gate": "not applied",
@@ -102,7 +103,7 @@ class _Runs:
 def _angle_deg(q1: NDArray[np.float64], q2: NDArray[np.float64]) -> NDArray[np.float64]:
     """Rotation angle [deg] between unit quaternions (rows, x-y-z-w), exact near 0 (q ~ -q)."""
     d = np.minimum(np.sum((q1 - q2) ** 2, axis=-1), np.sum((q1 + q2) ** 2, axis=-1))
-    return np.rad2deg(4.0 * np.arcsin(np.clip(0.5 * np.sqrt(d), 0.0, 1.0)))
+    return np.asarray(np.rad2deg(4.0 * np.arcsin(np.clip(0.5 * np.sqrt(d), 0.0, 1.0))), dtype=np.float64)
 
 
 def _steps(stream: PoseStream) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
