@@ -9,6 +9,8 @@ key of a configuration file, and the keyword argument of :func:`handeye_cli.cali
 Units: seconds, metres, degrees, as each field's help says. Gates that can be switched off take
 ``None``, which files and flags spell ``off`` (YAML's ``off``/``false``/``null`` all mean off).
 
+Examples
+--------
 >>> opts = Options.from_flat(max_jump="off", alpha="auto", pairs="stride:30")
 >>> opts.gates.max_jump is None, opts.solver.alpha, opts.pairs.pairs
 (True, 'auto', 'stride:30')
@@ -264,7 +266,7 @@ class PairOptions:
 class SolverOptions:
     """The solver and its cost (paper eqs 8, 26)."""
 
-    method: str = option("dqopt", choice(*METHODS), "Solver: dqopt is the global optimum (paper §4); the others "
+    method: str = option("dqopt", choice(*METHODS), "Solver: dqopt is the global optimum (paper §3.2.1); the others "
                          "are the paper's approximations and Daniilidis' method.", choices=tuple(METHODS))
     alpha: float | str = option(1.0, number(unit="1/m", word="auto"),
                                 "Weight of translational residuals [1/m] (eq 8), or auto.", "NUMBER|auto")

@@ -6,6 +6,8 @@ frame in sensor a's frame (maps points from b to a), where each stream holds ``T
 Options are the typed :class:`~handeye_cli.options.Options`; keyword arguments use the same flat
 names as the command line.
 
+Examples
+--------
 >>> import handeye_cli
 >>> cal = handeye_cli.calibrate_files("sample_data/rig_a.tum", "sample_data/rig_b.tum", method="dqopt")
 >>> cal.matrix.shape, cal.options.solver.method
