@@ -313,3 +313,10 @@ def main(argv: list[str] | None = None) -> None:
         click.echo("aborted", err=True)
         sys.exit(130)
     sys.exit(code if isinstance(code, int) else 0)
+
+
+from .batch import batch, report  # noqa: E402
+from .check import check  # noqa: E402
+
+for _command in (batch, check, report):
+    cli.add_command(_command)
