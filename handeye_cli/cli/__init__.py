@@ -36,11 +36,13 @@ def cli(debug: bool) -> None:
 
 
 def _register() -> None:
+    from .batch import batch, report
     from .calibrate import calibrate
+    from .check import check
     from .inspect import inspect
     from .solve import solve
 
-    for command in (calibrate, solve, inspect):
+    for command in (calibrate, solve, inspect, batch, check, report):
         cli.add_command(command)
 
 
@@ -73,9 +75,3 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(130)
     sys.exit(code if isinstance(code, int) else 0)
 
-
-from .batch import batch, report  # noqa: E402
-from .check import check  # noqa: E402
-
-for _command in (batch, check, report):
-    cli.add_command(_command)

@@ -11,23 +11,19 @@ from typing import Any
 
 import click
 
-from ..config import load_config
 from ..errors import ConfigError
 from ..fleet import BatchSettings, Job, Streams, discover, run_batch
 from .check import verdict_options
+from .common import CONTEXT
+from .params import calibrate_options, options_from_cli, stream_options
 
 __all__ = ["batch", "report"]
 
-_CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 
-
-@click.command(context_settings=_CONTEXT)
+@click.command(context_settings=CONTEXT)
 @click.argument("inputs", nargs=-1, required=True)
-@click.option("--topic-a", help="Topic of stream a in every log.")
-@click.option("--topic-b", help="Topic of stream b in every log.")
-@click.option("--frames-a", nargs=2, metavar="PARENT CHILD", help="Stream a as a TF chain in every log.")
-@click.option("--frames-b", nargs=2, metavar="PARENT CHILD", help="Stream b as a TF chain in every log.")
-@click.option("--config", "config_file", type=click.Path(), help="YAML configuration shared by every input.")
+@stream_options
+@calibrate_options
 @verdict_options
 @click.option("-j", "--jobs", type=click.IntRange(min=1), help="Local worker processes [default: one per core].")
 @click.option("--scheduler", metavar="ADDRESS", help="Run on this Dask distributed scheduler (e.g. tcp://host:8786) "
@@ -43,7 +39,8 @@ _CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.pass_context
 def batch(ctx: click.Context, inputs: tuple[str, ...], **o: Any) -> None:
-    """Calibrate many logs with one set of options: one JSON Lines record per input on stdout.
+    """Calibrate many logs with one set of options (every calibrate option applies to every input):
+    one JSON Lines record per input on stdout.
 
     INPUTS are files, directories (searched recursively for logs by content: MCAP, ROS 1 bags,
     ROS 2 bags, and folders holding two TUM/EuRoC files a and b), glob patterns, @LIST files
@@ -67,7 +64,7 @@ def batch(ctx: click.Context, inputs: tuple[str, ...], **o: Any) -> None:
 
         nominal = read_nominal(o["against"])
     streams = Streams(o["topic_a"], o["topic_b"], o["frames_a"] or None, o["frames_b"] or None)
-    options = load_config(o["config_file"])
+    options = options_from_cli(o)
     jobs = [Job(i, streams, options) for i in discover(inputs, sys.stdin)]
     settings = BatchSettings(nominal, o["max_rotation_deg"], o["max_translation_m"], o["output_dir"], o["fmt"],
                              o["skip_done"], o["jobs"], o["scheduler"], progress=not o["quiet"])
@@ -75,13 +72,13 @@ def batch(ctx: click.Context, inputs: tuple[str, ...], **o: Any) -> None:
     if o["report_file"]:
         from ..output.fleet_report import write_fleet_report
 
-        write_fleet_report(o["report_file"], summary.records)
+        write_fleet_report(o["report_file"], summary.records, "--report")
     if not o["quiet"]:
         click.echo(summary.text(), err=True)
     ctx.exit(summary.exit_code)
 
 
-@click.command(context_settings=_CONTEXT)
+@click.command(context_settings=CONTEXT)
 @click.argument("records_file", type=click.Path())
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="The HTML file to write.")
 def report(records_file: str, output: str) -> None:

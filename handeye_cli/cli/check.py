@@ -12,10 +12,9 @@ import click
 from ..analysis.verdict import DEFAULT_MAX_ROTATION_DEG, DEFAULT_MAX_TRANSLATION_M, verdict_for
 from ..io.nominal import read_nominal, read_result
 from ..output.document import render
+from .common import CONTEXT
 
 __all__ = ["check", "verdict_options"]
-
-_CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 
 _VERDICT_OPTIONS = [
     click.option("--against", "against", metavar="NOMINAL", help="Nominal extrinsic to compare with: a handeye "
@@ -34,7 +33,7 @@ def verdict_options(f: Callable[..., Any]) -> Callable[..., Any]:
     return f
 
 
-@click.command(context_settings=_CONTEXT)
+@click.command(context_settings=CONTEXT)
 @click.argument("result_file", type=click.Path())
 @verdict_options
 @click.option("--format", "fmt", type=click.Choice(["text", "yaml", "json"]), default="text", show_default=True,

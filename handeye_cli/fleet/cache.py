@@ -18,7 +18,8 @@ from typing import Any
 import yaml
 
 from .. import __version__
-from ..output.document import render, write_atomic
+from ..output.document import render
+from ..output.writers import write_output
 from .engine import Job
 
 __all__ = ["job_key", "result_path", "load_done", "store"]
@@ -68,7 +69,7 @@ def store(path: Path, record: dict, key: str, fmt: str) -> None:
     """Write a calibrated record as its result file (atomically)."""
     meta = {k: record[k] for k in ("input", "log_span_ns", "seconds") if k in record}
     doc = {k: v for k, v in record.items() if k not in ("input", "status", "error", "log_span_ns", "seconds")}
-    write_atomic(path, render({**doc, "batch": {**meta, "key": key}}, fmt))
+    write_output(path, render({**doc, "batch": {**meta, "key": key}}, fmt), "--output-dir")
 
 
 def load_done(path: Path, key: str) -> dict | None:

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..errors import ConfigError, HandEyeError
+from ..options import Options
 from .discovery import BatchInput
 
 __all__ = ["Job", "Streams", "run_job", "run_jobs"]
@@ -42,20 +43,19 @@ class Job:
 
     input: BatchInput
     streams: Streams
-    options: Any
+    options: Options
 
 
 def _calibrate(job: Job) -> Record:
     """The result document of one input, plus the span of its synced samples."""
-    from ..pipeline import StreamSpec, calibrate_files
+    from ..pipeline import calibrate_files
 
     paths, s = job.input.paths, job.streams
-    if len(paths) == 2:
-        spec_a, spec_b = StreamSpec(paths[0]), StreamSpec(paths[1])
+    if len(paths) == 2:            # two text pose files: no topics
+        result = calibrate_files(paths[0], paths[1], options=job.options)
     else:
-        spec_a = StreamSpec(paths[0], s.topic_a, s.frames_a)
-        spec_b = StreamSpec(paths[0], s.topic_b, s.frames_b)
-    result = calibrate_files(spec_a, spec_b, job.options)
+        result = calibrate_files(paths[0], topic_a=s.topic_a, topic_b=s.topic_b, frames_a=s.frames_a,
+                                 frames_b=s.frames_b, options=job.options)
     stamps = result.synced.stamps_ns
     return {**result.document(), "log_span_ns": [int(stamps[0]), int(stamps[-1])]}
 
@@ -115,7 +115,7 @@ def _dask(jobs: Sequence[Job], address: str, on_done: OnDone) -> None:
     with client:
         futures = client.map(run_job, list(jobs), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
-        for future in dask_completed(futures):
+        for future in dask_completed(futures, loop=client.loop):
             i = index[future.key]
             try:
                 on_done(i, future.result())

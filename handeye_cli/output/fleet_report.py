@@ -20,9 +20,9 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from .. import __version__
-from ..errors import HandEyeError, ReadError
-from .document import write_atomic
+from ..errors import ReadError
 from .report import _CSS, _SCRIPT, _esc, _figure, _new_figure
+from .writers import check_writable, write_output
 
 __all__ = ["read_records", "render_fleet_report", "write_fleet_report"]
 
@@ -146,10 +146,8 @@ def render_fleet_report(records: list[dict]) -> str:
             f"<body><main>{body}</main><script>{_SCRIPT}</script></body></html>\n")
 
 
-def write_fleet_report(path: str | Path, records: list[dict]) -> None:
-    """Write the fleet report of batch ``records`` to ``path`` (atomically); HandEyeError when the
-    folder does not exist or matplotlib is missing (no file is created)."""
-    if not Path(path).parent.is_dir():
-        raise HandEyeError("the report's folder does not exist", str(Path(path).parent),
-                           "create it or choose another -o/--report path")
-    write_atomic(path, render_fleet_report(records))
+def write_fleet_report(path: str | Path, records: list[dict], flag: str = "-o") -> None:
+    """Write the fleet report of batch ``records`` to ``path`` (atomically); a HandEyeError naming
+    ``flag`` when it cannot be written or matplotlib is missing (no file is created)."""
+    check_writable(path, flag)
+    write_output(path, render_fleet_report(records), flag)

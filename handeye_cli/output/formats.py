@@ -32,11 +32,11 @@ from scipy.spatial.transform import Rotation
 from .. import __version__, se3
 from ..errors import ConfigError
 from .document import render
+from .writers import output_format
 
 __all__ = ["ALL_FORMATS", "render_format", "format_for_output"]
 
-_SUFFIXES = {".urdf": "urdf", ".launch": "ros1-launch", ".launch.py": "ros2-launch", ".sh": "tf-static",
-             ".json": "json", ".yaml": "yaml", ".yml": "yaml"}
+_SUFFIXES = {".urdf": "urdf", ".launch": "ros1-launch", ".launch.py": "ros2-launch", ".sh": "tf-static"}
 
 
 def _parts(doc: dict) -> tuple[NDArray[np.float64], str, str]:
@@ -129,11 +129,10 @@ def render_format(doc: dict, fmt: str) -> str:
     return _WRITERS[fmt](doc)
 
 
-def format_for_output(path: str | Path | None, fmt: str | None) -> str:
+def format_for_output(path: str | Path | None, fmt: str | None, flag: str = "-o") -> str:
     """The explicit ``fmt``; else the one the file name's suffix chooses (``.urdf``, ``.launch``,
-    ``.launch.py``, ``.sh``, ``.json``, ``.yaml``); else YAML. Kalibr YAML needs ``--format kalibr``."""
-    if fmt:
-        return fmt
-    name = Path(path).name.lower() if path is not None else ""
-    return next((f for suffix, f in sorted(_SUFFIXES.items(), key=lambda s: -len(s[0])) if name.endswith(suffix)),
-                "yaml")
+    ``.launch.py``, ``.sh``, then :func:`~handeye_cli.output.writers.output_format`'s ``.json``,
+    ``.yaml``/``.yml``); stdout: YAML. Kalibr YAML needs ``--format kalibr``."""
+    name = Path(str(path)).name.lower() if path is not None and not fmt else ""
+    chosen = next((f for suffix, f in _SUFFIXES.items() if name.endswith(suffix)), None)
+    return chosen or output_format(path, fmt, flag)
