@@ -17,7 +17,8 @@ from handeye_cli import se3
 from handeye_cli.simulation import Rig, simulate_rig
 from tests._logs import POSE, pose_channel, records, write_log, write_tum
 
-NOMINAL = se3.from_xyz_quat(np.array([0.12, -0.03, 0.02]), Rotation.from_euler("xyz", [2, -88, 5], degrees=True).as_quat())
+NOMINAL = se3.from_xyz_quat(np.array([0.12, -0.03, 0.02]),
+                            Rotation.from_euler("xyz", [2, -88, 5], degrees=True).as_quat())
 TOPICS = ("/cam0/pose", "/cam1/pose")
 KINDS = ("mcap", "bag1", "bag2_sqlite", "bag2_mcap", "tum")
 DAY_NS = 86_400 * 10**9

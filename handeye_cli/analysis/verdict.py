@@ -76,7 +76,7 @@ class Verdict:
             else "out of tolerance but not significant"
         return (f"{word}: rotation {self.rotation_deg:.3f}° (max {self.max_rotation_deg:g}°), translation "
                 f"{self.translation_m * 1000:.2f} mm (max {self.max_translation_m * 1000:g} mm) from the nominal "
-                f"{self.nominal['source']}")
+                f"{self.nominal.get('source', '')}".rstrip())
 
 
 def _significance(X: NDArray[np.float64], N: NDArray[np.float64], uncertainty: dict | None) -> tuple[
