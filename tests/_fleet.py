@@ -55,8 +55,10 @@ def write_rig(folder: Path, kind: str, X: np.ndarray, seed: int, duration_s: flo
     return write_log(kind, folder, channels, name=f"rig{seed}")
 
 
-def make_fleet(root: Path, n_good: int = 22, n_beyond: int = 4, n_below: int = 3) -> dict[str, Expected]:
-    """Write the fleet under ``root`` (one folder per log); expected status by input path."""
+def make_fleet(root: Path, n_good: int = 22, n_beyond: int = 4, n_below: int = 3,
+               broken: bool = True) -> dict[str, Expected]:
+    """Write the fleet under ``root`` (one folder per log, and ``broken/`` with damaged files unless
+    ``broken`` is false); expected status by input path."""
     plan = ([("ok", NOMINAL)] * n_good + [("drift", moved(2.0, 0.0, s)) for s in range(n_beyond // 2)]
             + [("drift", moved(0.0, 0.02, s)) for s in range(n_beyond - n_beyond // 2)]
             + [("ok", moved(0.2, 0.002, s)) for s in range(n_below)])
@@ -66,6 +68,8 @@ def make_fleet(root: Path, n_good: int = 22, n_beyond: int = 4, n_below: int = 3
         path = write_rig(root / f"robot{i:02d}", kind, X, seed=i)
         label = " ".join(str(path / f) for f in ("cam0.tum", "cam1.tum")) if kind == "tum" else str(path)
         expected[label] = Expected(status, X)
+    if not broken:
+        return expected
     bad = root / "broken"
     bad.mkdir()
     (bad / "empty.bag").write_bytes(b"")
