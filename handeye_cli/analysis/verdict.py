@@ -11,6 +11,7 @@ translation is out of tolerance and — where significance is known — signific
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -62,9 +63,10 @@ class Verdict:
 
     def as_dict(self) -> dict:
         """Plain values for the result document and batch records."""
-        out = {"drift": self.drift, "rotation_deg": self.rotation_deg, "translation_m": self.translation_m,
-               "max_rotation_deg": self.max_rotation_deg, "max_translation_m": self.max_translation_m,
-               "rotation_out_of_tolerance": self.rotation_out, "translation_out_of_tolerance": self.translation_out}
+        out: dict[str, Any] = {
+            "drift": self.drift, "rotation_deg": self.rotation_deg, "translation_m": self.translation_m,
+            "max_rotation_deg": self.max_rotation_deg, "max_translation_m": self.max_translation_m,
+            "rotation_out_of_tolerance": self.rotation_out, "translation_out_of_tolerance": self.translation_out}
         if self.rotation_significant is not None:
             out["rotation_significant"] = self.rotation_significant
             out["translation_significant"] = self.translation_significant
@@ -82,9 +84,11 @@ class Verdict:
 def _significance(X: NDArray[np.float64], N: NDArray[np.float64], uncertainty: dict | None) -> tuple[
         bool | None, bool | None]:
     """Whether N lies outside X's bootstrap intervals (rotation, translation), or (None, None)."""
+    if not isinstance(uncertainty, dict):
+        return None, None
     try:
-        r_lo, r_hi = np.asarray(uncertainty["rotation_interval_deg"], dtype=float)  # type: ignore[index]
-        t_lo, t_hi = np.asarray(uncertainty["translation_interval_m"], dtype=float)  # type: ignore[index]
+        r_lo, r_hi = np.array(uncertainty["rotation_interval_deg"], dtype=np.float64).reshape(2, 3)
+        t_lo, t_hi = np.array(uncertainty["translation_interval_m"], dtype=np.float64).reshape(2, 3)
     except (KeyError, TypeError, ValueError):
         return None, None
     d = Rotation.from_matrix(N[:3, :3] @ X[:3, :3].T).as_rotvec(degrees=True)

@@ -98,7 +98,7 @@ def _judge(record: Record, s: BatchSettings) -> Record:
             record.update(status="error", error=str(e))
         else:
             record.update(status="drift" if verdict.drift else "ok", verdict=verdict.as_dict())
-    head = {k: record.pop(k) for k in ("input", "status", "error") if k in record}
+    head: Record = {k: record.pop(k) for k in ("input", "status", "error") if k in record}
     return {**head, **record, "seconds": seconds}
 
 

@@ -270,7 +270,7 @@ def _yaml(text: str, path: Path) -> tuple[str, tuple[Edge, ...]]:
         raise ReadError("not a nominal extrinsic (neither XML, Python, YAML nor a command line)", str(path),
                         _FIX) from None
     if isinstance(doc, dict) and ("matrix" in doc or "translation" in doc):
-        frames = doc.get("frames") if isinstance(doc.get("frames"), dict) else {}
+        frames = doc["frames"] if isinstance(doc.get("frames"), dict) else {}
         return "result", (Edge(str(frames.get("a", "a")), str(frames.get("b", "b")), read_extrinsic(path)),)
     return "kalibr", (_kalibr(doc, str(path)) if isinstance(doc, dict) else ())
 
