@@ -19,8 +19,16 @@ from typing import Any
 
 import numpy as np
 
-from .analysis import (BootstrapResult, Residuals, RobustResult, assess_observability, auto_alpha, bootstrap,
-                       pair_residuals, robust_solve)
+from .analysis import (
+    BootstrapResult,
+    Residuals,
+    RobustResult,
+    assess_observability,
+    auto_alpha,
+    bootstrap,
+    pair_residuals,
+    robust_solve,
+)
 from .analysis.diagnosis import data_warning, too_few_pairs
 from .config import load_options
 from .errors import ConfigError
@@ -92,10 +100,11 @@ class Calibration:
 
     @property
     def frames(self) -> dict[str, str]:
-        """Names of frames a and b: ``name_a``/``name_b`` if given, else the streams' child frames."""
+        """Names of frames a and b: ``name_a``/``name_b`` if given, else the streams' child frames
+        (as valid tf2 frame ids: no leading '/')."""
         out = self.options.output
-        return {"a": out.name_a or self.stream_a.child_frame_id or "a",
-                "b": out.name_b or self.stream_b.child_frame_id or "b"}
+        return {"a": out.name_a or self.stream_a.child_frame_id.lstrip("/") or "a",
+                "b": out.name_b or self.stream_b.child_frame_id.lstrip("/") or "b"}
 
     def bootstrap_deviations(self) -> np.ndarray | None:
         """(K, 6) bootstrap deviations of X: rotation vector [deg] (3), translation [m] (3)."""
@@ -137,7 +146,7 @@ def _spec(source: Source, topic: str | None, frames: tuple[str, str] | None) -> 
 def read_streams(spec_a: StreamSpec, spec_b: StreamSpec, options: Options | None = None, *,
                  quiet: bool = True) -> tuple[PoseStream, PoseStream]:
     """Read streams a and b (``T_world_sensor``), inverted where the options say so."""
-    from .io import detect_format, read_log_streams, read_stream   # mcap/rosbags: import only when reading
+    from .io import detect_format, read_log_streams, read_stream  # mcap/rosbags: import only when reading
     from .io.detect import LOG_FORMATS
 
     read = (options or Options()).read
@@ -155,7 +164,7 @@ def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, d
     """The offset [ns] b's clock is ahead of a's, its report, and warnings about it."""
     value = options.sync.time_offset
     if value == "auto":
-        from .stages.timeoffset import estimate_time_offset    # scipy.signal: import only when used
+        from .stages.timeoffset import estimate_time_offset  # scipy.signal: import only when used
 
         est = estimate_time_offset(a, b, max_offset_s=options.sync.max_time_offset)
         return est.offset_ns, {"seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,

@@ -32,8 +32,8 @@ def solve(pairs_file: str, output: str | None, fmt: str | None, **given: str | N
     s = load_options(**given).solver
     if s.alpha == "auto":
         raise click.BadParameter("'auto' needs the pose streams; give a number", param_hint="--alpha")
-    fmt = output_format(output, fmt)
     check_writable(output, "-o")
+    fmt = output_format(output, fmt)
     A, B, weights = read_pairs(pairs_file)
     prior = None if s.prior is None else Prior(read_extrinsic(s.prior), *s.prior_weights)
     sol = solve_pairs(A, B, method=s.method, alpha=float(s.alpha), prior=prior, weights=weights)
