@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))
 
 TOPICS = ["--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose"]
 
@@ -53,7 +53,7 @@ def main() -> None:
     ap.add_argument("--logs", type=int, default=24)
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    from tests._fleet import make_fleet
+    from _fleet import make_fleet
 
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "logs"

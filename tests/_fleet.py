@@ -11,11 +11,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from _logs import POSE, pose_channel, records, write_log, write_tum
 from scipy.spatial.transform import Rotation
 
 from handeye_cli import se3
 from handeye_cli.simulation import Rig, simulate_rig
-from tests._logs import POSE, pose_channel, records, write_log, write_tum
 
 NOMINAL = se3.from_xyz_quat(np.array([0.12, -0.03, 0.02]),
                             Rotation.from_euler("xyz", [2, -88, 5], degrees=True).as_quat())

@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _fleet import NOMINAL, TOPICS, make_fleet, moved, write_rig
+from _util import run
+from test_report import _images, _run_chromium
 
 from handeye_cli import se3
 from handeye_cli.fleet import engine
-from tests._fleet import NOMINAL, TOPICS, make_fleet, moved, write_rig
-from tests.test_cli import run
-from tests.test_report import _images, _run_chromium
 
 TOLERANCE = ["--max-rotation-deg", "0.5", "--max-translation-m", "0.005"]
 

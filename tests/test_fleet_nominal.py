@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _util import run
 from scipy.spatial.transform import Rotation
 
 from handeye_cli import se3
@@ -12,7 +13,6 @@ from handeye_cli.errors import HandEyeError
 from handeye_cli.io.nominal import read_nominal, static_publisher_transform
 from handeye_cli.output.formats import ALL_FORMATS, format_for_output, render_format
 from handeye_cli.simulation import random_transform
-from tests.test_cli import run
 
 
 def _doc(T: np.ndarray, a: str = "cam0_link", b: str = "imu") -> dict:

@@ -7,14 +7,14 @@ import json
 import numpy as np
 import pytest
 import yaml
+from _logs import write_tum
+from _util import run
 from scipy.spatial.transform import Rotation
 
 from handeye_cli import se3
 from handeye_cli.analysis.verdict import compare
 from handeye_cli.output.formats import render_format
 from handeye_cli.simulation import Rig, simulate_rig
-from tests._logs import write_tum
-from tests.test_cli import run
 
 X = se3.from_xyz_quat(np.array([0.2, 0.05, -0.1]), Rotation.from_euler("xyz", [10, 20, 30], degrees=True).as_quat())
 
@@ -47,7 +47,8 @@ def test_significance_from_the_bootstrap_interval():
     assert "not significant" in not_significant.summary()
     significant = compare(result, X, 0.5, 0.005, uncertainty=narrow)
     assert significant.rotation_significant and not significant.translation_significant and significant.drift
-    assert significant.as_dict()["rotation_significant"] is True
+    assert significant.as_dict()["rotation_significant"] is True and significant.as_dict()["significant"] is True
+    assert not_significant.as_dict()["significant"] is False
 
 
 @pytest.fixture(scope="module")
@@ -90,3 +91,10 @@ def test_check_refuses_what_is_not_a_result(capsys, tmp_path):
                  ["check", tmp_path / "r.yaml"]):
         code, out, err = run(capsys, *args)
         assert code == 2 and out == "" and err.startswith("error: ") and len(err.strip().splitlines()) == 1
+
+
+def test_records_are_strict_json():
+    from handeye_cli.fleet.batch import record_line
+
+    line = record_line({"input": "x", "status": "ok", "cost": float("nan"), "r": [1.0, float("inf")], "seconds": 0.1})
+    assert json.loads(line) == {"input": "x", "status": "ok", "cost": None, "r": [1.0, None], "seconds": 0.1}

@@ -34,7 +34,7 @@ class Verdict:
     rotation_deg, translation_m: angle of ``R_Nᵀ R_X`` [deg] and ``|t_X − t_N|`` [m].
     max_rotation_deg, max_translation_m: the tolerances.
     rotation_significant, translation_significant: whether the nominal lies outside the result's
-    bootstrap interval (None without an interval).
+    bootstrap interval (None without an interval); ``as_dict`` adds ``significant``, either of them.
     nominal: where the nominal came from (``source``, ``kind``) and its ``translation`` [m] and
     ``quaternion_xyzw``.
     """
@@ -45,7 +45,7 @@ class Verdict:
     max_translation_m: float
     rotation_significant: bool | None
     translation_significant: bool | None
-    nominal: dict
+    nominal: dict[str, Any]
 
     @property
     def rotation_out(self) -> bool:
@@ -61,13 +61,14 @@ class Verdict:
         return ((self.rotation_out and self.rotation_significant is not False)
                 or (self.translation_out and self.translation_significant is not False))
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """Plain values for the result document and batch records."""
         out: dict[str, Any] = {
             "drift": self.drift, "rotation_deg": self.rotation_deg, "translation_m": self.translation_m,
             "max_rotation_deg": self.max_rotation_deg, "max_translation_m": self.max_translation_m,
             "rotation_out_of_tolerance": self.rotation_out, "translation_out_of_tolerance": self.translation_out}
         if self.rotation_significant is not None:
+            out["significant"] = bool(self.rotation_significant or self.translation_significant)
             out["rotation_significant"] = self.rotation_significant
             out["translation_significant"] = self.translation_significant
         return {**out, "nominal": self.nominal}
@@ -81,7 +82,7 @@ class Verdict:
                 f"{self.nominal.get('source', '')}".rstrip())
 
 
-def _significance(X: NDArray[np.float64], N: NDArray[np.float64], uncertainty: dict | None) -> tuple[
+def _significance(X: NDArray[np.float64], N: NDArray[np.float64], uncertainty: dict[str, Any] | None) -> tuple[
         bool | None, bool | None]:
     """Whether N lies outside X's bootstrap intervals (rotation, translation), or (None, None)."""
     if not isinstance(uncertainty, dict):
@@ -97,7 +98,7 @@ def _significance(X: NDArray[np.float64], N: NDArray[np.float64], uncertainty: d
 
 
 def compare(X: NDArray[np.float64], N: NDArray[np.float64], max_rotation_deg: float, max_translation_m: float, *,
-            uncertainty: dict | None = None, nominal: dict | None = None) -> Verdict:
+            uncertainty: dict[str, Any] | None = None, nominal: dict[str, Any] | None = None) -> Verdict:
     """The verdict on the result ``X`` against the nominal ``N`` (both 4x4 ``T_a_b``)."""
     if max_rotation_deg < 0 or max_translation_m < 0:
         raise DataError("negative tolerance", "--max-rotation-deg/--max-translation-m", "give limits ≥ 0")
@@ -111,7 +112,7 @@ def compare(X: NDArray[np.float64], N: NDArray[np.float64], max_rotation_deg: fl
                    nominal={**(nominal or {}), "translation": t.tolist(), "quaternion_xyzw": q.tolist()})
 
 
-def verdict_for(doc: dict, nominal: Nominal, max_rotation_deg: float = DEFAULT_MAX_ROTATION_DEG,
+def verdict_for(doc: dict[str, Any], nominal: Nominal, max_rotation_deg: float = DEFAULT_MAX_ROTATION_DEG,
                 max_translation_m: float = DEFAULT_MAX_TRANSLATION_M) -> Verdict:
     """The verdict on a result document (``matrix``, ``frames``, optional ``uncertainty``) against the
     nominal's transform between the result's frames a and b."""

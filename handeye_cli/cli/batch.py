@@ -38,7 +38,7 @@ __all__ = ["batch", "report"]
               "report of the records.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 @click.pass_context
-def batch(ctx: click.Context, inputs: tuple[str, ...], **o: Any) -> None:
+def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
     """Calibrate many logs with one set of options (every calibrate option applies to every input):
     one JSON Lines record per input on stdout.
 

@@ -9,6 +9,7 @@ input drifted, else 2 when an input failed, else 0.
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -77,15 +78,26 @@ class BatchSummary:
         return "\n".join(lines)
 
 
-def _excess(v: dict) -> float:
+def _excess(v: dict[str, Any]) -> float:
     """How far beyond its tolerance a verdict is, as the larger of the two ratios."""
-    return max(v["rotation_deg"] / max(v["max_rotation_deg"], 1e-12),
-               v["translation_m"] / max(v["max_translation_m"], 1e-12))
+    return max(float(v["rotation_deg"]) / max(float(v["max_rotation_deg"]), 1e-12),
+               float(v["translation_m"]) / max(float(v["max_translation_m"]), 1e-12))
+
+
+def _finite(value: Any) -> Any:
+    """NaN and infinities → None (null), recursively: JSON Lines consumers (jq) reject NaN."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite(v) for v in value]
+    return value
 
 
 def record_line(record: Record) -> str:
-    """One JSON Lines record."""
-    return json.dumps(record, separators=(",", ":"))
+    """One JSON Lines record (strict JSON: non-finite numbers are null)."""
+    return json.dumps(_finite(record), separators=(",", ":"), allow_nan=False)
 
 
 def _judge(record: Record, s: BatchSettings) -> Record:

@@ -65,14 +65,14 @@ def result_path(output_dir: str | Path, job: Job, fmt: str) -> Path:
     return Path(output_dir) / f"{'+'.join(parts)}.{fmt}"
 
 
-def store(path: Path, record: dict, key: str, fmt: str) -> None:
+def store(path: Path, record: dict[str, Any], key: str, fmt: str) -> None:
     """Write a calibrated record as its result file (atomically)."""
     meta = {k: record[k] for k in ("input", "log_span_ns", "seconds") if k in record}
     doc = {k: v for k, v in record.items() if k not in ("input", "status", "error", "log_span_ns", "seconds")}
     write_output(path, render({**doc, "batch": {**meta, "key": key}}, fmt), "--output-dir")
 
 
-def load_done(path: Path, key: str) -> dict | None:
+def load_done(path: Path, key: str) -> dict[str, Any] | None:
     """The record stored at ``path`` when it was computed with ``key`` (without its verdict), else None."""
     try:
         doc = yaml.safe_load(path.read_text(encoding="utf-8"))

@@ -108,14 +108,14 @@ def _dask(jobs: Sequence[Job], address: str, on_done: OnDone) -> None:
         raise ConfigError("dask.distributed is not installed", "--scheduler",
                           "install it: pip install 'handeye-cli[dask]'") from None
     try:
-        client = Client(address, timeout=30, set_as_default=False)
+        client = Client(address, timeout=30, set_as_default=False)  # type: ignore[no-untyped-call]
     except (OSError, TimeoutError) as e:
         raise ConfigError(f"cannot connect to the Dask scheduler: {e}", address,
                           "check --scheduler ADDRESS (e.g. tcp://host:8786)") from None
     with client:
         futures = client.map(run_job, list(jobs), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
-        for future in dask_completed(futures, loop=client.loop):
+        for future in dask_completed(futures, loop=client.loop):  # type: ignore[no-untyped-call]
             i = index[future.key]
             try:
                 on_done(i, future.result())

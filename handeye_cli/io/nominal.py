@@ -27,6 +27,7 @@ import xml.etree.ElementTree as ET
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -76,7 +77,7 @@ class Nominal:
         """
         frames = self.frames
         if (a not in frames or b not in frames) and len(frames) == 2:
-            return self.edges[0].matrix.copy()
+            return np.array(self.edges[0].matrix, dtype=np.float64)
         for name in (a, b):
             if name not in frames:
                 raise ReadError(f"frame {name!r} is not in the nominal (it names {', '.join(frames)})",
@@ -243,7 +244,7 @@ def _launch_python(text: str, where: str) -> tuple[Edge, ...]:
 _KALIBR_KEYS = {"T_cam_imu": "imu0", "T_imu_cam": "imu0", "T_cn_cnm1": None, "T_i_b": "imu0"}
 
 
-def _kalibr(doc: dict, where: str) -> tuple[Edge, ...]:
+def _kalibr(doc: dict[str, Any], where: str) -> tuple[Edge, ...]:
     edges = []
     for name, entry in doc.items():
         if not isinstance(entry, dict):
@@ -309,7 +310,7 @@ def read_nominal(nominal: str | Path) -> Nominal:
     return Nominal(text, kind, edges)
 
 
-def read_result(path: str | Path) -> dict:
+def read_result(path: str | Path) -> dict[str, Any]:
     """A handeye result document (YAML or JSON) whose ``matrix`` is a valid ``T_a_b``; ReadError otherwise."""
     p = Path(path)
     if not p.is_file():

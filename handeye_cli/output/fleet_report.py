@@ -31,7 +31,7 @@ _COLORS = ("#1f77b4", "#2ca02c", "#9467bd")
 _DRIFT = "#d62728"
 
 
-def read_records(path: str | Path) -> list[dict]:
+def read_records(path: str | Path) -> list[dict[str, Any]]:
     """The records of a ``handeye batch`` JSON Lines file (blank lines skipped)."""
     p = Path(path)
     try:
@@ -52,12 +52,12 @@ def read_records(path: str | Path) -> list[dict]:
     return records
 
 
-def _when(record: dict) -> datetime | None:
+def _when(record: dict[str, Any]) -> datetime | None:
     span = record.get("log_span_ns")
     return datetime.fromtimestamp(span[0] / 1e9, timezone.utc) if span else None
 
 
-def _deviations(records: list[dict]) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
+def _deviations(records: list[dict[str, Any]]) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
     """Per record: rotation deviation [deg] (3) and translation deviation [mm] (3) from the nominal
     (or from the median result when no record has a verdict), and whether the nominal was used."""
     X = np.array([r["matrix"] for r in records], dtype=float)
@@ -71,7 +71,7 @@ def _deviations(records: list[dict]) -> tuple[NDArray[np.float64], NDArray[np.fl
     return rot, (X[:, :3, 3] - N_t) * 1000.0, bool(nominals)
 
 
-def _pair_figure(name: str, records: list[dict]) -> str:
+def _pair_figure(name: str, records: list[dict[str, Any]]) -> str:
     """Rotation and translation deviations over log time for one sensor pair."""
     records = sorted(records, key=lambda r: r["log_span_ns"][0])
     times = [_when(r) for r in records]
@@ -104,7 +104,7 @@ def _row(cells: list[Any]) -> str:
     return "<tr>" + "".join(f"<td>{_esc(c)}</td>" for c in cells) + "</tr>"
 
 
-def _drift_table(records: list[dict]) -> str:
+def _drift_table(records: list[dict[str, Any]]) -> str:
     drifted = [r for r in records if r["status"] == "drift"]
     if not drifted:
         return "<div class='ok'>No log drifted beyond tolerance.</div>"
@@ -117,7 +117,7 @@ def _drift_table(records: list[dict]) -> str:
     return f"<div class='card' id='drifted'><table><tr>{head}</tr>{rows}</table></div>"
 
 
-def _error_table(records: list[dict]) -> str:
+def _error_table(records: list[dict[str, Any]]) -> str:
     failed = [r for r in records if r["status"] == "error"]
     if not failed:
         return "<p class='note'>Every log was calibrated.</p>"
@@ -125,9 +125,9 @@ def _error_table(records: list[dict]) -> str:
     return f"<div class='card' id='failed'><table><tr><th>input</th><th>error</th></tr>{rows}</table></div>"
 
 
-def render_fleet_report(records: list[dict]) -> str:
+def render_fleet_report(records: list[dict[str, Any]]) -> str:
     """The report as one HTML string (see the module docstring)."""
-    pairs: dict[str, list[dict]] = {}
+    pairs: dict[str, list[dict[str, Any]]] = {}
     for r in records:
         if "matrix" in r and r.get("log_span_ns"):
             f = r.get("frames") or {}
@@ -146,7 +146,7 @@ def render_fleet_report(records: list[dict]) -> str:
             f"<body><main>{body}</main><script>{_SCRIPT}</script></body></html>\n")
 
 
-def write_fleet_report(path: str | Path, records: list[dict], flag: str = "-o") -> None:
+def write_fleet_report(path: str | Path, records: list[dict[str, Any]], flag: str = "-o") -> None:
     """Write the fleet report of batch ``records`` to ``path`` (atomically); a HandEyeError naming
     ``flag`` when it cannot be written or matplotlib is missing (no file is created)."""
     check_writable(path, flag)

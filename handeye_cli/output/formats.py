@@ -22,6 +22,7 @@ import re
 import shlex
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -39,7 +40,7 @@ __all__ = ["ALL_FORMATS", "render_format", "format_for_output"]
 _SUFFIXES = {".urdf": "urdf", ".launch": "ros1-launch", ".launch.py": "ros2-launch", ".sh": "tf-static"}
 
 
-def _parts(doc: dict) -> tuple[NDArray[np.float64], str, str]:
+def _parts(doc: dict[str, Any]) -> tuple[NDArray[np.float64], str, str]:
     """``T_a_b`` and the names of frames a and b."""
     frames = doc.get("frames") or {}
     return np.asarray(doc["matrix"], dtype=float), str(frames.get("a", "a")), str(frames.get("b", "b"))
@@ -49,7 +50,7 @@ def _num(values: NDArray[np.float64]) -> list[str]:
     return [repr(float(v)) for v in values]
 
 
-def _comment(doc: dict, a: str, b: str) -> str:
+def _comment(doc: dict[str, Any], a: str, b: str) -> str:
     return (f"T_{a}_{b}: the pose of frame '{b}' in frame '{a}' (maps points from {b} to {a}); handeye "
             f"{doc.get('version', __version__)}, method {doc.get('method', '?')}, {doc.get('pairs_used', '?')} pairs")
 
@@ -70,7 +71,7 @@ def _flag_args(T: NDArray[np.float64], a: str, b: str) -> list[str]:
     return [*args, "--frame-id", a, "--child-frame-id", b]
 
 
-def _urdf(doc: dict) -> str:
+def _urdf(doc: dict[str, Any]) -> str:
     T, a, b = _parts(doc)
     rpy = Rotation.from_matrix(T[:3, :3]).as_euler("xyz")
     return (f'<?xml version="1.0"?>\n<!-- {_comment(doc, a, b).replace("--", "- -")} -->\n'
@@ -81,7 +82,7 @@ def _urdf(doc: dict) -> str:
             "  </joint>\n</robot>\n")
 
 
-def _ros1_launch(doc: dict) -> str:
+def _ros1_launch(doc: dict[str, Any]) -> str:
     T, a, b = _parts(doc)
     args = " ".join([*_xyz_quat(T), a, b])
     return (f"<launch>\n  <!-- {_comment(doc, a, b).replace('--', '- -')} -->\n"
@@ -89,7 +90,7 @@ def _ros1_launch(doc: dict) -> str:
             f"        args={quoteattr(args)}/>\n</launch>\n")
 
 
-def _ros2_launch(doc: dict) -> str:
+def _ros2_launch(doc: dict[str, Any]) -> str:
     T, a, b = _parts(doc)
     args = ", ".join(json.dumps(v) for v in _flag_args(T, a, b))
     return (f'"""{_comment(doc, a, b)}."""\nfrom launch import LaunchDescription\n'
@@ -99,13 +100,13 @@ def _ros2_launch(doc: dict) -> str:
             f"            name=\"{_node_name(a, b)}\",\n            arguments=[{args}],\n        ),\n    ])\n")
 
 
-def _tf_static(doc: dict) -> str:
+def _tf_static(doc: dict[str, Any]) -> str:
     T, a, b = _parts(doc)
     words = ["ros2", "run", "tf2_ros", "static_transform_publisher", *_flag_args(T, a, b)]
     return f"# {_comment(doc, a, b)}\n{' '.join(shlex.quote(w) for w in words)}\n"
 
 
-def _kalibr(doc: dict) -> str:
+def _kalibr(doc: dict[str, Any]) -> str:
     T, a, b = _parts(doc)
     body = {"cam0": {"T_cam_imu": T.tolist(), "T_imu_cam": se3.inverse(T).tolist()}}
     head = (f"# {_comment(doc, a, b)}\n# Kalibr names: frame '{a}' is cam0, frame '{b}' is imu0; "
@@ -113,13 +114,13 @@ def _kalibr(doc: dict) -> str:
     return head + yaml.safe_dump(body, sort_keys=False, default_flow_style=None, width=200)
 
 
-_WRITERS: dict[str, Callable[[dict], str]] = {"urdf": _urdf, "ros1-launch": _ros1_launch,
+_WRITERS: dict[str, Callable[[dict[str, Any]], str]] = {"urdf": _urdf, "ros1-launch": _ros1_launch,
                                               "ros2-launch": _ros2_launch, "tf-static": _tf_static,
                                               "kalibr": _kalibr}
 ALL_FORMATS = ("yaml", "json", *_WRITERS)
 
 
-def render_format(doc: dict, fmt: str) -> str:
+def render_format(doc: dict[str, Any], fmt: str) -> str:
     """The result document ``doc`` (needs ``matrix`` = ``T_a_b`` and ``frames``) as text in ``fmt``,
     one of :data:`ALL_FORMATS`. Raises ConfigError for an unknown format."""
     if fmt in ("yaml", "json"):
