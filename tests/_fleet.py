@@ -3,7 +3,9 @@
 Every rig has the nominal extrinsic ``NOMINAL`` (``T_cam0_cam1``, the pose of cam1 in cam0),
 except the ones moved on purpose: beyond the tolerance (0.5°, 5 mm) or well below it. Logs carry
 ``/cam0/pose`` and ``/cam1/pose`` (PoseStamped); TUM inputs are folders with ``cam0.tum`` and
-``cam1.tum``. Unreadable inputs are damaged files named like logs.
+``cam1.tum``. Unreadable inputs are damaged files named like logs. Crashed recordings (issue 9
+item 4) are an MCAP and a ROS 1 bag cut at 60 % of their size and a ROS 2 bag whose
+metadata.yaml is missing.
 """
 from __future__ import annotations
 
@@ -30,6 +32,7 @@ class Expected:
 
     status: str
     truth: np.ndarray | None = None
+    warning: str | None = None
 
 
 def moved(rotation_deg: float, translation_m: float, seed: int) -> np.ndarray:
@@ -53,6 +56,24 @@ def write_rig(folder: Path, kind: str, X: np.ndarray, seed: int, duration_s: flo
     channels = [pose_channel(TOPICS[0], POSE, records(a, "world", "cam0")),
                 pose_channel(TOPICS[1], POSE, records(b, "world", "cam1"))]
     return write_log(kind, folder, channels, name=f"rig{seed}")
+
+
+def crashed(root: Path, recovered: bool) -> dict[str, Expected]:
+    """Three crashed recordings of nominal rigs under ``root``: ``recovered`` says whether the readers
+    salvage them (then: calibrated, with a 'truncated' warning), else each is an error record."""
+    out: dict[str, Expected] = {}
+    for i, kind in enumerate(("mcap", "bag1", "bag2_sqlite")):
+        path = write_rig(root / f"crashed{i}", kind, NOMINAL, seed=100 + i)
+        if kind == "bag2_sqlite":
+            (path / "metadata.yaml").unlink()               # the recorder died before writing it
+            path = path / f"{path.name}.db3"
+        else:
+            with open(path, "r+b") as f:                     # power loss: the tail (chunk, index, footer) is gone
+                f.truncate(int(path.stat().st_size * 0.6))
+        missing_metadata = kind == "bag2_sqlite"           # a bare .db3 was readable before crash recovery
+        out[str(path)] = (Expected("ok", NOMINAL, None if missing_metadata else "truncated") if recovered
+                          or missing_metadata else Expected("error"))
+    return out
 
 
 def make_fleet(root: Path, n_good: int = 22, n_beyond: int = 4, n_below: int = 3,

@@ -13,12 +13,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _fleet import NOMINAL, TOPICS, make_fleet, moved, write_rig
+from _fleet import NOMINAL, TOPICS, crashed, make_fleet, moved, write_rig
 from _util import run
 from test_report import _images, _run_chromium
 
 from handeye_cli import se3
 from handeye_cli.fleet import engine
+from handeye_cli.streams import PoseStream
 
 TOLERANCE = ["--max-rotation-deg", "0.5", "--max-translation-m", "0.005"]
 
@@ -45,6 +46,9 @@ def _urdf(path: Path) -> Path:
 def fleet(tmp_path_factory):
     root = tmp_path_factory.mktemp("fleet")
     expected = make_fleet(root / "logs")
+    # Crashed recordings are salvaged by the readers of the io branch (PoseStream.recovered_truncated);
+    # until it is merged they are error records. TODO(lead): drop the condition after merging io.
+    expected.update(crashed(root / "logs", recovered=hasattr(PoseStream, "recovered_truncated")))
     return root, expected, _urdf(root / "robot42.urdf")
 
 
@@ -76,6 +80,8 @@ def test_fleet_records_order_statuses_and_exit_code(fleet, capsys):
         if exp.status == "error":
             assert "\n" not in r["error"] and r["input"] in r["error"] and "matrix" not in r
             continue
+        if exp.warning:
+            assert any(exp.warning in w for w in r["warnings"]), r["warnings"]
         X = np.array(r["matrix"])
         assert np.rad2deg(se3.rotation_angle(X[:3, :3].T @ exp.truth[:3, :3])) < 0.05
         assert np.linalg.norm(X[:3, 3] - exp.truth[:3, 3]) < 1.5e-3           # tolerance 5 mm
