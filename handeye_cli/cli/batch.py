@@ -48,7 +48,8 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
     error record, never an abort. With --against each record carries a drift verdict.
 
     \b
-    Exit codes: 0 all within tolerance, 1 a sensor drifted, 2 some input failed.
+    Exit codes: 0 all within tolerance, 1 a sensor drifted, 2 some input failed,
+    3 --strict and some result has warnings.
     \b
     Examples:
       handeye batch logs/2026-11-*/ --topic-a /cam0/pose --topic-b /cam1/pose \\
@@ -67,7 +68,8 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
     options = options_from_cli(o)
     jobs = [Job(i, streams, options) for i in discover(inputs, sys.stdin)]
     settings = BatchSettings(nominal, o["max_rotation_deg"], o["max_translation_m"], o["output_dir"], o["fmt"],
-                             o["skip_done"], o["jobs"], o["scheduler"], progress=not o["quiet"])
+                             o["skip_done"], options.analysis.strict, o["jobs"], o["scheduler"],
+                             progress=not o["quiet"])
     summary = run_batch(jobs, settings, click.echo)
     if o["report_file"]:
         from ..output.fleet_report import write_fleet_report

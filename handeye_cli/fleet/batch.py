@@ -4,7 +4,7 @@ Records are JSON Lines (one per input, in input order, written as soon as every 
 done): ``input``, ``status`` (``ok`` | ``drift`` | ``error``), ``error`` (one line) when it failed,
 the calibrate result's keys when it calibrated, ``log_span_ns``, ``verdict`` with a nominal, and
 ``seconds`` last (the only field that differs between executors and runs). Exit code: 1 when an
-input drifted, else 2 when an input failed, else 0.
+input drifted, else 2 when an input failed, else 3 when ``strict`` and a result has warnings, else 0.
 """
 from __future__ import annotations
 
@@ -41,6 +41,7 @@ class BatchSettings:
     output_dir: str | None = None
     fmt: str = "yaml"
     skip_done: bool = False
+    strict: bool = False
     workers: int | None = None
     scheduler: str | None = None
     progress: bool = False
@@ -48,17 +49,22 @@ class BatchSettings:
 
 @dataclass
 class BatchSummary:
-    """What a batch produced: the records in input order and the wall time [s]."""
+    """What a batch produced: the records in input order, the wall time [s], and whether warnings
+    fail the batch (``--strict``)."""
 
     records: list[Record] = field(default_factory=list)
     seconds: float = 0.0
+    strict: bool = False
 
     def count(self, status: str) -> int:
         return sum(r["status"] == status for r in self.records)
 
     @property
     def exit_code(self) -> int:
-        return 1 if self.count("drift") else 2 if self.count("error") else 0
+        """1 drift, else 2 error, else 3 warnings under ``strict``, else 0."""
+        if self.count("drift") or self.count("error"):
+            return 1 if self.count("drift") else 2
+        return 3 if self.strict and any(r.get("warnings") for r in self.records) else 0
 
     def text(self) -> str:
         """The stderr summary: counts, the slowest inputs, the worst drifts."""
@@ -169,4 +175,4 @@ def run_batch(jobs: Sequence[Job], settings: BatchSettings, emit: Callable[[str]
                 ordered.done(i, _judge(stored, settings))
         run_jobs([jobs[i] for i in todo], lambda k, r: finish(todo[k], r), workers=settings.workers,
                  scheduler=settings.scheduler)
-    return BatchSummary([r for r in ordered.records if r is not None], time.perf_counter() - start)
+    return BatchSummary([r for r in ordered.records if r is not None], time.perf_counter() - start, settings.strict)
