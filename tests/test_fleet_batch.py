@@ -154,7 +154,7 @@ def test_inputs_from_lists_stdin_and_globs(fleet, capsys, monkeypatch, tmp_path)
     assert [r["status"] for r in records] == ["ok", "ok", "error", "ok", "ok", "ok", "error", "error"]
     assert records[1]["input"] == f"{logs / 'robot04' / 'cam0.tum'} {logs / 'robot04' / 'cam1.tum'}"
     assert "file not found" in records[2]["error"] and records[3]["input"].endswith("rig1.bag")
-    assert "3 text pose file(s)" in records[6]["error"] and "matches no file" in records[7]["error"]
+    assert "3 TUM file(s)" in records[6]["error"] and "matches no file" in records[7]["error"]
     assert code == 2
 
 

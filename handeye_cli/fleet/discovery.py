@@ -6,8 +6,8 @@ files (TUM/EuRoC) of streams a and b. In a list (``@file`` or stdin) a line hold
 two (``A B``, shell-quoted when a path has spaces); blank lines and ``#`` comments are skipped;
 relative paths are relative to the working directory. A directory is searched recursively, in
 name order, by content (not by extension): logs are recognised by their magic bytes, a ROS 2
-bag directory by its ``metadata.yaml``, and a folder holding exactly two text pose files gives
-one input of the two, in name order (a, then b). Files named like logs (``.mcap``, ``.bag``,
+bag directory by its ``metadata.yaml``, and a folder holding exactly two text pose files of one
+format (TUM or EuRoC) gives one input of the two, in name order (a, then b). Files named like logs (``.mcap``, ``.bag``,
 ``.db3``) are kept even when damaged, so that they are reported rather than silently skipped;
 other files (CSV, YAML, images …) are skipped. An argument that names nothing becomes an input
 that fails with that message.
@@ -45,12 +45,12 @@ class BatchInput:
 
 
 def _kind(path: Path) -> str | None:
-    """"log", "text" (a TUM/EuRoC pose file) or None (not an input) — by content."""
+    """"log", a text pose format ("tum", "euroc") or None (not an input) — by content."""
     try:
         fmt = detect_format(path)
     except HandEyeError:
         return "log" if path.suffix.lower() in _LOG_SUFFIXES else None
-    return "log" if fmt in LOG_FORMATS else "text" if fmt in _TEXT_FORMATS else None
+    return "log" if fmt in LOG_FORMATS else fmt if fmt in _TEXT_FORMATS else None
 
 
 def _search(root: Path) -> list[BatchInput]:
@@ -63,18 +63,18 @@ def _search(root: Path) -> list[BatchInput]:
             dirs[:] = []
             continue
         dirs[:] = sorted(d for d in dirs if not d.startswith("."))
-        texts = []
+        texts: dict[str, list[str]] = {}
         for name in sorted(f for f in files if not f.startswith(".")):
             kind = _kind(here / name)
             if kind == "log":
                 found.append(BatchInput((str(here / name),)))
-            elif kind == "text":
-                texts.append(str(here / name))
-        if len(texts) == 2:
-            found.append(BatchInput(tuple(texts)))
-        elif texts:
-            found.append(BatchInput(tuple(texts), f"{len(texts)} text pose file(s) in {here}: a folder needs exactly "
-                                                  "two (stream a, then b); list pairs as 'A B' lines in an @list file"))
+            elif kind is not None:
+                texts.setdefault(kind, []).append(str(here / name))
+        for fmt, paths in texts.items():
+            error = None if len(paths) == 2 else (
+                f"{len(paths)} {fmt.upper()} file(s) in {here}: a folder needs exactly two (stream a, then b); "
+                "list pairs as 'A B' lines in an @list file")
+            found.append(BatchInput(tuple(paths), error))
     return sorted(found, key=lambda i: i.paths)
 
 
