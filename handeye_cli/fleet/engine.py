@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import ConfigError, HandEyeError
@@ -39,18 +39,22 @@ class Streams:
 
 @dataclass(frozen=True)
 class Job:
-    """One input and everything needed to calibrate it: the streams and the calibrate options."""
+    """One input and everything needed to calibrate it: the streams, the calibrate options and the
+    working directory its relative paths are relative to (the client's, by default)."""
 
     input: BatchInput
     streams: Streams
     options: Options
+    cwd: str = field(default_factory=os.getcwd)
 
 
 def _calibrate(job: Job) -> Record:
-    """The result document of one input, plus the span of its synced samples."""
+    """The result document of one input, plus the span of its synced samples. Relative paths are
+    read from the client's working directory (``job.cwd``) wherever the job runs, so that a Dask
+    worker on a shared file system finds them and every executor records the same ``inputs``."""
     from ..pipeline import calibrate_files
 
-    paths, s = job.input.paths, job.streams
+    paths, s = tuple(os.path.join(job.cwd, p) for p in job.input.paths), job.streams
     if len(paths) == 2:            # two text pose files: no topics
         result = calibrate_files(paths[0], paths[1], options=job.options)
     else:
