@@ -158,6 +158,20 @@ def test_inputs_from_lists_stdin_and_globs(fleet, capsys, monkeypatch, tmp_path)
     assert code == 2
 
 
+def test_per_input_options(fleet, capsys, tmp_path):
+    root, _, _ = fleet
+    logs = root / "logs"
+    (tmp_path / "per-input.yaml").write_text('"*/robot01/*": {method: dq2ndord}\n"*rig*": {max_pairs: 40}\n')
+    code, out, _ = run(capsys, *_args(root, logs / "robot00", logs / "robot01", logs / "robot04", "--per-input",
+                                      tmp_path / "per-input.yaml", "--jobs", "1", "-q"))
+    records = _records(out)
+    assert code == 0 and [r["method"] for r in records] == ["dqopt", "dq2ndord", "dqopt"]
+    assert [r["pairs_used"] for r in records][:2] == [40, 40] and records[2]["pairs_used"] > 40   # TUM: no "rig"
+    (tmp_path / "bad.yaml").write_text('"*": {max_jump: fast}\n')
+    code, out, err = run(capsys, *_args(root, logs / "robot00", "--per-input", tmp_path / "bad.yaml"))
+    assert code == 2 and out == "" and "max_jump" in err and "bad.yaml" in err
+
+
 def test_dask_cluster_gives_byte_identical_records(fleet, capsys):
     try:
         from distributed import LocalCluster

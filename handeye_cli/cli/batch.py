@@ -13,6 +13,7 @@ import click
 
 from ..errors import ConfigError
 from ..fleet import BatchSettings, Job, Streams, discover, run_batch
+from ..fleet.overrides import options_for, read_overrides
 from .check import verdict_options
 from .common import CONTEXT
 from .params import calibrate_options, options_from_cli, stream_options
@@ -25,6 +26,9 @@ __all__ = ["batch", "report"]
 @stream_options
 @calibrate_options
 @verdict_options
+@click.option("--per-input", "per_input", type=click.Path(dir_okay=False), help="YAML mapping glob patterns of "
+              "input paths to the options that differ for them (flat names as in --config), applied over the "
+              "shared options in file order.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), help="Local worker processes [default: one per core].")
 @click.option("--scheduler", metavar="ADDRESS", help="Run on this Dask distributed scheduler (e.g. tcp://host:8786) "
               "instead of local processes; needs pip install 'handeye-cli[dask]'.")
@@ -66,7 +70,8 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
         nominal = read_nominal(o["against"])
     streams = Streams(o["topic_a"], o["topic_b"], o["frames_a"] or None, o["frames_b"] or None)
     options = options_from_cli(o)
-    jobs = [Job(i, streams, options) for i in discover(inputs, sys.stdin)]
+    overrides = read_overrides(o["per_input"]) if o["per_input"] else ()
+    jobs = [Job(i, streams, options_for(i, options, overrides)) for i in discover(inputs, sys.stdin)]
     settings = BatchSettings(nominal, o["max_rotation_deg"], o["max_translation_m"], o["output_dir"], o["fmt"],
                              o["skip_done"], options.analysis.strict, o["jobs"], o["scheduler"],
                              progress=not o["quiet"])

@@ -2,7 +2,7 @@
 
 :mod:`.discovery` turns arguments into inputs, :mod:`.engine` calibrates them (one process, a
 process pool or a Dask cluster), :mod:`.cache` keeps per-input result files for ``--skip-done``,
-:mod:`.batch` judges, orders and summarises the records.
+:mod:`.overrides` holds per-input options, :mod:`.batch` judges, orders and summarises the records.
 """
 from .batch import BatchSettings, BatchSummary, run_batch
 from .discovery import BatchInput, discover
