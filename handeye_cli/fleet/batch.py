@@ -10,19 +10,16 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 import time
 from collections.abc import Callable, Sequence
-from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import click
-
 from ..analysis.verdict import verdict_for
 from ..errors import HandEyeError, WriteError
 from ..io.nominal import Nominal
+from ..io.progress import Progress, progress
 from .cache import job_key, load_done, result_path, store
 from .engine import Job, run_jobs
 
@@ -123,7 +120,7 @@ def _judge(record: Record, s: BatchSettings) -> Record:
 class _Ordered:
     """Buffers records that finish early and emits them in input order."""
 
-    def __init__(self, n: int, emit: Callable[[str], None], bar: Any) -> None:
+    def __init__(self, n: int, emit: Callable[[str], None], bar: Progress) -> None:
         self.records: list[Record | None] = [None] * n
         self.next, self.emit, self.bar = 0, emit, bar
 
@@ -135,14 +132,15 @@ class _Ordered:
             self.next += 1
 
 
-def _progress(n: int, show: bool) -> AbstractContextManager[Any]:
-    if show and sys.stderr.isatty():
-        return click.progressbar(length=n, label="batch", file=sys.stderr)
-
-    class _Silent:
-        def update(self, n_steps: int) -> None:
-            pass
-    return nullcontext(_Silent())
+def _key(job: Job) -> str:
+    """The skip-done key of a runnable job, or "" (not cached) when its files cannot be read: the
+    job itself then reports why."""
+    if job.input.error:
+        return ""
+    try:
+        return job_key(job)
+    except OSError:
+        return ""
 
 
 def run_batch(jobs: Sequence[Job], settings: BatchSettings, emit: Callable[[str], None]) -> BatchSummary:
@@ -155,8 +153,8 @@ def run_batch(jobs: Sequence[Job], settings: BatchSettings, emit: Callable[[str]
         except OSError as e:
             raise WriteError(f"cannot create the output folder: {e.strerror}", str(out_dir),
                              "choose another --output-dir") from None
-    keys = [job_key(j) if out_dir is not None and not j.input.error else "" for j in jobs]
-    with _progress(len(jobs), settings.progress) as bar:
+    keys = [_key(j) if out_dir is not None else "" for j in jobs]
+    with progress(len(jobs), "batch", quiet=not settings.progress) as bar:
         ordered = _Ordered(len(jobs), emit, bar)
 
         def finish(i: int, record: Record) -> None:
