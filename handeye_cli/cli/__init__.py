@@ -36,11 +36,13 @@ def cli(debug: bool) -> None:
 
 
 def _register() -> None:
+    from .batch import batch, report
     from .calibrate import calibrate
+    from .check import check
     from .inspect import inspect
     from .solve import solve
 
-    for command in (calibrate, solve, inspect):
+    for command in (calibrate, solve, inspect, batch, check, report):
         cli.add_command(command)
 
 
@@ -72,3 +74,4 @@ def main(argv: list[str] | None = None) -> None:
         click.echo("aborted", err=True)
         sys.exit(130)
     sys.exit(code if isinstance(code, int) else 0)
+
