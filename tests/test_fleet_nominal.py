@@ -11,7 +11,8 @@ from scipy.spatial.transform import Rotation
 from handeye_cli import se3
 from handeye_cli.errors import HandEyeError
 from handeye_cli.io.nominal import read_nominal, static_publisher_transform
-from handeye_cli.output.formats import ALL_FORMATS, format_for_output, render_format
+from handeye_cli.output.formats import ALL_FORMATS, render_format
+from handeye_cli.output.writers import output_format as format_for_output
 from handeye_cli.simulation import random_transform
 
 

@@ -33,11 +33,9 @@ from scipy.spatial.transform import Rotation
 from .. import __version__, se3
 from ..errors import ConfigError
 from .document import render
-from .writers import output_format
 
-__all__ = ["ALL_FORMATS", "render_format", "format_for_output"]
+__all__ = ["ALL_FORMATS", "render_format"]
 
-_SUFFIXES = {".urdf": "urdf", ".launch": "ros1-launch", ".launch.py": "ros2-launch", ".sh": "tf-static"}
 
 
 def _parts(doc: dict[str, Any]) -> tuple[NDArray[np.float64], str, str]:
@@ -128,12 +126,3 @@ def render_format(doc: dict[str, Any], fmt: str) -> str:
     if fmt not in _WRITERS:
         raise ConfigError(f"unknown output format {fmt!r}", "--format", f"use one of {', '.join(ALL_FORMATS)}")
     return _WRITERS[fmt](doc)
-
-
-def format_for_output(path: str | Path | None, fmt: str | None, flag: str = "-o") -> str:
-    """The explicit ``fmt``; else the one the file name's suffix chooses (``.urdf``, ``.launch``,
-    ``.launch.py``, ``.sh``, then :func:`~handeye_cli.output.writers.output_format`'s ``.json``,
-    ``.yaml``/``.yml``); stdout: YAML. Kalibr YAML needs ``--format kalibr``."""
-    name = Path(str(path)).name.lower() if path is not None and not fmt else ""
-    chosen = next((f for suffix, f in _SUFFIXES.items() if name.endswith(suffix)), None)
-    return chosen or output_format(path, fmt, flag)
