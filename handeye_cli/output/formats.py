@@ -21,7 +21,6 @@ import json
 import re
 import shlex
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import quoteattr
 
