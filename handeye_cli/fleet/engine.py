@@ -3,7 +3,7 @@ Dask distributed cluster — the same :func:`run_job` everywhere, so the records
 
 A :class:`Job` is picklable (it travels to worker processes and Dask workers); :func:`run_job`
 never raises for a bad input: it returns a record with ``status: error`` and the one-line message.
-Records hold the calibrate result's keys (``matrix`` = ``T_a_b`` …, see DESIGN.md), ``log_span_ns``
+Records hold the calibrate result's keys (``matrix`` = ``T_a_b`` …, see docs/design.md), ``log_span_ns``
 (first and last synced stamp, int64 ns) and ``seconds`` (wall time of the job).
 """
 from __future__ import annotations
