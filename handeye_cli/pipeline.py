@@ -19,8 +19,9 @@ from typing import Any
 
 import numpy as np
 
-from .analysis import (BootstrapResult, Residuals, RobustResult, assess_observability, auto_alpha, bootstrap,
-                       pair_residuals, robust_solve)
+from .analysis import (BootstrapResult, Residuals, RobustResult, assess_observability, bootstrap, pair_residuals,
+                       robust_solve)
+from .analysis.alpha import noise_model_alpha
 from .analysis.diagnosis import data_warning, too_few_pairs
 from .config import load_options
 from .errors import ConfigError
@@ -31,6 +32,7 @@ from .solvers import Prior, Solution, solve
 from .stages.counts import SampleCounts
 from .stages.gates import pose_jump_gate
 from .stages.pairs import Pairs, make_pairs
+from .stages.selection import Selection, select_pairs
 from .stages.sync import Synced, associate
 from .streams import PoseStream
 
@@ -170,40 +172,55 @@ def _prior(options: Options) -> Prior | None:
 
 
 def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options,
-             offset_ns: int) -> tuple[Synced, Pairs, SampleCounts]:
-    """Sync, gates and pair formation: (kept samples, pairs, counts of every stage)."""
+             offset_ns: int) -> tuple[Synced, Pairs, SampleCounts, Selection | None]:
+    """Sync, gates and pair formation: (kept samples, pairs, counts of every stage, and for the
+    ``auto`` strategy the selection: weights, α and noise model)."""
     sync, gates, p = options.sync, options.gates, options.pairs
     synced, sync_counts = associate(stream_a, stream_b, method=sync.sync, max_dt_ns=int(round(sync.max_dt * 1e9)),
                                     time_offset_ns=offset_ns)
     max_rot = None if gates.max_jump_deg is None else np.deg2rad(gates.max_jump_deg)
     kept, jump_counts = pose_jump_gate(synced, max_translation_m=gates.max_jump, max_rotation_rad=max_rot)
-    pairs, pair_counts = make_pairs(kept, p.pairs, keyframe_rotation_rad=np.deg2rad(p.keyframe_rotation),
-                                    keyframe_translation_m=p.keyframe_translation,
-                                    min_rotation_rad=np.deg2rad(p.min_rotation), max_pairs=p.max_pairs, seed=p.seed)
+    selection = None
+    if p.pairs == "auto":
+        selection = select_pairs(kept, max_pairs=p.max_pairs, method=options.solver.method, prior=_prior(options))
+        pairs, pair_counts = selection.pairs, selection.counts(len(kept))
+    else:
+        pairs, pair_counts = make_pairs(kept, p.pairs, keyframe_rotation_rad=np.deg2rad(p.keyframe_rotation),
+                                        keyframe_translation_m=p.keyframe_translation,
+                                        min_rotation_rad=np.deg2rad(p.min_rotation), max_pairs=p.max_pairs,
+                                        seed=p.seed)
     samples = SampleCounts.of(sync_counts, jump_counts, pair_counts, synced_kept=len(kept),
                               duplicates_dropped_a=stream_a.duplicates_dropped,
                               duplicates_dropped_b=stream_b.duplicates_dropped)
     if len(pairs) < options.solver.min_pairs:
         raise too_few_pairs(len(pairs), samples, options)
-    return kept, pairs, samples
+    return kept, pairs, samples, selection
 
 
-def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None,
+def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None, selection: Selection | None,
                        diagnostics: dict[str, Any]) -> tuple[Solution, float, np.ndarray | None, RobustResult | None]:
-    """[robust: RANSAC inliers] → [α auto] → the weighted solve; diagnostics filled in place."""
+    """[robust: RANSAC inliers] → [α auto] → the weighted solve; diagnostics filled in place.
+
+    With the ``auto`` strategy the pairs carry the noise model's weights, and α auto is its ML α."""
     A, B, solver = pairs.A, pairs.B, options.solver
-    alpha = 1.0 if solver.alpha == "auto" else float(solver.alpha)
-    weights = robust = None
+    auto = solver.alpha == "auto"
+    alpha = (selection.alpha if selection else 1.0) if auto else float(solver.alpha)
+    weights = None if selection is None else selection.weights
+    robust = None
     if options.analysis.robust:
         robust = robust_solve(A, B, method=solver.method, alpha=alpha, prior=prior, seed=options.pairs.seed)
-        weights = robust.inliers.astype(float)
+        weights = robust.inliers.astype(float) * (1.0 if weights is None else weights)
         t0 = min(pairs.t_i_ns.min(), pairs.t_j_ns.min())    # readable: seconds since the first paired sample
         diagnostics["robust"] = {**robust.as_dict(), "rejected_spans_since_start_s": [
             [round((pairs.t_i_ns[k] - t0) / 1e9, 6), round((pairs.t_j_ns[k] - t0) / 1e9, 6)] for k in robust.rejected]}
-    if solver.alpha == "auto":
-        choice = auto_alpha(A, B, prior=prior, weights=weights)
+    if selection is not None:
+        diagnostics["noise_model"] = selection.as_dict()
+    if auto and selection is None:
+        choice = noise_model_alpha(A, B, prior=prior, weights=weights, spans_s=(pairs.t_j_ns - pairs.t_i_ns) / 1e9)
         alpha = choice.alpha
         diagnostics["alpha_auto"] = choice.as_dict()
+    elif auto:
+        diagnostics["alpha_auto"] = {"alpha": alpha, "method": "noise-model"}
     return solve(A, B, method=solver.method, alpha=alpha, prior=prior, weights=weights), alpha, weights, robust
 
 
@@ -219,10 +236,10 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     """
     opts = Options.from_flat(options, **overrides) if overrides else (options or Options())
     offset_ns, offset_report, warnings = _time_offset(stream_a, stream_b, opts)
-    kept, pairs, samples = pairs_of(stream_a, stream_b, opts, offset_ns)
+    kept, pairs, samples, selection = pairs_of(stream_a, stream_b, opts, offset_ns)
     prior = _prior(opts)
     diagnostics: dict[str, Any] = {"time_offset": offset_report}
-    solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, diagnostics)
+    solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, selection, diagnostics)
 
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
     obs = assess_observability(A, B, solution.matrix, alpha=alpha, prior=prior, weights=weights, samples=ij)
@@ -231,7 +248,7 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
     suspect = data_warning(stream_a, stream_b, res, weights, samples,
-                           lambda a, b: pairs_of(a, b, opts, offset_ns))
+                           lambda a, b: pairs_of(a, b, opts, offset_ns)[:3])
     if suspect:
         warnings.insert(0, suspect)
     boot = None

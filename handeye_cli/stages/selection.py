@@ -53,16 +53,22 @@ class Selection:
     pairs: Pairs
     weights: NDArray[np.float64]
     alpha: float
-    model: NoiseModel
+    model: NoiseModel | None
     strides: tuple[int, ...]
     rounds: int
     candidate_pairs: int
 
     def as_dict(self) -> dict:
-        """The result's ``noise_model`` entry: the model plus what the selection made of it."""
-        return {**self.model.as_dict(), "strides": list(self.strides), "alpha": self.alpha, "rounds": self.rounds,
-                "span_s": [float(np.min(d)), float(np.max(d))] if len(d := (self.pairs.t_j_ns - self.pairs.t_i_ns)
-                                                                     / 1e9) else []}
+        """The result's ``noise_model`` entry: the model (None: too few pairs to fit one) plus what the
+        selection made of it: strides [samples], spans [s] of the pairs, α [1/m], rounds."""
+        spans = (self.pairs.t_j_ns - self.pairs.t_i_ns) / 1e9
+        return {**(self.model.as_dict() if self.model else {"kind": None}), "strides": list(self.strides),
+                "span_s": [float(spans.min()), float(spans.max())] if len(spans) else [],
+                "alpha": self.alpha, "rounds": self.rounds}
+
+    def counts(self, samples: int) -> dict[str, int]:
+        """Counts in the form :func:`~handeye_cli.stages.pairs.make_pairs` returns them."""
+        return {"keyframes": samples, "candidate_pairs": self.candidate_pairs, "pairs": len(self.pairs)}
 
 
 def ladder(longest: int) -> NDArray[np.int64]:
@@ -95,10 +101,30 @@ class _Segments:
         total = int(per.sum())
         if total == 0 or n <= 0:
             return np.zeros(0, dtype=np.int64)
-        pos = np.arange(total) if n >= total else ((np.arange(n) + 0.5) * total / n).astype(np.int64)
         first = np.cumsum(per) - per
+        pos = _spread(total, n)
         seg = np.searchsorted(first, pos, side="right") - 1
         return self.start[seg] + pos - first[seg]
+
+    def band(self, lo: int, hi: int, n: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """``n`` pairs ``(i, j)`` with ``lo ≤ j - i ≤ hi`` in one segment, evenly spread over all such
+        pairs ordered by stride then i (so each stride gets its share of every such pair, as ``all``)."""
+        strides = np.arange(lo, hi + 1)
+        per = np.clip(self.length[None, :] - strides[:, None], 0, None)          # (strides, segments)
+        per_stride = per.sum(axis=1)
+        first = np.cumsum(per_stride) - per_stride
+        pos = _spread(int(per_stride.sum()), n)
+        k = np.searchsorted(first, pos, side="right") - 1
+        rank = pos - first[k]
+        seg_first = np.cumsum(per[k], axis=1) - per[k]                            # (picks, segments)
+        seg = (seg_first <= rank[:, None]).sum(axis=1) - 1
+        i = self.start[seg] + rank - seg_first[np.arange(len(k)), seg]
+        return i, i + strides[k]
+
+
+def _spread(total: int, n: int) -> NDArray[np.int64]:
+    """``n`` evenly spread positions in ``range(total)`` (all of them when ``n >= total``)."""
+    return np.arange(total) if n >= total else ((np.arange(n) + 0.5) * total / n).astype(np.int64)
 
 
 def _pairs(synced: Synced, i: NDArray[np.int64], j: NDArray[np.int64]) -> Pairs:
@@ -176,10 +202,14 @@ def _choose_levels(probe: _Probe, w: NDArray[np.float64], alpha: float, share: N
     return np.arange(lo, hi + 1)
 
 
-def _kept_pairs(synced: Synced, segs: _Segments, strides: NDArray[np.int64], max_pairs: int
+def _kept_pairs(synced: Synced, segs: _Segments, strides: NDArray[np.int64], max_pairs: int, band: bool
                 ) -> tuple[Pairs, NDArray[np.float64]]:
-    """The pairs of the kept strides (the cap shared evenly) and each pair's overlap factor
-    ``stride · used / available`` (see :func:`_overlap`)."""
+    """The pairs of the kept strides and each pair's overlap factor ``stride · used / available``
+    (see :func:`_overlap`). ``band``: every stride from the shortest kept to the longest segment,
+    pairs spread as ``all`` spreads them (absolute sources); else the kept strides share the cap."""
+    if band:
+        i, j = segs.band(int(strides[0]), int(segs.length.max()) - 1, max_pairs)
+        return _pairs(synced, i, j), np.ones(len(i))
     per = max(max_pairs // max(len(strides), 1), 1)
     starts = [segs.starts(int(k), per) for k in strides]
     sizes = [len(s) for s in starts]
@@ -197,6 +227,9 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
     """
     segs = _Segments.of(synced.segment)
     pr = _probe(synced, segs, probe)
+    if len(pr.pairs) < _MIN_LEVEL_PAIRS:       # too little to fit a model: every pair there is, as is
+        return Selection(pr.pairs, np.ones(len(pr.pairs)), 1.0, None, tuple(int(k) for k in pr.strides), 0,
+                         len(pr.pairs))
     path = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(synced.T_a[:, :3, 3], axis=0), axis=1))]
     count = np.bincount(pr.level, minlength=len(pr.strides)).astype(float)
     X = solve(pr.pairs.A, pr.pairs.B, method=method, prior=prior, weights=1.0 / count[pr.level]).matrix
@@ -210,7 +243,8 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
         if np.array_equal(levels, kept):
             break
         kept = levels
-        pairs, crowding = _kept_pairs(synced, segs, pr.strides[kept], max_pairs)
+        band = kept[-1] == len(pr.strides) - 1 and model.kind == "absolute"
+        pairs, crowding = _kept_pairs(synced, segs, pr.strides[kept], max_pairs, band)
         fk = pair_features(synced.stamps_ns, path, pairs.i, pairs.j, pairs.B, X)
         weights, alpha = _ml_weights(model, fk)
         weights = weights / (1.0 + model.drift_share(fk) * np.clip(crowding - 1.0, 0.0, None))
