@@ -6,10 +6,10 @@ stream's error model applied on top:
 
 * :func:`absolute` (motion capture, robot kinematics, a camera seeing a fixed target): every
   pose gets independent noise, right-perturbed (σr [rad], σt [m]); errors do not grow.
-* :func:`drifting` (VIO, SLAM, wheel odometry): the estimate is ``D(t) · T(t)`` in the stream's
-  world frame, ``D(t) = [Rz(ψ(t)) | p(t)]`` with ψ and p random walks (rad/√s, m/√s), and the
-  displacement from the first pose scaled by ``s(t) = 1 + random walk`` (1/√s); plus white
-  jitter. Errors of a relative motion grow with its span.
+* :func:`drifting` (VIO, SLAM, wheel odometry): the yaw error ψ(t) about the world's z axis, the
+  position error p(t) and the scale ``s(t) = 1 + …`` are random walks (rad/√s, m/√s, 1/√s); each
+  displacement is measured turned by ψ and scaled by s and integrated, as odometry does; plus
+  white jitter. Errors of a relative motion grow with its span.
 
 Conventions: ``T_a_b`` maps points from b to a; quaternions x-y-z-w; stamps int64 ns; metres.
 :data:`SCENARIOS` names the recordings the accuracy benchmark and the default-strategy tests use.
@@ -67,16 +67,21 @@ def _walk(t_s: np.ndarray, density: float, dims: int, rng: np.random.Generator) 
 
 
 def apply_noise(stream: PoseStream, noise: SourceNoise, rng: np.random.Generator) -> PoseStream:
-    """``stream`` as seen through the source model ``noise`` (drift in its world frame, then white noise)."""
+    """``stream`` as seen through the source model ``noise``: drift, then white noise.
+
+    Drift as odometry makes it: each displacement between samples is measured in a world frame
+    that has turned by the yaw error ψ(t) so far and scaled by s(t), then integrated (plus the
+    position walk), so an error made once carries into every later pose; orientations carry ψ(t).
+    """
     T = stream.matrices()
     if noise.kind == "drifting":
         t = (stream.stamps_ns - stream.stamps_ns[0]) / 1e9
         scale = 1.0 + _walk(t, noise.scale_walk, 1, rng)
-        p0 = T[0, :3, 3]
-        pos = p0 + scale * (T[:, :3, 3] - p0)
         Rz = Rotation.from_rotvec(np.c_[np.zeros((len(t), 2)), _walk(t, noise.yaw_walk, 1, rng)]).as_matrix()
+        step = np.diff(T[:, :3, 3], axis=0, prepend=T[:1, :3, 3])
+        T[:, :3, 3] = T[0, :3, 3] + np.cumsum(scale * np.einsum("nij,nj->ni", Rz, step), axis=0) + _walk(
+            t, noise.position_walk, 3, rng)
         T[:, :3, :3] = Rz @ T[:, :3, :3]
-        T[:, :3, 3] = np.einsum("nij,nj->ni", Rz, pos - p0) + p0 + _walk(t, noise.position_walk, 3, rng)
     if noise.sigma_r or noise.sigma_t:
         T = perturb(T, rng, noise.sigma_r, noise.sigma_t)
     return PoseStream.from_matrices(stream.stamps_ns, T, frame_id=stream.frame_id,
