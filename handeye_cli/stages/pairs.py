@@ -124,10 +124,11 @@ def keyframes(synced: Synced, rotation_rad: float, translation_m: float) -> np.n
     while k < n - 1:
         stop = min(n, k + _KF_BLOCK)
         moved = np.triu(_moved(pos, quat, seg, slice(k, stop), slice(k, stop), t2, cos_half), 1)
-        has, first = moved.any(axis=1), moved.argmax(axis=1)
+        has: list[bool] = moved.any(axis=1).tolist()
+        first: list[int] = moved.argmax(axis=1).tolist()
         r = 0
         while has[r]:
-            r = int(first[r])
+            r = first[r]
             out.append(k + r)
         if r > 0:
             k += r
