@@ -124,8 +124,8 @@ def keyframes(synced: Synced, rotation_rad: float, translation_m: float) -> np.n
     while k < n - 1:
         stop = min(n, k + _KF_BLOCK)
         moved = np.triu(_moved(pos, quat, seg, slice(k, stop), slice(k, stop), t2, cos_half), 1)
-        has: list[bool] = moved.any(axis=1).tolist()
-        first: list[int] = moved.argmax(axis=1).tolist()
+        has: list[bool] = np.asarray(moved.any(axis=1)).tolist()
+        first: list[int] = np.asarray(moved.argmax(axis=1)).tolist()
         r = 0
         while has[r]:
             r = first[r]
