@@ -74,8 +74,8 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
     config_file, preset = p.get("config_file"), p.get("preset")
     options = options_from_cli(p)
     spec_a, spec_b = stream_specs(inputs, p)
-    fmt = output_format(p["output"], p["fmt"])
     check_writable(p["output"], "-o")
+    fmt = output_format(p["output"], p["fmt"])
     if p["report_file"]:
         check_writable(p["report_file"], "--report")
     result = calibrate_files(spec_a, spec_b, options=options, quiet=p["quiet"])

@@ -1,6 +1,8 @@
 """``handeye solve``: the solver alone, on a file of relative motion pairs."""
 from __future__ import annotations
 
+from typing import Any
+
 import click
 
 from ..analysis.alpha import noise_model_alpha
@@ -18,7 +20,7 @@ from .params import flags, output_options
 @click.argument("pairs_file", type=click.Path())
 @flags("method", "alpha", "prior", "prior_weights")
 @output_options
-def solve(pairs_file: str, output: str | None, fmt: str | None, **given: str | None) -> None:
+def solve(pairs_file: str, output: str | None, fmt: str | None, **given: Any) -> None:
     """Solve A_i X = X B_i for X = T_a_b from a file of relative motion pairs.
 
     PAIRS_FILE is a CSV with the header
@@ -31,8 +33,8 @@ def solve(pairs_file: str, output: str | None, fmt: str | None, **given: str | N
       handeye solve sample_data/pairs.csv --method dqopt --alpha 1
     """
     s = load_options(**given).solver
-    fmt = output_format(output, fmt)
     check_writable(output, "-o")
+    fmt = output_format(output, fmt)
     A, B, weights = read_pairs(pairs_file)
     prior = None if s.prior is None else Prior(read_extrinsic(s.prior), *s.prior_weights)
     alpha = (noise_model_alpha(A, B, prior=prior, weights=weights).alpha if s.alpha == "auto"
