@@ -309,7 +309,7 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     diagnostics["observability"] = obs.as_dict()
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    verdict = _inversion(kept, pairs, opts, alpha)
+    verdict = _inversion(kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha)   # thresholds set at α 1
     if verdict is not None:
         diagnostics["inversion"] = verdict.as_dict()
     suspect = verdict.message() if verdict else data_warning(res, weights, samples)
