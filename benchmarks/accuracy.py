@@ -15,7 +15,7 @@ where *best* is the lowest mean error of any (strategy, α) — separately for r
 translation (goal: ≤ 1.2 for both). The α chosen by the defaults and the noise model's verdict
 (drifting / absolute) are shown too.
 
-    python benchmarks/accuracy.py [--seeds 6] [--duration 60] [--scenarios vio-vio,arm]
+    python benchmarks/accuracy.py [--seeds 12] [--duration 60] [--scenarios vio-vio,arm]
 """
 from __future__ import annotations
 
@@ -75,7 +75,7 @@ def report(name: str, default: np.ndarray, fixed: np.ndarray, alphas: list[float
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--seeds", type=int, default=6)
+    parser.add_argument("--seeds", type=int, default=12)
     parser.add_argument("--duration", type=float, default=60.0, help="seconds per recording")
     parser.add_argument("--scenarios", default=",".join(SCENARIOS))
     args = parser.parse_args()
