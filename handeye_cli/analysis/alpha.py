@@ -17,6 +17,7 @@ combined as the geometric mean over the pairs — the rule the default ``auto`` 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -56,7 +57,7 @@ class AlphaChoice:
         """Position of the chosen α in the grid."""
         return int(np.argmin(np.abs(np.log(self.grid / self.alpha))))
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """Plain summary for the result file."""
         i = self.index
         rot, trans = float(self.rotation_rms_deg[i]), float(self.translation_rms_m[i])

@@ -23,6 +23,7 @@ pair of sources; which of the two drifts is not separable from them.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -50,11 +51,12 @@ class PairFeatures:
 
     def rot_design(self) -> NDArray[np.float64]:
         """(N, 3) columns of the rotation model, in the order of :data:`ROT_TERMS`."""
-        return np.c_[np.ones_like(self.dt_s), self.dt_s, self.path_m]
+        return np.column_stack([np.ones_like(self.dt_s), self.dt_s, self.path_m])
 
     def dual_design(self) -> NDArray[np.float64]:
         """(N, 5) columns of the translation model, in the order of :data:`DUAL_TERMS`."""
-        return np.c_[np.ones_like(self.dt_s), self.dt_s, self.path_m, self.lever2_m2, self.dt_s * self.lever2_m2]
+        return np.column_stack([np.ones_like(self.dt_s), self.dt_s, self.path_m, self.lever2_m2,
+                                self.dt_s * self.lever2_m2])
 
 
 def pair_features(stamps_ns: NDArray[np.int64], path_m: NDArray[np.float64], i: NDArray[np.int64],
@@ -121,7 +123,7 @@ class NoiseModel:
         typical = PairFeatures(np.array([self.typical_dt_s]), np.array([self.typical_path_m]), np.zeros(1))
         return "drifting" if self.drift_share(typical)[0] > _DRIFT_SHARE else "absolute"
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """The result file's ``noise_model``: σ floors and drift densities in deg/m, and the kind."""
         r, d = self.rot_terms, self.dual_terms
         return {"kind": self.kind,

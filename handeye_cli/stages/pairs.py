@@ -88,7 +88,7 @@ def _parse(strategy: str) -> tuple[str, int]:
 
 
 def _quats(T: np.ndarray) -> np.ndarray:
-    return Rotation.from_matrix(T[:, :3, :3]).as_quat()
+    return np.asarray(Rotation.from_matrix(T[:, :3, :3]).as_quat(), dtype=np.float64)
 
 
 def _moved(pos: np.ndarray, quat: np.ndarray, seg: np.ndarray, rows: slice, cols: slice, t2: float,
@@ -97,7 +97,7 @@ def _moved(pos: np.ndarray, quat: np.ndarray, seg: np.ndarray, rows: slice, cols
 
     Distances by ``|p|² + |p'|² - 2 p·p'`` about the rows' first position, dot products by matrix
     products: a few BLAS calls per block instead of elementwise passes over (r, c, 2, 3) arrays."""
-    moved = seg[rows][:, None] != seg[cols][None]
+    moved: np.ndarray = np.asarray(seg[rows][:, None] != seg[cols][None])
     for s in range(pos.shape[1]):
         p, q = pos[rows, s] - pos[rows.start, s], pos[cols, s] - pos[rows.start, s]
         d2 = np.einsum("ij,ij->i", p, p)[:, None] + np.einsum("ij,ij->i", q, q)[None] - 2.0 * (p @ q.T)
@@ -218,7 +218,7 @@ def _spread(total: int, cap: int) -> np.ndarray:
 
 def make_pairs(synced: Synced, strategy: str = "keyframes", *, keyframe_rotation_rad: float = np.deg2rad(5),
                keyframe_translation_m: float = 0.02, min_rotation_rad: float = np.deg2rad(10),
-               max_pairs: int = 2000, seed: int = 0) -> tuple[Pairs, dict]:
+               max_pairs: int = 2000, seed: int = 0) -> tuple[Pairs, dict[str, int]]:
     """Form relative motions ``A_k = T_a(t_i)⁻¹ T_a(t_j)``, ``B_k`` likewise, by ``strategy``.
 
     See the module docstring for the strategies. Angles in radians, distances in metres.

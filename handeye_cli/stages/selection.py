@@ -27,6 +27,7 @@ the number of samples: no candidate pair is enumerated beyond the probes and the
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,7 +59,7 @@ class Selection:
     rounds: int
     candidate_pairs: int
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """The result's ``noise_model`` entry: the model (None: too few pairs to fit one) plus what the
         selection made of it: strides [samples], spans [s] of the pairs, α [1/m], rounds."""
         spans = (self.pairs.t_j_ns - self.pairs.t_i_ns) / 1e9
