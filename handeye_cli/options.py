@@ -154,14 +154,14 @@ def weight_pair(value: Any, where: str) -> tuple[float, float]:
     return a, b
 
 
-_STRATEGY = re.compile(r"^(keyframes|consecutive|all|stride:[1-9][0-9]*|random:[1-9][0-9]*)$")
+_STRATEGY = re.compile(r"^(auto|keyframes|consecutive|all|stride:[1-9][0-9]*|random:[1-9][0-9]*)$")
 
 
 def strategy(value: Any, where: str) -> str:
     word = _words(value) or ""
     if not _STRATEGY.match(word):
         raise ConfigError(f"bad pair strategy {value!r}", where,
-                          "choose keyframes, consecutive, all, stride:K or random:N (K, N whole numbers ≥ 1)")
+                          "choose auto, keyframes, consecutive, all, stride:K or random:N (K, N whole numbers ≥ 1)")
     return word
 
 
@@ -247,8 +247,8 @@ class GateOptions:
 class PairOptions:
     """Which relative motions (pairs of samples) are solved."""
 
-    pairs: str = option("keyframes", strategy, "Pair strategy: keyframes | consecutive | stride:K | all | "
-                        "random:N.", "STRATEGY")
+    pairs: str = option("auto", strategy, "Pair strategy: auto (spans and weights from a noise model fitted to "
+                        "the recording) | keyframes | consecutive | stride:K | all | random:N.", "STRATEGY")
     min_rotation: float = option(10.0, number(unit="degrees", strict=False),
                                  "Least rotation of a pair [deg] (keyframes, all, random).", "DEGREES")
     keyframe_rotation: float = option(5.0, number(unit="degrees"),
@@ -268,8 +268,9 @@ class SolverOptions:
 
     method: str = option("dqopt", choice(*METHODS), "Solver: dqopt is the global optimum (paper §3.2.1); the others "
                          "are the paper's approximations and Daniilidis' method.", choices=tuple(METHODS))
-    alpha: float | str = option(1.0, number(unit="1/m", word="auto"),
-                                "Weight of translational residuals [1/m] (eq 8), or auto.", "NUMBER|auto")
+    alpha: float | str = option("auto", number(unit="1/m", word="auto"),
+                                "Weight of translational residuals [1/m] (eq 8), or auto (maximum likelihood "
+                                "under the recording's noise model).", "NUMBER|auto")
     scale: float | str = option(1.0, number(unit="metres per unit of stream b", word="auto"),
                                 "Scale of stream b's translations [m per unit] (monocular odometry), or auto to "
                                 "estimate it with T_a_b.", "NUMBER|auto")

@@ -26,11 +26,11 @@ from .analysis import (
     Residuals,
     RobustResult,
     assess_observability,
-    auto_alpha,
     bootstrap,
     pair_residuals,
     robust_solve,
 )
+from .analysis.alpha import noise_model_alpha
 from .analysis.diagnosis import data_warning, too_few_pairs
 from .analysis.inversion import InversionVerdict, check_inversion
 from .config import load_options
@@ -43,6 +43,7 @@ from .solvers.scale import scale_translations, solve_with_scale
 from .stages.counts import SampleCounts
 from .stages.gates import pose_jump_gate
 from .stages.pairs import Pairs, make_pairs
+from .stages.selection import Selection, select_pairs
 from .stages.stations import Stations, detect_stations
 from .stages.sync import Synced, associate
 from .streams import PoseStream
@@ -196,8 +197,9 @@ def _prior(options: Options) -> Prior | None:
 
 
 def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options,
-             offset_ns: int) -> tuple[Synced, Pairs, SampleCounts, Stations | None]:
-    """Sync, gates and pair formation: (kept samples, pairs, counts of every stage, stations).
+             offset_ns: int) -> tuple[Synced, Pairs, SampleCounts, Stations | None, Selection | None]:
+    """Sync, gates and pair formation: (kept samples, pairs, counts of every stage, stations, and for
+    the ``auto`` strategy the selection: weights, α and noise model).
 
     A station capture (see :mod:`~handeye_cli.stages.stations`) skips sync and the pose-jump gate:
     its averaged stations are the samples, paired all with all."""
@@ -214,15 +216,21 @@ def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options,
         max_rot = None if gates.max_jump_deg is None else np.deg2rad(gates.max_jump_deg)
         kept, jump_counts = pose_jump_gate(synced, max_translation_m=gates.max_jump, max_rotation_rad=max_rot)
         strategy, stage_counts = p.pairs, [sync_counts, jump_counts]
-    pairs, pair_counts = make_pairs(kept, strategy, keyframe_rotation_rad=np.deg2rad(p.keyframe_rotation),
-                                    keyframe_translation_m=p.keyframe_translation,
-                                    min_rotation_rad=np.deg2rad(p.min_rotation), max_pairs=p.max_pairs, seed=p.seed)
+    selection = None
+    if strategy == "auto":
+        selection = select_pairs(kept, max_pairs=p.max_pairs, method=options.solver.method, prior=_prior(options))
+        pairs, pair_counts = selection.pairs, selection.counts(len(kept))
+    else:
+        pairs, pair_counts = make_pairs(kept, strategy, keyframe_rotation_rad=np.deg2rad(p.keyframe_rotation),
+                                        keyframe_translation_m=p.keyframe_translation,
+                                        min_rotation_rad=np.deg2rad(p.min_rotation), max_pairs=p.max_pairs,
+                                        seed=p.seed)
     samples = SampleCounts.of(*stage_counts, pair_counts, synced_kept=len(kept),
                               duplicates_dropped_a=stream_a.duplicates_dropped,
                               duplicates_dropped_b=stream_b.duplicates_dropped)
     if len(pairs) < options.solver.min_pairs:
         raise too_few_pairs(len(pairs), samples, options)
-    return kept, pairs, samples, stations
+    return kept, pairs, samples, stations, selection
 
 
 def _with_scale(kept: Synced, pairs: Pairs, options: Options, diagnostics: dict[str, Any]) -> tuple[Synced, Pairs]:
@@ -246,22 +254,30 @@ def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float) -> In
     return verdict
 
 
-def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None,
+def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None, selection: Selection | None,
                        diagnostics: dict[str, Any]) -> tuple[Solution, float, np.ndarray | None, RobustResult | None]:
-    """[robust: RANSAC inliers] → [α auto] → the weighted solve; diagnostics filled in place."""
+    """[robust: RANSAC inliers] → [α auto] → the weighted solve; diagnostics filled in place.
+
+    With the ``auto`` strategy the pairs carry the noise model's weights, and α auto is its ML α."""
     A, B, solver = pairs.A, pairs.B, options.solver
-    alpha = 1.0 if solver.alpha == "auto" else float(solver.alpha)
-    weights = robust = None
+    auto = solver.alpha == "auto"
+    alpha = (selection.alpha if selection else 1.0) if auto else float(solver.alpha)
+    weights = None if selection is None else selection.weights
+    robust = None
     if options.analysis.robust:
         robust = robust_solve(A, B, method=solver.method, alpha=alpha, prior=prior, seed=options.pairs.seed)
-        weights = robust.inliers.astype(float)
+        weights = robust.inliers.astype(float) * (1.0 if weights is None else weights)
         t0 = min(pairs.t_i_ns.min(), pairs.t_j_ns.min())    # readable: seconds since the first paired sample
         diagnostics["robust"] = {**robust.as_dict(), "rejected_spans_since_start_s": [
             [round((pairs.t_i_ns[k] - t0) / 1e9, 6), round((pairs.t_j_ns[k] - t0) / 1e9, 6)] for k in robust.rejected]}
-    if solver.alpha == "auto":
-        choice = auto_alpha(A, B, prior=prior, weights=weights)
+    if selection is not None:
+        diagnostics["noise_model"] = selection.as_dict()
+    if auto and selection is None:
+        choice = noise_model_alpha(A, B, prior=prior, weights=weights, spans_s=(pairs.t_j_ns - pairs.t_i_ns) / 1e9)
         alpha = choice.alpha
         diagnostics["alpha_auto"] = choice.as_dict()
+    elif auto:
+        diagnostics["alpha_auto"] = {"alpha": alpha, "method": "noise-model"}
     return solve(A, B, method=solver.method, alpha=alpha, prior=prior, weights=weights), alpha, weights, robust
 
 
@@ -280,14 +296,14 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     if opts.solver.scale not in (1.0, "auto"):
         stream_b = replace(stream_b, xyz=stream_b.xyz * float(opts.solver.scale))
     offset_ns, offset_report, warnings = _time_offset(stream_a, stream_b, opts)
-    kept, pairs, samples, stations = pairs_of(stream_a, stream_b, opts, offset_ns)
+    kept, pairs, samples, stations, selection = pairs_of(stream_a, stream_b, opts, offset_ns)
     prior = _prior(opts)
     diagnostics: dict[str, Any] = {"time_offset": offset_report}
     if stations is not None:
         diagnostics["stations"] = stations.as_dict()
     if opts.solver.scale == "auto":
         kept, pairs = _with_scale(kept, pairs, opts, diagnostics)
-    solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, diagnostics)
+    solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, selection, diagnostics)
 
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
     obs = assess_observability(A, B, solution.matrix, alpha=alpha, prior=prior, weights=weights, samples=ij)
@@ -295,7 +311,7 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     diagnostics["observability"] = obs.as_dict()
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    verdict = _inversion(kept, pairs, opts, alpha)
+    verdict = _inversion(kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha)   # thresholds set at α 1
     if verdict is not None:
         diagnostics["inversion"] = verdict.as_dict()
     suspect = verdict.message() if verdict else data_warning(res, weights, samples)

@@ -127,7 +127,7 @@ def test_gates_can_be_switched_off(capsys, rig):
     (["calibrate", "missing.tum", "missing2.tum"], "not found"),
     (["calibrate", "{a}"], "topic or a frame pair"),
     (["calibrate", "{a}", "{b}", "--pairs", "bogus"], "bad pair strategy"),
-    (["calibrate", "{a}", "{b}", "--min-rotation", "179"], "motion pair(s) left"),
+    (["calibrate", "{a}", "{b}", "--pairs", "keyframes", "--min-rotation", "179"], "motion pair(s) left"),
     (["calibrate", "{a}", "{b}", "--max-dt", "1e-6"], "timestamp gate"),
     (["calibrate", "{a}", "{b}", "--time-offset", "soon"], "bad value"),
     (["calibrate", "{a}", "{b}", "--alpha", "big"], "bad value"),
