@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._typing import FloatArray
 from ..errors import ConfigError, UnderdeterminedError
 from . import dualquat
 from .approximate import dq2ndord, dq2steps, dqconvrlx
@@ -43,7 +44,7 @@ class Solution:
         Method-specific figures, e.g. DQConvRlx's ``gap_bound`` (eq 22).
     """
 
-    matrix: np.ndarray
+    matrix: FloatArray
     cost: float
     method: str
     alpha: float
@@ -55,12 +56,12 @@ class Solution:
     details: dict = field(default_factory=dict)
 
     @property
-    def translation(self) -> np.ndarray:
+    def translation(self) -> FloatArray:
         """Translation of ``T_a_b`` [m]."""
         return self.matrix[:3, 3].copy()
 
     @property
-    def quaternion_xyzw(self) -> np.ndarray:
+    def quaternion_xyzw(self) -> FloatArray:
         """Rotation of ``T_a_b`` as a unit quaternion x, y, z, w with w ≥ 0."""
         q, _ = dualquat.from_transforms(self.matrix)
         return q
@@ -82,13 +83,13 @@ def _check_determined(problem: Problem) -> None:
                            "(--prior FILE) to fix the unobservable directions")
 
 
-def dq_cost(problem: Problem, q: np.ndarray, qd: np.ndarray) -> float:
+def dq_cost(problem: Problem, q: FloatArray, qd: FloatArray) -> float:
     """Cost (8) (+ prior) of a dual quaternion; alias of :meth:`Problem.cost`."""
     return problem.cost(q, qd)
 
 
-def solve(motions_a: np.ndarray, motions_b: np.ndarray, method: str = "dqopt", alpha: float = 1.0,
-          prior: Prior | None = None, weights: np.ndarray | None = None) -> Solution:
+def solve(motions_a: FloatArray, motions_b: FloatArray, method: str = "dqopt", alpha: float = 1.0,
+          prior: Prior | None = None, weights: FloatArray | None = None) -> Solution:
     """Solve ``A_i X = X B_i`` for ``X = T_a_b`` in the least-squares sense of the paper's cost (8).
 
     Parameters

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._typing import FloatArray
 from .problem import Problem, eigh
 
 __all__ = ["Approximation", "dq2steps", "dqconvrlx", "dq2ndord"]
@@ -18,13 +19,13 @@ __all__ = ["Approximation", "dq2steps", "dqconvrlx", "dq2ndord"]
 class Approximation:
     """An approximate solution ``q + ε q'``, its μ and method-specific figures (e.g. the gap bound of eq 22)."""
 
-    q: np.ndarray
-    qd: np.ndarray
+    q: FloatArray
+    qd: FloatArray
     mu: float
     details: dict
 
 
-def _with_dual(problem: Problem, q: np.ndarray, details: dict) -> Approximation:
+def _with_dual(problem: Problem, q: FloatArray, details: dict) -> Approximation:
     q = q / np.sqrt(q @ q)
     qd, mu = problem.dual_part(q)
     return Approximation(q, qd, mu, details)
@@ -35,7 +36,7 @@ def dq2steps(problem: Problem) -> Approximation:
     return _with_dual(problem, problem.M_smallest_eigenvector, {})
 
 
-def _z0_eigen(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+def _z0_eigen(problem: Problem) -> tuple[FloatArray, FloatArray]:
     """Eigenpairs of Z0 (eq 21), ascending; defined for a singular M too."""
     return eigh(problem.Z0_relaxed)
 

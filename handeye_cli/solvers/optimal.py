@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._typing import FloatArray
 from .problem import Problem, eigh
 
 __all__ = ["LineSearchResult", "dqopt", "dqitr", "kkt_polish"]
@@ -33,8 +34,8 @@ _EPS = np.finfo(float).eps
 class LineSearchResult:
     """Solution ``q + ε q'`` with its multipliers and how the search went."""
 
-    q: np.ndarray
-    qd: np.ndarray
+    q: FloatArray
+    qd: FloatArray
     lam: float
     mu: float
     iterations: int
@@ -42,13 +43,13 @@ class LineSearchResult:
     singular_m: bool = False
 
 
-def _smallest(Zs: np.ndarray, mu: float) -> tuple[np.ndarray, np.ndarray]:
+def _smallest(Zs: FloatArray, mu: float) -> tuple[FloatArray, FloatArray]:
     """All eigenpairs of Z(μ) = Z0 + μ Z1 - μ² Z2 (eq 12), ascending; column 0 is the smallest.
     ``Zs`` is ``(Z0, Z1, Z2)`` stacked and flattened, (3, 16)."""
     return eigh(np.dot((1.0, mu, -mu * mu), Zs).reshape(4, 4))
 
 
-def _f_and_slope(Z12: np.ndarray, mu: float, lam: list, V: np.ndarray) -> tuple[float, float, list, float]:
+def _f_and_slope(Z12: FloatArray, mu: float, lam: list, V: FloatArray) -> tuple[float, float, list, float]:
     """``f(μ)`` of eq 18, its derivative from second-order eigenvalue perturbation, the first-order
     change of the eigenvector q₀ per unit μ in the eigenbasis, and the (floored) gap λ₁ - λ₀.
 
@@ -67,7 +68,7 @@ def _f_and_slope(Z12: np.ndarray, mu: float, lam: list, V: np.ndarray) -> tuple[
     return f, z2[0] + c1 * r1 + c2 * r2 + c3 * r3, [0.0, -r1, -r2, -r3], g1
 
 
-def _rotated(V: np.ndarray, step: float, dq: list) -> np.ndarray:
+def _rotated(V: FloatArray, step: float, dq: list) -> FloatArray:
     """The orthonormal basis ``V (I + δK)`` with ``K`` antisymmetric, ``K[a, 0] = dq[a]``: its first
     column is the perturbed eigenvector ``q₀ + δ Σ dq[a] qₐ`` and the others stay orthogonal to it,
     up to ``δ² |dq|²`` (below rounding where it is used). Columns are normalised exactly."""
@@ -80,7 +81,7 @@ def _rotated(V: np.ndarray, step: float, dq: list) -> np.ndarray:
                          [d3 * s0, 0.0, 0.0, s3]])
 
 
-def _mu_bracket(Z1: np.ndarray, Re: np.ndarray) -> tuple[float, float]:
+def _mu_bracket(Z1: FloatArray, Re: FloatArray) -> tuple[float, float]:
     """Appendix C: every solution μ lies between the extreme generalised eigenvalues of (½Z1, Z2).
 
     With ``Z2 = M⁻¹ = Re⁻¹ Re⁻ᵀ`` (``E = Qe Re``) they are the eigenvalues of ``Re (½Z1) Reᵀ``.
@@ -91,8 +92,8 @@ def _mu_bracket(Z1: np.ndarray, Re: np.ndarray) -> tuple[float, float]:
     return float(lo - pad), float(hi + pad)
 
 
-def kkt_polish(problem: Problem, q: np.ndarray, qd: np.ndarray, lam: float, mu: float,
-               iterations: int = 8) -> tuple[np.ndarray, np.ndarray, float, float]:
+def kkt_polish(problem: Problem, q: FloatArray, qd: FloatArray, lam: float, mu: float,
+               iterations: int = 8) -> tuple[FloatArray, FloatArray, float, float]:
     """Newton's method on the stationarity conditions of cost (8) with both constraints.
 
     Unknowns ``(q, q', λ, μ)``; equations ``Sq + Wq' - λq - μq' = 0``, ``Wᵀq + Mq' - μq = 0``
@@ -129,7 +130,7 @@ def kkt_polish(problem: Problem, q: np.ndarray, qd: np.ndarray, lam: float, mu: 
     return q, qd, float(lam), float(mu)
 
 
-def _result(problem: Problem, V: np.ndarray, mu: float, lam: list, iterations: int,
+def _result(problem: Problem, V: FloatArray, mu: float, lam: list, iterations: int,
             converged: bool) -> LineSearchResult:
     """Complete the smallest eigenvector ``q`` of Z(μ) (M regular) with its optimal dual part (eq 20,
     by least squares: ``M⁻¹`` amplifies rounding when the cost is tiny). The eigenvector's error is
