@@ -6,7 +6,9 @@ is the default. Motions follow the project convention: ``A_i = T_wa(t_i)⁻¹ T_
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -53,12 +55,13 @@ class Solution:
     mu: float | None = None
     iterations: int | None = None
     converged: bool | None = None
-    details: dict = field(default_factory=dict)
+    details: Mapping[str, float | bool] = field(default_factory=dict)
 
     @property
     def translation(self) -> FloatArray:
         """Translation of ``T_a_b`` [m]."""
-        return self.matrix[:3, 3].copy()
+        t: FloatArray = self.matrix[:3, 3].copy()
+        return t
 
     @property
     def quaternion_xyzw(self) -> FloatArray:
@@ -118,15 +121,14 @@ def solve(motions_a: FloatArray, motions_b: FloatArray, method: str = "dqopt", a
     problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)
     if prior is None:
         _check_determined(problem)
-    common = dict(method=method, alpha=float(alpha), pairs=len(A))
+    common = partial(Solution, method=method, alpha=float(alpha), pairs=len(A))
     if method in ("dqopt", "dqitr"):
         r = (dqopt if method == "dqopt" else dqitr)(problem)
-        return Solution(dualquat.to_transform(r.q, r.qd), problem.cost(r.q, r.qd), lam=r.lam, mu=r.mu,
-                        iterations=r.iterations, converged=r.converged,
-                        details={"singular_m": r.singular_m}, **common)
+        return common(dualquat.to_transform(r.q, r.qd), problem.cost(r.q, r.qd), lam=r.lam, mu=r.mu,
+                      iterations=r.iterations, converged=r.converged, details={"singular_m": r.singular_m})
     if method == "daniilidis":
         q, qd = daniilidis(E, F, alpha=alpha, weights=w)
-        return Solution(dualquat.to_transform(q, qd), problem.cost(q, qd), **common)
-    r = {"dq2steps": dq2steps, "dqconvrlx": dqconvrlx, "dq2ndord": dq2ndord}[method](problem)
-    return Solution(dualquat.to_transform(r.q, r.qd), problem.cost(r.q, r.qd), mu=r.mu,
-                    details=r.details, **common)
+        return common(dualquat.to_transform(q, qd), problem.cost(q, qd))
+    approx = {"dq2steps": dq2steps, "dqconvrlx": dqconvrlx, "dq2ndord": dq2ndord}[method](problem)
+    return common(dualquat.to_transform(approx.q, approx.qd), problem.cost(approx.q, approx.qd), mu=approx.mu,
+                  details=approx.details)

@@ -49,7 +49,8 @@ def _smallest(Zs: FloatArray, mu: float) -> tuple[FloatArray, FloatArray]:
     return eigh(np.dot((1.0, mu, -mu * mu), Zs).reshape(4, 4))
 
 
-def _f_and_slope(Z12: FloatArray, mu: float, lam: list, V: FloatArray) -> tuple[float, float, list, float]:
+def _f_and_slope(Z12: FloatArray, mu: float, lam: list[float], V: FloatArray
+                 ) -> tuple[float, float, list[float], float]:
     """``f(μ)`` of eq 18, its derivative from second-order eigenvalue perturbation, the first-order
     change of the eigenvector q₀ per unit μ in the eigenbasis, and the (floored) gap λ₁ - λ₀.
 
@@ -68,17 +69,18 @@ def _f_and_slope(Z12: FloatArray, mu: float, lam: list, V: FloatArray) -> tuple[
     return f, z2[0] + c1 * r1 + c2 * r2 + c3 * r3, [0.0, -r1, -r2, -r3], g1
 
 
-def _rotated(V: FloatArray, step: float, dq: list) -> FloatArray:
+def _rotated(V: FloatArray, step: float, dq: list[float]) -> FloatArray:
     """The orthonormal basis ``V (I + δK)`` with ``K`` antisymmetric, ``K[a, 0] = dq[a]``: its first
     column is the perturbed eigenvector ``q₀ + δ Σ dq[a] qₐ`` and the others stay orthogonal to it,
     up to ``δ² |dq|²`` (below rounding where it is used). Columns are normalised exactly."""
     _, d1, d2, d3 = (step * d for d in dq)
     s0 = (1.0 + d1 * d1 + d2 * d2 + d3 * d3) ** -0.5
     s1, s2, s3 = (1.0 + d1 * d1) ** -0.5, (1.0 + d2 * d2) ** -0.5, (1.0 + d3 * d3) ** -0.5
-    return V @ np.array([[s0, -d1 * s1, -d2 * s2, -d3 * s3],
-                         [d1 * s0, s1, 0.0, 0.0],
-                         [d2 * s0, 0.0, s2, 0.0],
-                         [d3 * s0, 0.0, 0.0, s3]])
+    rotated: FloatArray = V @ np.array([[s0, -d1 * s1, -d2 * s2, -d3 * s3],
+                                        [d1 * s0, s1, 0.0, 0.0],
+                                        [d2 * s0, 0.0, s2, 0.0],
+                                        [d3 * s0, 0.0, 0.0, s3]])
+    return rotated
 
 
 def _mu_bracket(Z1: FloatArray, Re: FloatArray) -> tuple[float, float]:
@@ -130,7 +132,7 @@ def kkt_polish(problem: Problem, q: FloatArray, qd: FloatArray, lam: float, mu: 
     return q, qd, float(lam), float(mu)
 
 
-def _result(problem: Problem, V: FloatArray, mu: float, lam: list, iterations: int,
+def _result(problem: Problem, V: FloatArray, mu: float, lam: list[float], iterations: int,
             converged: bool) -> LineSearchResult:
     """Complete the smallest eigenvector ``q`` of Z(μ) (M regular) with its optimal dual part (eq 20,
     by least squares: ``M⁻¹`` amplifies rounding when the cost is tiny). The eigenvector's error is
@@ -170,8 +172,8 @@ def dqopt(problem: Problem, max_iterations: int = 100) -> LineSearchResult:
     Zs = problem._Zs
     Z12 = Zs[1:]
     n1, n2 = float(np.vdot(Zs[1], Zs[1])) ** 0.5, float(np.vdot(Zs[2], Zs[2])) ** 0.5      # Frobenius
-    lam, V = eigh(Zs[0])
-    lam = lam.tolist()
+    ev, V = eigh(Zs[0])
+    lam: list[float] = ev.tolist()
     Zs = Zs.reshape(3, 16)
     lo, hi = -np.inf, np.inf
     bracketed = False
@@ -207,8 +209,8 @@ def dqopt(problem: Problem, max_iterations: int = 100) -> LineSearchResult:
             converged = True
             break
         mu = new
-        lam, V = _smallest(Zs, mu)
-        lam = lam.tolist()
+        ev, V = _smallest(Zs, mu)
+        lam = ev.tolist()
     return _result(problem, V, mu, lam, it, converged)
 
 
@@ -227,7 +229,8 @@ def dqitr(problem: Problem, tolerance: float = 1e-12, max_iterations: int = 100)
     converged = False
     it = 0
     lam, V = _smallest(Zs, mu)
-    for it in range(1, max_iterations + 1):
+    while it < max_iterations:
+        it += 1
         q = V[:, 0]
         z1, z2 = (Z12 @ q @ q).tolist()
         new = 0.5 * z1 / z2

@@ -68,21 +68,22 @@ class Problem:
     def _K(self) -> FloatArray:
         """``[E F]`` (L, 8), column-major for LAPACK; zero rows pad it to at least 8."""
         n = len(self.E)
-        K = np.zeros((8, max(n, 8))).T
+        K: FloatArray = np.zeros((8, max(n, 8))).T
         K[:n, :4] = self.E
         K[:n, 4:] = self.F
         return K
 
     @cached_property
     def _PtP(self) -> FloatArray:
-        return self.P.T @ self.P
+        PtP: FloatArray = self.P.T @ self.P
+        return PtP
 
     @cached_property
     def form(self) -> FloatArray:
         """The 8x8 matrix ``[[M, Wᵀ], [W, S]]`` of cost (8) (+ prior, eq 29) in ``(q', q)`` order:
         the cost is ``[q'; q]ᵀ form [q'; q]`` plus the prior's constant."""
         K = self._K
-        Q = K.T @ K
+        Q: FloatArray = K.T @ K
         Q[4:, 4:] += self._PtP
         return Q
 
@@ -111,6 +112,7 @@ class Problem:
         Then ``E = Q₁ Re`` and ``F = Q₁ G + Q₂ Rf`` (``Q = [Q₁ Q₂]``), so ``M = ReᵀRe``,
         ``W = GᵀRe`` and ``|F - Π_E F|² = RfᵀRf``: everything below is 4x4 algebra on R.
         """
+        r: FloatArray
         r, _, _, info = lapack.dgeqrf(self._K)
         if info:
             raise np.linalg.LinAlgError(f"QR factorisation failed (info {info})")
@@ -149,7 +151,8 @@ class Problem:
     @property
     def M_smallest_eigenvector(self) -> FloatArray:
         """The eigenvector of M with the smallest eigenvalue (eq 19), from the SVD of E."""
-        return self._svd[2][-1].copy()
+        v: FloatArray = self._svd[2][-1].copy()
+        return v
 
     @property
     def R_factor(self) -> FloatArray:
@@ -197,7 +200,8 @@ class Problem:
         R = self._R
         G, Rf = R[:4, 4:], R[4:, 4:]
         Gr = G - U @ (U.T @ G)
-        return self._PtP + Rf.T @ Rf + Gr.T @ Gr
+        Z0: FloatArray = self._PtP + Rf.T @ Rf + Gr.T @ Gr
+        return Z0
 
     def _dual(self, q: FloatArray, basis: FloatArray, full_rank: bool = False
               ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -249,7 +253,7 @@ def eigh(A: FloatArray, vectors: bool = True) -> tuple[FloatArray, FloatArray]:
 
 def _rank_tolerance(sv: FloatArray) -> float:
     """Singular values of E below this count as zero (M singular)."""
-    return 1e-8 * max(sv[0], 1e-300)
+    return 1e-8 * max(float(sv[0]), 1e-300)
 
 
 def _all_rigid(T: FloatArray) -> bool:
