@@ -13,9 +13,10 @@ from typing import Any
 import click
 
 from ..config import load_options, presets
-from ..options import FIELDS, Options
+from ..options import FIELDS, Options, optional_flag
 
-__all__ = ["apply", "flags", "calibrate_options", "options_from_cli", "OPTION_NAMES", "stream_options", "output_options"]
+__all__ = ["apply", "flags", "calibrate_options", "options_from_cli", "OPTION_NAMES", "stream_options",
+           "output_options"]
 
 F = Callable[..., Any]
 
@@ -34,7 +35,7 @@ def _flag(name: str) -> Callable[[F], F]:
     _, info, default = FIELDS[name]
     dashed = "--" + name.replace("_", "-")
     help_text = f"{info.help} [default: {_default_text(default)}]"
-    if isinstance(default, bool):
+    if isinstance(default, bool) or info.parse is optional_flag:
         return click.option(f"{dashed}/--no-{dashed[2:]}", name, default=None, help=help_text)
     kind = click.Choice(info.choices, case_sensitive=False) if info.choices else click.STRING
     return click.option(dashed, name, type=kind, default=None, metavar=info.metavar, help=help_text)
