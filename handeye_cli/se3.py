@@ -24,6 +24,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ._typing import BoolArray, FloatArray
+
 __all__ = [
     "from_xyz_quat",
     "to_xyz_quat",
@@ -34,7 +36,7 @@ __all__ = [
 ]
 
 
-def from_xyz_quat(xyz: np.ndarray, quat_xyzw: np.ndarray) -> np.ndarray:
+def from_xyz_quat(xyz: FloatArray, quat_xyzw: FloatArray) -> FloatArray:
     """Build homogeneous transforms from translations (…, 3) [m] and x-y-z-w quaternions (…, 4).
 
     Quaternions need not be unit length; they are normalised.
@@ -62,7 +64,7 @@ def from_xyz_quat(xyz: np.ndarray, quat_xyzw: np.ndarray) -> np.ndarray:
     return out[0] if single else out
 
 
-def to_xyz_quat(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def to_xyz_quat(T: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Split transforms into translations (…, 3) [m] and x-y-z-w quaternions (…, 4), w ≥ 0.
 
     Examples
@@ -82,7 +84,7 @@ def to_xyz_quat(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (xyz[0], quat[0]) if single else (xyz, quat)
 
 
-def inverse(T: np.ndarray) -> np.ndarray:
+def inverse(T: FloatArray) -> FloatArray:
     """Invert rigid transforms exactly (transpose the rotation, no general matrix inverse).
 
     Examples
@@ -104,7 +106,7 @@ def inverse(T: np.ndarray) -> np.ndarray:
     return out
 
 
-def relative(T_w_i: np.ndarray, T_w_j: np.ndarray) -> np.ndarray:
+def relative(T_w_i: FloatArray, T_w_j: FloatArray) -> FloatArray:
     """Relative motions ``T_i_j = T_w_i⁻¹ · T_w_j`` (the pose of j expressed in i).
 
     Examples
@@ -120,11 +122,11 @@ def relative(T_w_i: np.ndarray, T_w_j: np.ndarray) -> np.ndarray:
     >>> se3.relative(T_w_i, T_w_j)[:3, 3].round(9).tolist()
     [2.0, 0.0, 0.0]
     """
-    return inverse(T_w_i) @ np.asarray(T_w_j, dtype=float)
+    return inverse(T_w_i) @ np.asarray(T_w_j, dtype=np.float64)
 
 
-def rotation_angle(T_or_R: np.ndarray) -> np.ndarray:
-    """Rotation angle [rad] of transforms (…, 4, 4) or rotation matrices (…, 3, 3).
+def rotation_angle(T_or_R: FloatArray) -> FloatArray | np.float64:
+    """Rotation angle [rad] of transforms (…, 4, 4) or rotation matrices (…, 3, 3); a numpy scalar for one.
 
     Uses the numerically robust ``atan2(|skew|, trace-1)`` form, exact near 0 and π.
 
@@ -136,11 +138,12 @@ def rotation_angle(T_or_R: np.ndarray) -> np.ndarray:
     >>> round(float(se3.rotation_angle(T)), 12)
     0.5
     """
-    R = np.asarray(T_or_R, dtype=float)[..., :3, :3]
+    R = np.asarray(T_or_R, dtype=np.float64)[..., :3, :3]
     skew = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
                      R[..., 1, 0] - R[..., 0, 1]], axis=-1)
     trace = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
-    return np.arctan2(np.linalg.norm(skew, axis=-1), trace - 1.0)
+    skew_norm: FloatArray | np.float64 = np.linalg.norm(skew, axis=-1)
+    return np.arctan2(skew_norm, trace - 1.0)
 
 
 # Determinant of a 3x3 matrix flattened row-major: Σ sign · product over the six permutations.
@@ -149,8 +152,8 @@ _DET_SIGN = np.array([1.0, 1.0, 1.0, -1.0, -1.0, -1.0])
 _EYE3 = np.eye(3)[:, :, None]
 
 
-def is_rotation(R: np.ndarray, tol: float = 1e-6) -> np.ndarray:
-    """Boolean mask: which (…, 3, 3) matrices are proper rotations within ``tol``:
+def is_rotation(R: FloatArray, tol: float = 1e-6) -> BoolArray | np.bool_:
+    """Boolean mask (a numpy scalar for one matrix): which (…, 3, 3) matrices are proper rotations within ``tol``:
     ``|RᵀR - I|`` (largest entry) and ``|det R - 1|`` both at most ``tol``.
 
     The batch is moved to the last axis so that every step is one elementwise pass over it
@@ -169,4 +172,5 @@ def is_rotation(R: np.ndarray, tol: float = 1e-6) -> np.ndarray:
     D = (C[:, :, None] * C[:, None]).sum(0) - _EYE3                      # RᵀR - I
     det = _DET_SIGN @ C.reshape(9, -1)[_DET_INDEX].prod(1)
     dev = np.maximum(np.abs(D).max((0, 1)), np.abs(det - 1.0))
-    return (dev <= tol).reshape(shape)[()]
+    mask: BoolArray | np.bool_ = (dev <= tol).reshape(shape)[()]
+    return mask

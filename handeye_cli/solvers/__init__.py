@@ -6,10 +6,13 @@ is the default. Motions follow the project convention: ``A_i = T_wa(t_i)⁻¹ T_
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
+from .._typing import FloatArray
 from ..errors import ConfigError, UnderdeterminedError
 from . import dualquat
 from .approximate import dq2ndord, dq2steps, dqconvrlx
@@ -43,7 +46,7 @@ class Solution:
         Method-specific figures, e.g. DQConvRlx's ``gap_bound`` (eq 22).
     """
 
-    matrix: np.ndarray
+    matrix: FloatArray
     cost: float
     method: str
     alpha: float
@@ -52,15 +55,16 @@ class Solution:
     mu: float | None = None
     iterations: int | None = None
     converged: bool | None = None
-    details: dict = field(default_factory=dict)
+    details: Mapping[str, float | bool] = field(default_factory=dict)
 
     @property
-    def translation(self) -> np.ndarray:
+    def translation(self) -> FloatArray:
         """Translation of ``T_a_b`` [m]."""
-        return self.matrix[:3, 3].copy()
+        t: FloatArray = self.matrix[:3, 3].copy()
+        return t
 
     @property
-    def quaternion_xyzw(self) -> np.ndarray:
+    def quaternion_xyzw(self) -> FloatArray:
         """Rotation of ``T_a_b`` as a unit quaternion x, y, z, w with w ≥ 0."""
         q, _ = dualquat.from_transforms(self.matrix)
         return q
@@ -82,13 +86,13 @@ def _check_determined(problem: Problem) -> None:
                            "(--prior FILE) to fix the unobservable directions")
 
 
-def dq_cost(problem: Problem, q: np.ndarray, qd: np.ndarray) -> float:
+def dq_cost(problem: Problem, q: FloatArray, qd: FloatArray) -> float:
     """Cost (8) (+ prior) of a dual quaternion; alias of :meth:`Problem.cost`."""
     return problem.cost(q, qd)
 
 
-def solve(motions_a: np.ndarray, motions_b: np.ndarray, method: str = "dqopt", alpha: float = 1.0,
-          prior: Prior | None = None, weights: np.ndarray | None = None) -> Solution:
+def solve(motions_a: FloatArray, motions_b: FloatArray, method: str = "dqopt", alpha: float = 1.0,
+          prior: Prior | None = None, weights: FloatArray | None = None) -> Solution:
     """Solve ``A_i X = X B_i`` for ``X = T_a_b`` in the least-squares sense of the paper's cost (8).
 
     Parameters
@@ -136,15 +140,14 @@ def solve(motions_a: np.ndarray, motions_b: np.ndarray, method: str = "dqopt", a
     problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)
     if prior is None:
         _check_determined(problem)
-    common = dict(method=method, alpha=float(alpha), pairs=len(A))
+    common = partial(Solution, method=method, alpha=float(alpha), pairs=len(A))
     if method in ("dqopt", "dqitr"):
         r = (dqopt if method == "dqopt" else dqitr)(problem)
-        return Solution(dualquat.to_transform(r.q, r.qd), problem.cost(r.q, r.qd), lam=r.lam, mu=r.mu,
-                        iterations=r.iterations, converged=r.converged,
-                        details={"singular_m": r.singular_m}, **common)
+        return common(dualquat.to_transform(r.q, r.qd), problem.cost(r.q, r.qd), lam=r.lam, mu=r.mu,
+                      iterations=r.iterations, converged=r.converged, details={"singular_m": r.singular_m})
     if method == "daniilidis":
         q, qd = daniilidis(E, F, alpha=alpha, weights=w)
-        return Solution(dualquat.to_transform(q, qd), problem.cost(q, qd), **common)
-    r = {"dq2steps": dq2steps, "dqconvrlx": dqconvrlx, "dq2ndord": dq2ndord}[method](problem)
-    return Solution(dualquat.to_transform(r.q, r.qd), problem.cost(r.q, r.qd), mu=r.mu,
-                    details=r.details, **common)
+        return common(dualquat.to_transform(q, qd), problem.cost(q, qd))
+    approx = {"dq2steps": dq2steps, "dqconvrlx": dqconvrlx, "dq2ndord": dq2ndord}[method](problem)
+    return common(dualquat.to_transform(approx.q, approx.qd), problem.cost(approx.q, approx.qd), mu=approx.mu,
+                  details=approx.details)

@@ -122,7 +122,8 @@ def solve_with_scale(motions_a: NDArray[np.float64], motions_b: NDArray[np.float
     fit = least_squares(_residuals, p0, args=(A, B, R0, alpha, sw), method="lm", x_scale="jac")
     dof = max(fit.fun.size - 7, 1)
     inflation = 1.0 if samples is None else max(1.0, len(A) / len(np.unique(np.r_[samples[0], samples[1]])))
-    cov = np.linalg.pinv(fit.jac.T @ fit.jac) * (2 * fit.cost / dof) * inflation
+    J = np.asarray(fit.jac, dtype=np.float64)          # method="lm": already a dense float array (no copy)
+    cov = np.linalg.pinv(J.T @ J) * (2 * fit.cost / dof) * inflation
     scale = float(np.exp(fit.x[6]))
     std = scale * float(np.sqrt(max(cov[6, 6], 0.0)))           # d s = s d(log s)
     if not std <= _MAX_RELATIVE_STD * scale:
