@@ -13,13 +13,14 @@ import numpy as np
 from ..errors import HandEyeError
 from . import dualquat
 from .approximate import dq2ndord, dq2steps, dqconvrlx
+from .classical import CLASSICAL
 from .daniilidis import daniilidis
 from .optimal import dqitr, dqopt
 from .problem import Prior, Problem, build_problem, eigh, pair_blocks, problem_from_blocks, validate_motions
 
 __all__ = ["METHODS", "Prior", "Problem", "Solution", "build_problem", "solve", "dq_cost"]
 
-METHODS = ("dqopt", "dq2steps", "dqconvrlx", "dq2ndord", "dqitr", "daniilidis")
+METHODS = ("dqopt", "dq2steps", "dqconvrlx", "dq2ndord", "dqitr", "daniilidis", *CLASSICAL)
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,6 +124,9 @@ def solve(motions_a: np.ndarray, motions_b: np.ndarray, method: str = "dqopt", a
         return Solution(dualquat.to_transform(r.q, r.qd), problem.cost(r.q, r.qd), lam=r.lam, mu=r.mu,
                         iterations=r.iterations, converged=r.converged,
                         details={"singular_m": r.singular_m}, **common)
+    if method in CLASSICAL:
+        X = CLASSICAL[method](A, B, w)
+        return Solution(X, problem.cost(*dualquat.from_transforms(X)), **common)
     if method == "daniilidis":
         q, qd = daniilidis(E, F, alpha=alpha, weights=w)
         return Solution(dualquat.to_transform(q, qd), problem.cost(q, qd), **common)
