@@ -37,10 +37,12 @@ def cli(debug: bool) -> None:
 
 def _register() -> None:
     from .calibrate import calibrate
+    from .compare import compare
     from .inspect import inspect
+    from .rig import rig
     from .solve import solve
 
-    for command in (calibrate, solve, inspect):
+    for command in (calibrate, solve, inspect, rig, compare):
         cli.add_command(command)
 
 

@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import load_config
 from ..errors import ConfigError, DataError
+from ..options import Options
 from ..streams import PoseStream
 from .graph import consistency, loop_closures, synchronise
 from .joint import JointProblem, bootstrap_rig, refine
@@ -37,19 +37,17 @@ class RigOptions:
     time_offsets: per stream name, seconds its clock is ahead of the reference's, or ``'auto'``
         (the default for every stream not named).
     invert: names of streams recorded as ``T_sensor_world`` (inverted before use).
-    bootstrap: replicates of the block bootstrap (0: none); block_s: block length [s].
-    max_time_offset: bound [s] on estimated offsets (None: any).
-    config: the settings of each pairwise calibration (sync, gates, pairs, solver), as
-        :func:`handeye_cli.config.load_config` returns; default: the defaults.
+    block_s: block length [s] of the bootstrap.
+    options: the settings of every pairwise calibration (time source, sync, gates, pairs, solver)
+        and of the rig's own analysis (``bootstrap`` replicates, ``max_time_offset``, ``seed``);
+        the single-pair keys (``time_offset``, ``invert_a/b``, ``name_a/b``, ``prior``) are not used.
     """
 
     reference: str | None = None
     time_offsets: Mapping[str, float | str] = field(default_factory=dict)
     invert: tuple[str, ...] = ()
-    bootstrap: int = 0
     block_s: float = 2.0
-    max_time_offset: float | None = None
-    config: dict | None = None
+    options: Options = field(default_factory=Options)
 
 
 def _check(names: list[str], options: RigOptions) -> int:
@@ -61,6 +59,8 @@ def _check(names: list[str], options: RigOptions) -> int:
         unknown = sorted(set(given) - set(names))
         if unknown:
             raise ConfigError(f"unknown stream {unknown[0]!r}", what, f"use one of {', '.join(names)}")
+    if not options.block_s > 0:
+        raise ConfigError(f"bad block length {options.block_s!r}", "--block", "give a number of seconds > 0")
     if options.reference is not None and options.reference not in names:
         raise ConfigError(f"unknown reference {options.reference!r}", "--reference", f"use one of {', '.join(names)}")
     return 0 if options.reference is None else names.index(options.reference)
@@ -83,11 +83,11 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
     opts = options or RigOptions()
     names = list(streams)
     ref = _check(names, opts)
-    cfg = opts.config or load_config()
+    cfg = opts.options
     inverted = [name in opts.invert for name in names]
     used = [s.inverted() if inv else s for s, inv in zip(streams.values(), inverted, strict=True)]
     offsets = clock_offsets(used, ref, {names.index(k): v for k, v in opts.time_offsets.items()},
-                            opts.max_time_offset)
+                            cfg.sync.max_time_offset)
     edges, warnings = solve_edges(used, names, offsets, cfg)
     warnings = [f"{names[k]}: time offset: {w}" for k, o in enumerate(offsets) for w in o.warnings] + warnings
     if not edges:
@@ -107,11 +107,11 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
                         f"loop closures improve from {cons.score:.4g} to {cons.without[cons.suspect]:.4g} "
                         "(rad + α·m); check its topic, time offset, inversion and mounting")
     unc = None
-    if opts.bootstrap > 0:
-        unc = bootstrap_rig(problem, T, _motions(edges, offsets), alpha, opts.bootstrap, block_s=opts.block_s,
-                            seed=int(cfg["pairs"]["seed"]))
-    settings = {"reference": names[ref], "bootstrap": opts.bootstrap, "block_seconds": opts.block_s,
-                "pairwise": cfg}
+    if cfg.analysis.bootstrap > 0:
+        unc = bootstrap_rig(problem, T, _motions(edges, offsets), alpha, cfg.analysis.bootstrap,
+                            block_s=opts.block_s, seed=cfg.pairs.seed)
+    settings = {"reference": names[ref], "time_offsets": dict(opts.time_offsets), "invert": list(opts.invert),
+                "block_seconds": opts.block_s, "options": cfg.flat()}
     return RigResult(names, ref, used, inverted, offsets, edges, problem, T0, T, closures, joint, cons, unc,
                      warnings, dict(inputs or {}), settings)
 
@@ -120,7 +120,7 @@ def calibrate_rig_files(log: str | None, specs: list[StreamSpec], options: RigOp
                         quiet: bool = True) -> RigResult:
     """Read the streams (:func:`read_rig`) and :func:`calibrate_rig`."""
     opts = options or RigOptions()
-    cfg = opts.config or load_config()
-    streams = read_rig(log, specs, time_source=cfg["time_source"], quiet=quiet)
-    inputs = {"log": log, "streams": {s.name: s.describe() for s in specs}, "time_source": cfg["time_source"]}
+    read = opts.options.read
+    streams = read_rig(log, specs, time_source=read.time_source, columns=read.csv_columns, quiet=quiet)
+    inputs = {"log": log, "streams": {s.name: s.describe() for s in specs}, "time_source": read.time_source}
     return calibrate_rig(streams, opts, inputs=inputs)

@@ -6,7 +6,8 @@ frame (``T_ref_ref = I``), consistent by construction: ``T_j_k = T_ref_j⁻¹ T_
 
 * Rotation averaging, chordal L2 (spectral): with ``V_k = R_kᵀ`` stacked (3n x 3), consistent
   data give the block matrix ``H_jk = R_j_k = V_j V_kᵀ``, so ``H V = D V`` (D: the weighted
-  degrees); the top three generalised eigenvectors of ``(H, D)`` span V, each block is projected onto SO(3) and the gauge fixed by the reference.
+  degrees); the top three generalised eigenvectors of ``(H, D)`` span V, each block is
+  projected onto SO(3) and the gauge fixed by the reference.
 * Translations: linear least squares of ``t_k - t_j = R_j t_j_k`` with ``t_ref = 0``.
 * Loop closures: for every triangle j < k < l the error of ``T_j_k T_k_l T_j_l⁻¹`` (identity when
   consistent): rotation [deg], translation [m].

@@ -9,7 +9,6 @@ from k to j) and its motion pairs ``A_i X = X B_i``.
 """
 from __future__ import annotations
 
-import copy
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -17,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ConfigError, HandEyeError
+from ..options import Options
 from ..pipeline import Calibration, calibrate
 from ..solvers import build_problem
 from ..streams import PoseStream
@@ -67,7 +67,7 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
                   max_offset_s: float | None = None) -> list[ClockOffset]:
     """Each stream's clock offset to the reference: ``given[k]`` seconds, or estimated (``'auto'``,
     the default) from the angular velocities of stream k and the reference."""
-    from ..stages.timeoffset import estimate_time_offset   # scipy.signal: import only when used
+    from ..stages.timeoffset import estimate_time_offset  # scipy.signal: import only when used
 
     out = []
     for k, stream in enumerate(streams):
@@ -86,12 +86,11 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
     return out
 
 
-def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset], config: dict) -> Edge:
-    cfg = copy.deepcopy(config)
-    cfg["sync"]["time_offset"] = (offsets[k].offset_ns - offsets[j].offset_ns) / 1e9
-    cfg["analysis"]["bootstrap"] = 0        # the rig's bootstrap resamples all pairs at once
-    cfg["solver"]["prior"] = None            # a prior is of one T_a_b, not of every pair
-    cal = calibrate(streams[j], streams[k], cfg)
+def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset], options: Options) -> Edge:
+    # the rig's bootstrap resamples all pairs at once; a prior is of one T_a_b, not of every pair
+    opts = Options.from_flat(options, time_offset=(offsets[k].offset_ns - offsets[j].offset_ns) / 1e9,
+                             bootstrap=0, prior=None)
+    cal = calibrate(streams[j], streams[k], opts)
     A, B = cal.pairs.A, cal.pairs.B
     form = build_problem(A, B, cal.solution.alpha, weights=cal.weights).form
     used = len(A) if cal.weights is None else int(np.count_nonzero(cal.weights))
@@ -99,15 +98,15 @@ def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset],
 
 
 def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[ClockOffset],
-                config: dict) -> tuple[list[Edge], list[str]]:
-    """Calibrate every pair ``j < k`` with ``config`` (as :func:`handeye_cli.config.load_config`
-    returns); a pair that cannot be calibrated is left out with a warning. Returns the edges and
+                options: Options) -> tuple[list[Edge], list[str]]:
+    """Calibrate every pair ``j < k`` with ``options`` (sync, gates, pairs, solver; the time offset
+    is the pair's, from ``offsets``); a pair that cannot be calibrated is left out with a warning. Returns the edges and
     the warnings (each pair's own warnings prefixed with its names)."""
     edges, warnings = [], []
     for j in range(len(streams)):
         for k in range(j + 1, len(streams)):
             try:
-                edge = _edge(streams, j, k, offsets, config)
+                edge = _edge(streams, j, k, offsets, options)
             except HandEyeError as e:
                 warnings.append(f"pair {names[j]}-{names[k]} left out: {e}")
                 continue

@@ -10,6 +10,7 @@ Each stream is ``T_frame_child(t)``: int64 ns stamps, positions [m], quaternions
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -55,7 +56,7 @@ def parse_stream(text: str) -> StreamSpec:
 
 
 def read_rig(log: str | None, specs: list[StreamSpec], *, time_source: str = "header",
-             quiet: bool = True) -> dict[str, PoseStream]:
+             columns: Mapping[str, str] | None = None, quiet: bool = True) -> dict[str, PoseStream]:
     """Read every stream, in the order of ``specs``: all topics and TF chains of ``log`` in a
     single pass (:func:`handeye_cli.io.read_log_streams`), separate files one by one."""
     in_log = [s for s in specs if s.path is None]
@@ -68,5 +69,6 @@ def read_rig(log: str | None, specs: list[StreamSpec], *, time_source: str = "he
         streams.update(zip((s.name for s in in_log), read, strict=True))
     for s in specs:
         if s.path is not None:
-            streams[s.name] = read_stream(s.path, time_source=time_source, quiet=quiet)
+            streams[s.name] = read_stream(s.path, time_source=time_source, columns=dict(columns) if columns else None,
+                                         quiet=quiet)
     return {s.name: streams[s.name] for s in specs}

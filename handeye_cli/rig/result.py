@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from .. import __version__, se3
 from ..analysis import extrinsic_error, pair_residuals
+from ..output.document import plain
 from ..streams import PoseStream
 from .graph import Closure, Consistency
 from .joint import JointProblem, RigUncertainty
@@ -119,4 +120,4 @@ class RigResult:
             "inputs": self.inputs, "settings": self.settings, "version": __version__,
             "warnings": list(self.warnings),
         }
-        return {k: v for k, v in doc.items() if v is not None}
+        return plain({k: v for k, v in doc.items() if v is not None})
