@@ -94,9 +94,9 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
         raise DataError("no pair of streams could be calibrated", ", ".join(names), "see the warnings above")
     pairs = [(e.j, e.k) for e in edges]
     X = np.stack([e.matrix for e in edges])
-    problem = JointProblem(len(names), ref, pairs, np.stack([e.form for e in edges]),
-                           JointProblem.pair_weights(np.array([e.sigma2 for e in edges])))
-    T0 = synchronise(len(names), pairs, X, problem.weights, ref)
+    problem = JointProblem(len(names), ref, pairs, np.stack([e.forms for e in edges]),
+                           JointProblem.pair_weights(np.stack([e.sigma2 for e in edges])))
+    T0 = synchronise(len(names), pairs, X, problem.weights.sum(axis=1), ref)
     T = refine(problem, T0)
     closures = loop_closures(len(names), dict(zip(pairs, X, strict=True)))
     joint = loop_closures(len(names), {p: Xj for p, Xj in zip(pairs, problem.relative(T), strict=True)})

@@ -1,19 +1,22 @@
 """Joint refinement of a rig: minimise the summed pairwise dual-quaternion costs over all ``T_ref_k``.
 
 Each calibrated pair (j, k) contributes its cost (8) — exactly quadratic in the dual quaternion
-``[q'; q]`` of ``T_j_k`` — through its 8x8 matrix ``Q_jk`` (eq 9, with its α and per-pair
-weights), scaled by the pair weight ``ω_jk``::
+``[q'; q]`` of ``T_j_k`` — as two 8x8 matrices (eq 9 split by its rows, with the pair's α and
+per-pair weights): ``Q_jk,rot`` of the rotational rows ``E_i q`` and ``Q_jk,dual`` of the dual rows
+``α (F_i q + E_i q')``, each scaled by its own weight::
 
-    J(T_ref_1 … T_ref_n) = Σ_jk ω_jk [q'; q]ᵀ Q_jk [q'; q],   with (q, q') of T_ref_j⁻¹ T_ref_k
+    J(T_ref_1 … T_ref_n) = Σ_jk Σ_p ω_jk,p [q'; q]ᵀ Q_jk,p [q'; q],   (q, q') of T_ref_j⁻¹ T_ref_k
 
 so the result is consistent by construction and every pair's data count, not only the
-reference's. ``ω_jk = σ²_min / σ²_jk`` with ``σ²_jk`` the pair's cost per degree of freedom at its
-own optimum: a noisy pair (or one with a bad stream) counts less. The unknowns are right
+reference's. The noise model: ``ω_jk,p = 1 / σ²_jk,p`` (rescaled so the largest is 1) with
+``σ²_jk,p`` the part's cost per degree of freedom at the pair's own optimum, so a noisy pair (or
+one with a bad stream) counts less, and each pair's rotation and translation are weighed by
+their own noise levels rather than by one α. The unknowns are right
 perturbations ``T_ref_k Exp(δ_k)`` (rotation vector [rad], translation [m]) of every non-reference
 sensor, solved by Levenberg–Marquardt from the graph synchronisation's estimate.
 
 :func:`bootstrap_rig` resamples time blocks shared by all pairs (a block's count multiplies
-every motion pair that starts in it), re-forms each pair's ``Q_jk`` and re-solves.
+every motion pair that starts in it), re-forms each pair's matrices and re-solves.
 """
 from __future__ import annotations
 
@@ -25,19 +28,37 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from .. import se3
-from ..analysis.bootstrap import replicate_grams
 from ..solvers import dualquat as dq
+from ..solvers.problem import pair_blocks
 
-__all__ = ["JointProblem", "refine", "bootstrap_rig", "RigUncertainty"]
+__all__ = ["JointProblem", "refine", "bootstrap_rig", "RigUncertainty", "split_forms", "part_costs"]
 
 Array = NDArray[np.float64]
 _SIGMA2_FLOOR = 1e-30
 
 
+def split_forms(A: Array, B: Array, counts: Array, alpha: float) -> Array:
+    """The rotational and dual 8x8 cost matrices (``[q'; q]`` order) of motion pairs ``A_i X = X B_i``
+    (N, 4, 4) weighted by each row of ``counts`` (R, N): (R, 2, 8, 8), the dual part scaled by α²."""
+    E, F = pair_blocks(A, B)
+    rot = np.zeros((len(E), 8, 8))
+    rot[:, 4:, 4:] = np.einsum("nki,nkj->nij", E, E)
+    EF = np.concatenate((E, F), axis=2)                       # rows E q' + F q on [q'; q]
+    grams = np.stack((rot, alpha ** 2 * np.einsum("nki,nkj->nij", EF, EF)), axis=1).reshape(len(E), -1)
+    return (np.asarray(counts, dtype=float) @ grams).reshape(-1, 2, 8, 8)
+
+
+def part_costs(forms: Array, T: Array) -> Array:
+    """``[q'; q]ᵀ Q_p [q'; q]`` of transforms T (E, 4, 4) for forms (E, 2, 8, 8): (E, 2)."""
+    q, qd = dq.from_transforms(T)
+    v = np.concatenate((qd, q), axis=1)
+    return np.einsum("ei,epij,ej->ep", v, forms, v)
+
+
 @dataclass(frozen=True, eq=False)
 class JointProblem:
-    """The summed pairwise costs: ``pairs`` (E edges (j, k)), ``forms`` (E, 8, 8) in ``[q'; q]``
-    order, ``weights`` ω (E,), ``reference`` index and ``n`` sensors."""
+    """The summed pairwise costs: ``pairs`` (E edges (j, k)), ``forms`` (E, 2, 8, 8) (rotational,
+    dual; ``[q'; q]`` order), ``weights`` ω (E, 2), ``reference`` index and ``n`` sensors."""
 
     n: int
     reference: int
@@ -47,7 +68,7 @@ class JointProblem:
 
     @staticmethod
     def pair_weights(sigma2: Array) -> Array:
-        """``ω = σ²_min / σ²`` (largest weight 1), with σ² floored for noise-free pairs."""
+        """``ω = σ²_min / σ²`` (E, 2) (largest weight 1), with σ² floored for noise-free pairs."""
         s = np.maximum(np.asarray(sigma2, dtype=float), _SIGMA2_FLOOR)
         return s.min() / s
 
@@ -57,21 +78,18 @@ class JointProblem:
         return se3.inverse(T[j]) @ T[k]
 
     def edge_costs(self, T: Array) -> Array:
-        """Each pair's cost (8) (unweighted by ω) at the rig ``T`` (n, 4, 4)."""
-        q, qd = dq.from_transforms(self.relative(T))
-        v = np.concatenate((qd, q), axis=1)
-        return np.einsum("ei,eij,ej->e", v, self.forms, v)
+        """Each pair's cost (8) at its α (unweighted by ω) at the rig ``T`` (n, 4, 4)."""
+        return part_costs(self.forms, self.relative(T)).sum(axis=1)
 
     def cost(self, T: Array) -> float:
-        """J: the ω-weighted sum of the pair costs."""
-        return float(self.weights @ self.edge_costs(T))
+        """J: the ω-weighted sum of the pairs' rotational and dual costs."""
+        return float(np.sum(self.weights * part_costs(self.forms, self.relative(T))))
 
 
 def _factors(forms: Array, weights: Array) -> Array:
-    """``√ω K`` with ``KᵀK = Q`` per edge (E, 8, 8), so that J is a sum of squares."""
-    lam, V = np.linalg.eigh(forms)
-    K = np.sqrt(np.clip(lam, 0.0, None))[:, :, None] * np.swapaxes(V, 1, 2)
-    return np.sqrt(weights)[:, None, None] * K
+    """``K`` with ``KᵀK = Σ_p ω_p Q_p`` per edge (E, 8, 8), so that J is a sum of squares."""
+    lam, V = np.linalg.eigh(np.einsum("ep,epij->eij", weights, forms))
+    return np.sqrt(np.clip(lam, 0.0, None))[:, :, None] * np.swapaxes(V, 1, 2)
 
 
 def _perturbed(T0: Array, free: Array, p: Array) -> Array:
@@ -123,10 +141,10 @@ def bootstrap_rig(problem: JointProblem, T_hat: Array, motions: list[tuple[Array
     n_blocks = int(max(b.max() for b in blocks)) + 1
     rng = np.random.default_rng(seed)
     counts = rng.multinomial(n_blocks, np.full(n_blocks, 1.0 / n_blocks), size=replicates).astype(float)
-    grams = [replicate_grams(A, B, counts[:, b] * w, alpha) for (A, B, _, w), b in zip(motions, blocks, strict=True)]
+    forms = [split_forms(A, B, counts[:, b] * w, alpha) for (A, B, _, w), b in zip(motions, blocks, strict=True)]
     rot, trans = np.zeros((replicates, problem.n, 3)), np.zeros((replicates, problem.n, 3))
     for r in range(replicates):
-        rep = JointProblem(problem.n, problem.reference, problem.pairs, np.stack([g[r] for g in grams]),
+        rep = JointProblem(problem.n, problem.reference, problem.pairs, np.stack([f[r] for f in forms]),
                            problem.weights)
         T = refine(rep, T_hat)
         rot[r] = Rotation.from_matrix(T[:, :3, :3] @ np.swapaxes(T_hat[:, :3, :3], 1, 2)).as_rotvec(degrees=True)

@@ -18,8 +18,8 @@ from numpy.typing import NDArray
 from ..errors import ConfigError, HandEyeError
 from ..options import Options
 from ..pipeline import Calibration, calibrate
-from ..solvers import build_problem
 from ..streams import PoseStream
+from .joint import part_costs, split_forms
 
 __all__ = ["ClockOffset", "Edge", "clock_offsets", "solve_edges"]
 
@@ -46,16 +46,16 @@ class Edge:
     """The pairwise-only result of streams ``j < k`` (indices into the rig's stream list).
 
     calibration: what :func:`~handeye_cli.pipeline.calibrate` returned (``matrix`` = ``T_j_k``).
-    form: the 8x8 dual-quaternion cost matrix (eq 9, ``[q'; q]`` order) of its pairs at its α
-    and per-pair weights: the pair's cost of any ``T_j_k`` is ``[q'; q]ᵀ form [q'; q]``.
-    sigma2: cost per degree of freedom at the pairwise optimum (the pair's noise level).
+    forms: (2, 8, 8) the rotational and dual parts of its cost (8) (``[q'; q]`` order, its α and
+    per-pair weights): the pair's cost of any ``T_j_k`` is ``Σ_p [q'; q]ᵀ forms[p] [q'; q]``.
+    sigma2: (2,) each part's cost per degree of freedom at the pairwise optimum (noise levels).
     """
 
     j: int
     k: int
     calibration: Calibration
-    form: NDArray[np.float64]
-    sigma2: float
+    forms: NDArray[np.float64]
+    sigma2: NDArray[np.float64]
 
     @property
     def matrix(self) -> NDArray[np.float64]:
@@ -91,10 +91,10 @@ def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset],
     opts = Options.from_flat(options, time_offset=(offsets[k].offset_ns - offsets[j].offset_ns) / 1e9,
                              bootstrap=0, prior=None)
     cal = calibrate(streams[j], streams[k], opts)
-    A, B = cal.pairs.A, cal.pairs.B
-    form = build_problem(A, B, cal.solution.alpha, weights=cal.weights).form
-    used = len(A) if cal.weights is None else int(np.count_nonzero(cal.weights))
-    return Edge(j, k, cal, form, cal.solution.cost / max(used - 6, 1))
+    A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
+    forms = split_forms(A, B, np.ones((1, len(A))) if w is None else w[None], cal.solution.alpha)[0]
+    used = len(A) if w is None else int(np.count_nonzero(w))
+    return Edge(j, k, cal, forms, part_costs(forms[None], cal.matrix[None])[0] / max(used - 3, 1))
 
 
 def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[ClockOffset],

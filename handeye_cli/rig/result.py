@@ -70,7 +70,7 @@ class RigResult:
         i, j = self.names.index(parent), self.names.index(child)
         return se3.inverse(self.matrices[i]) @ self.matrices[j]
 
-    def _pair(self, edge: Edge, weight: float) -> dict:
+    def _pair(self, edge: Edge, weight: Array) -> dict:
         names, A, B = self.names, edge.calibration.pairs.A, edge.calibration.pairs.B
         joint = self.T(names[edge.j], names[edge.k])
         mask = None if edge.calibration.weights is None else edge.calibration.weights > 0
@@ -78,7 +78,7 @@ class RigResult:
         return {**transform_entry(names[edge.j], names[edge.k], joint),
                 "pairwise_only": transform_entry(names[edge.j], names[edge.k], edge.matrix),
                 "difference": {"rotation_deg": rot, "translation_m": trans},
-                "pairs_used": len(A), "weight": weight,
+                "pairs_used": len(A), "weights": {"rotation": weight[0], "translation": weight[1]},
                 "residuals": {"joint": pair_residuals(A, B, joint).summary(mask).as_dict(),
                               "pairwise_only": pair_residuals(A, B, edge.matrix).summary(mask).as_dict()}}
 
@@ -108,7 +108,7 @@ class RigResult:
             "method": "pairwise dqopt, graph synchronisation, joint refinement of the summed pairwise costs",
             "alpha": self.edges[0].calibration.solution.alpha if self.edges else None,
             "cost": self.problem.cost(self.matrices),
-            "pairwise": [self._pair(e, float(w)) for e, w in zip(self.edges, self.problem.weights, strict=True)],
+            "pairwise": [self._pair(e, w) for e, w in zip(self.edges, self.problem.weights, strict=True)],
             "loop_closures": {
                 "pairwise_only": [_closure(cl, names) for cl in self.closures],
                 "joint_max": {"rotation_deg": max((cl.rotation_deg for cl in self.joint_closures), default=0.0),
