@@ -4,6 +4,7 @@ the bootstrap and the graph synchronisation."""
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -113,14 +114,17 @@ def _chain_errors(res, truth: list[np.ndarray], k: int) -> dict[tuple[int, ...],
 
 
 def test_joint_at_least_as_accurate_as_best_pairwise_chain() -> None:
-    """Over several simulated rigs, the joint estimate's RMS error per sensor is no larger than that
-    of the best pairwise chain (the chain of pairwise-only results from the reference with the
-    smallest RMS error). Error: rotation [rad] + α · translation [m] with the cost's α = 1/m."""
+    """Over several simulated rigs whose sensors lose tracking at different times (cam0 2–9 s,
+    cam1 9–15 s, lidar 15–21 s of 30 s), the joint estimate's RMS error per sensor is no larger
+    than that of the best pairwise chain (the chain of pairwise-only results from the reference
+    with the smallest RMS error). Error: rotation [rad] + α · translation [m] with the cost's α = 1/m.
+    (Without gaps the chains are nearly as good: benchmarks/rig.py prints both cases.)"""
     joint, chains = {}, {}
-    for seed in range(8):
+    gaps = (((2.0, 9.0),), ((9.0, 15.0),), ((15.0, 21.0),), ())
+    for seed in range(6):
         T = _mounts(seed)
-        res = calibrate_rig(simulate_streams(_sensors(T, drift=False), duration_s=20, seed=seed),
-                            RigOptions(time_offsets=KNOWN_OFFSETS))
+        sensors = [replace(s, gaps=g) for s, g in zip(_sensors(T, drift=False), gaps, strict=True)]
+        res = calibrate_rig(simulate_streams(sensors, duration_s=30, seed=seed), RigOptions(time_offsets=KNOWN_OFFSETS))
         for k in range(1, 4):
             joint.setdefault(k, []).append(_combined(pose_error(res.matrices[k], T[k])))
             for path, err in _chain_errors(res, T, k).items():

@@ -4,7 +4,8 @@ Every sensor k is rigidly mounted at ``T_ref_k`` (pose of k in the reference sen
 points from k to ref) and tracked in its own world: ``T_wk_k(t) = D_k(t) G_k T_w_ref(t) T_ref_k``
 with a random world offset ``G_k``, an odometry drift ``D_k(t) = Exp(t ξ_k)`` (a constant twist
 [rad/s, m/s] in the world), its own rate [Hz] with timing jitter, pose noise (σr [rad], σt [m],
-eq 38), and a clock ``time_offset_ns`` ahead of the reference's. Two deliberate faults make a
+eq 38), a clock ``time_offset_ns`` ahead of the reference's, and ``gaps`` (time windows [s]
+without samples: tracking lost). Two deliberate faults make a
 stream "bad": ``scale`` (translations scaled, e.g. monocular VO) and ``wobble_deg`` (the mount is
 not rigid: the extrinsic rotates by a slow sinusoid of that amplitude). Quaternions x-y-z-w.
 """
@@ -27,8 +28,8 @@ START_NS = 1_700_000_000_000_000_000
 @dataclass(frozen=True, eq=False)
 class SimSensor:
     """One simulated pose source: ``T_ref_k`` (4x4), rate [Hz], noise σr [rad] / σt [m], clock
-    offset [ns] (its clock ahead of the reference's), drift twist (6,) [rad/s (3), m/s (3)], and
-    the faults ``scale`` and ``wobble_deg``."""
+    offset [ns] (its clock ahead of the reference's), drift twist (6,) [rad/s (3), m/s (3)], the
+    faults ``scale`` and ``wobble_deg``, and ``gaps`` ((start, end) [s] without samples)."""
 
     name: str
     T_ref_k: NDArray[np.float64]
@@ -39,6 +40,7 @@ class SimSensor:
     drift: tuple[float, ...] = (0.0,) * 6
     scale: float = 1.0
     wobble_deg: float = 0.0
+    gaps: tuple[tuple[float, float], ...] = ()
 
 
 def _stamps(rate: float, duration_s: float, rng: np.random.Generator) -> NDArray[np.float64]:
@@ -72,6 +74,8 @@ def simulate_streams(sensors: list[SimSensor], *, duration_s: float = 60.0, seed
     out = {}
     for k, sensor in enumerate(sensors):
         t = _stamps(sensor.rate_hz, duration_s, rng)
+        for start, end in sensor.gaps:
+            t = t[(t < start) | (t >= end)]
         G = np.eye(4) if k == 0 else random_transform(rng, 5.0)
         T_w_ref = _smooth_trajectory(speed * t, "3d", np.random.default_rng(traj_seed))
         T = _drift(t, sensor.drift) @ G @ T_w_ref @ _mount(sensor, t)
