@@ -59,6 +59,9 @@ def read_rig(log: str | None, specs: list[StreamSpec], *, time_source: str = "he
              columns: Mapping[str, str] | None = None, quiet: bool = True) -> dict[str, PoseStream]:
     """Read every stream, in the order of ``specs``: all topics and TF chains of ``log`` in a
     single pass (:func:`handeye_cli.io.read_log_streams`), separate files one by one."""
+    names = [s.name for s in specs]
+    if len(set(names)) != len(names):
+        raise ConfigError("stream names repeat", ", ".join(names), "give every --stream a different NAME")
     in_log = [s for s in specs if s.path is None]
     if in_log and log is None:
         raise ConfigError(f"stream {in_log[0].name} names a topic or TF chain but no log is given", "handeye rig",
