@@ -20,8 +20,8 @@ from ..errors import ConfigError, DataError
 from ..options import Options
 from ..streams import PoseStream
 from .graph import consistency, loop_closures, synchronise
-from .joint import JointProblem, bootstrap_rig, refine
-from .pairwise import clock_offsets, solve_edges
+from .joint import JointProblem, Motions, bootstrap_rig, refine
+from .pairwise import ClockOffset, Edge, clock_offsets, solve_edges
 from .read import StreamSpec, parse_stream, read_rig
 from .result import RigResult, transform_entry
 
@@ -66,10 +66,10 @@ def _check(names: list[str], options: RigOptions) -> int:
     return 0 if options.reference is None else names.index(options.reference)
 
 
-def _motions(result_edges: list, offsets: list) -> list:
+def _motions(edges: list[Edge], offsets: list[ClockOffset]) -> list[Motions]:
     """Per edge: motions, their start stamps in the reference's clock [ns], and pair weights."""
-    out = []
-    for e in result_edges:
+    out: list[Motions] = []
+    for e in edges:
         p, w = e.calibration.pairs, e.calibration.weights
         out.append((p.A, p.B, p.t_i_ns - offsets[e.j].offset_ns, np.ones(len(p)) if w is None else w))
     return out

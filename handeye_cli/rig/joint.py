@@ -31,9 +31,10 @@ from .. import se3
 from ..solvers import dualquat as dq
 from ..solvers.problem import pair_blocks
 
-__all__ = ["JointProblem", "refine", "bootstrap_rig", "RigUncertainty", "split_forms", "part_costs"]
+__all__ = ["Motions", "JointProblem", "refine", "bootstrap_rig", "RigUncertainty", "split_forms", "part_costs"]
 
 Array = NDArray[np.float64]
+Motions = tuple[Array, Array, Array, Array]   # motions A, B (N, 4, 4); start stamps [ns] (N,); pair weights (N,)
 _SIGMA2_FLOOR = 1e-30
 
 
@@ -127,7 +128,7 @@ class RigUncertainty:
     seed: int
 
 
-def bootstrap_rig(problem: JointProblem, T_hat: Array, motions: list[tuple[Array, Array, Array, Array]],
+def bootstrap_rig(problem: JointProblem, T_hat: Array, motions: list[Motions],
                   alpha: float, replicates: int, *, block_s: float = 2.0, seed: int = 0) -> RigUncertainty:
     """Block bootstrap of the joint estimate ``T_hat`` (n, 4, 4).
 

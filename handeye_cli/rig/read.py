@@ -67,7 +67,7 @@ def read_rig(log: str | None, specs: list[StreamSpec], *, time_source: str = "he
         raise ConfigError(f"stream {in_log[0].name} names a topic or TF chain but no log is given", "handeye rig",
                           "pass the log as the first argument: handeye rig LOG --stream …")
     streams: dict[str, PoseStream] = {}
-    if in_log:
+    if in_log and log is not None:
         read = read_log_streams(log, [(s.topic, s.frames) for s in in_log], time_source=time_source, quiet=quiet)
         streams.update(zip((s.name for s in in_log), read, strict=True))
     for s in specs:

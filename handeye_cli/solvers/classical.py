@@ -53,7 +53,8 @@ def _weighted_lstsq(M: Array, y: Array, w: Array) -> Array:
     each pair's rows scaled by ``√w``."""
     s = np.sqrt(w)
     c = M.shape[-1]
-    return np.linalg.lstsq((M * s[:, None, None]).reshape(-1, c), (y * s[:, None]).reshape(-1), rcond=None)[0]
+    x = np.linalg.lstsq((M * s[:, None, None]).reshape(-1, c), (y * s[:, None]).reshape(-1), rcond=None)[0]
+    return np.asarray(x, dtype=np.float64)
 
 
 def _translation(A: Array, B: Array, R: Array, w: Array) -> Array:
@@ -77,7 +78,7 @@ def tsai(A: Array, B: Array, w: Array) -> Array:
     pa, pb = 2.0 * _unit_quaternions(A)[:, :3], 2.0 * _unit_quaternions(B)[:, :3]
     p_ = _weighted_lstsq(_skew(pa + pb), pb - pa, w)
     half = p_ / np.sqrt(1.0 + p_ @ p_)              # p_X / 2 = sin(θ/2) n: the quaternion's vector part
-    R = Rotation.from_quat(np.r_[half, np.sqrt(max(1.0 - half @ half, 0.0))]).as_matrix()
+    R = Rotation.from_quat(np.r_[half, np.sqrt(max(1.0 - float(half @ half), 0.0))]).as_matrix()
     return _transform(R, _translation(A, B, R, w))
 
 
