@@ -33,7 +33,7 @@ from .analysis.diagnosis import data_warning, too_few_pairs
 from .config import load_options
 from .errors import ConfigError
 from .io.pairfile import read_extrinsic
-from .options import Options
+from .options import Options, ReadOptions
 from .output.document import result_document
 from .solvers import Prior, Solution, solve
 from .stages.counts import SampleCounts
@@ -110,7 +110,9 @@ class Calibration:
         """(K, 6) bootstrap deviations of X: rotation vector [deg] (3), translation [m] (3)."""
         if self.bootstrap is None:
             return None
-        return np.c_[self.bootstrap.rotation_deltas_deg, self.bootstrap.translations_m - self.matrix[:3, 3]]
+        deviations: np.ndarray = np.c_[self.bootstrap.rotation_deltas_deg,
+                                       self.bootstrap.translations_m - self.matrix[:3, 3]]
+        return deviations
 
     def with_origin(self, config_file: str | Path | None, preset: str | None) -> Calibration:
         """The same calibration, recording the config file and preset its options came from."""
@@ -143,21 +145,31 @@ def _spec(source: Source, topic: str | None, frames: tuple[str, str] | None) -> 
                       "give a file path, a StreamSpec or a PoseStream")
 
 
-def read_streams(spec_a: StreamSpec, spec_b: StreamSpec, options: Options | None = None, *,
-                 quiet: bool = True) -> tuple[PoseStream, PoseStream]:
-    """Read streams a and b (``T_world_sensor``), inverted where the options say so."""
-    from .io import detect_format, read_log_streams, read_stream  # mcap/rosbags: import only when reading
+def read_streams(spec_a: StreamSpec | PoseStream, spec_b: StreamSpec | PoseStream, options: Options | None = None,
+                 *, quiet: bool = True) -> tuple[PoseStream, PoseStream]:
+    """Streams a and b (``T_world_sensor``) from their specs — two streams of one log are read
+    in one pass; a PoseStream is taken as it is — inverted where the options say so."""
+    from .io import detect_format, read_log_streams  # mcap/rosbags: import only when reading
     from .io.detect import LOG_FORMATS
 
     read = (options or Options()).read
-    if spec_a.path == spec_b.path and spec_a.path != "-" and detect_format(spec_a.path) in LOG_FORMATS:
+    if (isinstance(spec_a, StreamSpec) and isinstance(spec_b, StreamSpec) and spec_a.path == spec_b.path
+            and spec_a.path != "-" and detect_format(spec_a.path) in LOG_FORMATS):
         a, b = read_log_streams(spec_a.path, [(spec_a.topic, spec_a.frames), (spec_b.topic, spec_b.frames)],
                                 time_source=read.time_source, quiet=quiet)
     else:
-        columns = dict(read.csv_columns) if read.csv_columns else None
-        a, b = (read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=read.time_source,
-                            columns=columns, quiet=quiet) for spec in (spec_a, spec_b))
+        a, b = _read_one(spec_a, read, quiet), _read_one(spec_b, read, quiet)
     return (a.inverted() if read.invert_a else a), (b.inverted() if read.invert_b else b)
+
+
+def _read_one(spec: StreamSpec | PoseStream, read: ReadOptions, quiet: bool) -> PoseStream:
+    if isinstance(spec, PoseStream):
+        return spec
+    from .io import read_stream
+
+    columns = dict(read.csv_columns) if read.csv_columns else None
+    return read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=read.time_source,
+                       columns=columns, quiet=quiet)
 
 
 def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, dict[str, Any], list[str]]:
@@ -267,28 +279,13 @@ def calibrate_files(a: Source, b: Source | None = None, *, topic_a: str | None =
     """
     opts = load_options(config_file, preset, base=options, **overrides)
     spec_a, spec_b = _spec(a, topic_a, frames_a), _spec(a if b is None else b, topic_b, frames_b)
-    files = [s for s in (spec_a, spec_b) if isinstance(s, StreamSpec)]
-    if len(files) == 2:
-        stream_a, stream_b = read_streams(files[0], files[1], opts, quiet=quiet)    # type: ignore[arg-type]
-    else:
-        stream_a, stream_b = (_read_one(s, opts, quiet) for s in (spec_a, spec_b))
-        stream_a = stream_a.inverted() if opts.read.invert_a else stream_a
-        stream_b = stream_b.inverted() if opts.read.invert_b else stream_b
+    stream_a, stream_b = read_streams(spec_a, spec_b, opts, quiet=quiet)
     inputs: dict[str, Any] = {"a": _describe(spec_a), "b": _describe(spec_b), "time_source": opts.read.time_source}
     for key in ("invert_a", "invert_b"):
         if getattr(opts.read, key):
             inputs[key] = True
     return calibrate(stream_a, stream_b, opts, inputs=inputs).with_origin(config_file, preset)
 
-
-def _read_one(spec: StreamSpec | PoseStream, opts: Options, quiet: bool) -> PoseStream:
-    if isinstance(spec, PoseStream):
-        return spec
-    from .io import read_stream
-
-    columns = dict(opts.read.csv_columns) if opts.read.csv_columns else None
-    return read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=opts.read.time_source,
-                       columns=columns, quiet=quiet)
 
 
 def _describe(spec: StreamSpec | PoseStream) -> dict[str, Any]:

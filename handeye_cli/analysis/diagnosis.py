@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import HandEyeError, TooFewPairsError
+from ..errors import DataError, TooFewPairsError
 from ..solvers import solve
 from .residuals import Residuals, pair_residuals
 
@@ -66,7 +66,7 @@ def data_warning(stream_a: PoseStream, stream_b: PoseStream, res: Residuals, wei
         try:
             _, pairs, alt_samples = pairs_of(a, b)
             alt = pair_residuals(pairs.A, pairs.B, solve(pairs.A, pairs.B).matrix).summary()
-        except HandEyeError:
+        except DataError:
             continue
         better_fit = alt.rotation_median_deg < base.rotation_median_deg / 3
         more_kept = alt_samples.synced_kept > 1.5 * samples.synced_kept

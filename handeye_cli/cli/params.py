@@ -15,7 +15,8 @@ import click
 from ..config import load_options, presets
 from ..options import FIELDS, Options
 
-__all__ = ["apply", "flags", "calibrate_options", "options_from_cli", "OPTION_NAMES", "stream_options", "output_options"]
+__all__ = ["apply", "flags", "calibrate_options", "options_from_cli", "OPTION_NAMES", "stream_options",
+           "output_options"]
 
 F = Callable[..., Any]
 

@@ -1,6 +1,8 @@
 """``handeye solve``: the solver alone, on a file of relative motion pairs."""
 from __future__ import annotations
 
+from typing import Any
+
 import click
 
 from ..config import load_options
@@ -17,7 +19,7 @@ from .params import flags, output_options
 @click.argument("pairs_file", type=click.Path())
 @flags("method", "alpha", "prior", "prior_weights")
 @output_options
-def solve(pairs_file: str, output: str | None, fmt: str | None, **given: str | None) -> None:
+def solve(pairs_file: str, output: str | None, fmt: str | None, **given: Any) -> None:
     """Solve A_i X = X B_i for X = T_a_b from a file of relative motion pairs.
 
     PAIRS_FILE is a CSV with the header

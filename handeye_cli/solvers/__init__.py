@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import HandEyeError
+from ..errors import ConfigError, UnderdeterminedError
 from . import dualquat
 from .approximate import dq2ndord, dq2steps, dqconvrlx
 from .classical import CLASSICAL
@@ -77,7 +77,7 @@ def _check_determined(problem: Problem) -> None:
     ev, _ = eigh(problem.form, vectors=False)
     null = int(np.count_nonzero(ev <= 1e-13 * max(ev[-1], 1e-300)))
     if null >= 3:
-        raise HandEyeError("the motions cannot determine the extrinsic: a family of solutions fits "
+        raise UnderdeterminedError("the motions cannot determine the extrinsic: a family of solutions fits "
                            "them exactly (all motions about one axis, or planar, or too few)",
                            "motions", "add motion about a second rotation axis, or pass a prior "
                            "(--prior FILE) to fix the unobservable directions")
@@ -112,7 +112,7 @@ def solve(motions_a: np.ndarray, motions_b: np.ndarray, method: str = "dqopt", a
         motions cannot determine the extrinsic.
     """
     if method not in METHODS:
-        raise HandEyeError(f"unknown method {method!r}", "method", f"choose one of {', '.join(METHODS)}")
+        raise ConfigError(f"unknown method {method!r}", "method", f"choose one of {', '.join(METHODS)}")
     A, B, w = validate_motions(motions_a, motions_b, weights)
     E, F = pair_blocks(A, B)
     problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)
