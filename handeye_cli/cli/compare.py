@@ -29,7 +29,7 @@ from .params import calibrate_options, options_from_cli, stream_options
 __all__ = ["compare", "compare_methods"]
 
 
-def _row(name: str, X: np.ndarray, cal: Calibration, alpha: float, seconds: float, best: np.ndarray) -> dict:
+def _row(name: str, X: np.ndarray, cal: Calibration, alpha: float, seconds: float, best: np.ndarray) -> dict[str, Any]:
     A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
     res = pair_residuals(A, B, X).summary(None if w is None else w > 0)
     rot, trans = extrinsic_error(X, best)
@@ -40,7 +40,7 @@ def _row(name: str, X: np.ndarray, cal: Calibration, alpha: float, seconds: floa
             "vs_dqopt_deg": rot, "vs_dqopt_m": trans, "milliseconds": 1e3 * seconds}
 
 
-def compare_methods(cal: Calibration) -> list[dict]:
+def compare_methods(cal: Calibration) -> list[dict[str, Any]]:
     """One row per method (see the module docstring) on the pairs and synced poses of ``cal``."""
     A, B, w, alpha = cal.pairs.A, cal.pairs.B, cal.weights, cal.solution.alpha
     solved = {}
@@ -55,7 +55,7 @@ def compare_methods(cal: Calibration) -> list[dict]:
     return [_row(name, X, cal, alpha, sec, best) for name, (X, sec) in solved.items()]
 
 
-def _table(rows: list[dict]) -> str:
+def _table(rows: list[dict[str, Any]]) -> str:
     head = (f"{'method':<20} {'x [m]':>9} {'y [m]':>9} {'z [m]':>9} {'angle [°]':>9} {'cost':>11} "
             f"{'res [°]':>8} {'res [mm]':>8} {'Δ [°]':>8} {'Δ [mm]':>8} {'ms':>8}")
     lines = [head]

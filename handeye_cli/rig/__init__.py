@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -76,7 +77,7 @@ def _motions(edges: list[Edge], offsets: list[ClockOffset]) -> list[Motions]:
 
 
 def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None = None, *,
-                  inputs: dict | None = None) -> RigResult:
+                  inputs: dict[str, Any] | None = None) -> RigResult:
     """Calibrate every ``T_ref_k`` of a rig from its pose streams ``{name: T_wk_k(t)}`` (in order;
     the first is the reference unless ``options.reference`` names another). Raises HandEyeError
     when a sensor cannot be calibrated against any other."""

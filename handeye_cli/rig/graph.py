@@ -65,7 +65,7 @@ def _rotations(n: int, pairs: list[tuple[int, int]], X: Array, w: Array, referen
     if np.sum(np.linalg.det(V)) < 0:
         V = -V
     R = np.stack([_nearest_rotation(Vk.T) for Vk in V])
-    return R[reference].T @ R
+    return np.asarray(R[reference].T @ R, dtype=np.float64)
 
 
 def _translations(n: int, pairs: list[tuple[int, int]], X: Array, w: Array, R: Array, reference: int) -> Array:

@@ -46,14 +46,14 @@ def split_forms(A: Array, B: Array, counts: Array, alpha: float) -> Array:
     rot[:, 4:, 4:] = np.einsum("nki,nkj->nij", E, E)
     EF = np.concatenate((E, F), axis=2)                       # rows E q' + F q on [q'; q]
     grams = np.stack((rot, alpha ** 2 * np.einsum("nki,nkj->nij", EF, EF)), axis=1).reshape(len(E), -1)
-    return (np.asarray(counts, dtype=float) @ grams).reshape(-1, 2, 8, 8)
+    return np.asarray((np.asarray(counts, dtype=float) @ grams).reshape(-1, 2, 8, 8), dtype=np.float64)
 
 
 def part_costs(forms: Array, T: Array) -> Array:
     """``[q'; q]ᵀ Q_p [q'; q]`` of transforms T (E, 4, 4) for forms (E, 2, 8, 8): (E, 2)."""
     q, qd = dq.from_transforms(T)
     v = np.concatenate((qd, q), axis=1)
-    return np.einsum("ei,epij,ej->ep", v, forms, v)
+    return np.asarray(np.einsum("ei,epij,ej->ep", v, forms, v), dtype=np.float64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,16 +71,16 @@ class JointProblem:
     def pair_weights(sigma2: Array) -> Array:
         """``ω = σ²_min / σ²`` (E, 2) (largest weight 1), with σ² floored for noise-free pairs."""
         s = np.maximum(np.asarray(sigma2, dtype=float), _SIGMA2_FLOOR)
-        return s.min() / s
+        return np.asarray(s.min() / s, dtype=np.float64)
 
     def relative(self, T: Array) -> Array:
         """``T_j_k = T_ref_j⁻¹ T_ref_k`` (E, 4, 4) of every edge."""
         j, k = (np.array([p[i] for p in self.pairs]) for i in (0, 1))
-        return se3.inverse(T[j]) @ T[k]
+        return np.asarray(se3.inverse(T[j]) @ T[k], dtype=np.float64)
 
     def edge_costs(self, T: Array) -> Array:
         """Each pair's cost (8) at its α (unweighted by ω) at the rig ``T`` (n, 4, 4)."""
-        return part_costs(self.forms, self.relative(T)).sum(axis=1)
+        return np.asarray(part_costs(self.forms, self.relative(T)).sum(axis=1), dtype=np.float64)
 
     def cost(self, T: Array) -> float:
         """J: the ω-weighted sum of the pairs' rotational and dual costs."""
@@ -90,7 +90,7 @@ class JointProblem:
 def _factors(forms: Array, weights: Array) -> Array:
     """``K`` with ``KᵀK = Σ_p ω_p Q_p`` per edge (E, 8, 8), so that J is a sum of squares."""
     lam, V = np.linalg.eigh(np.einsum("ep,epij->eij", weights, forms))
-    return np.sqrt(np.clip(lam, 0.0, None))[:, :, None] * np.swapaxes(V, 1, 2)
+    return np.asarray(np.sqrt(np.clip(lam, 0.0, None))[:, :, None] * np.swapaxes(V, 1, 2), dtype=np.float64)
 
 
 def _perturbed(T0: Array, free: Array, p: Array) -> Array:
@@ -98,7 +98,7 @@ def _perturbed(T0: Array, free: Array, p: Array) -> Array:
     d = p.reshape(-1, 6)
     T[free, :3, :3] = T0[free, :3, :3] @ Rotation.from_rotvec(d[:, :3]).as_matrix()
     T[free, :3, 3] = T0[free, :3, 3] + d[:, 3:]
-    return T
+    return np.asarray(T, dtype=np.float64)
 
 
 def refine(problem: JointProblem, T0: Array) -> Array:
@@ -110,7 +110,7 @@ def refine(problem: JointProblem, T0: Array) -> Array:
     def residuals(p: Array) -> Array:
         q, qd = dq.from_transforms(problem.relative(_perturbed(T0, free, p)))
         sign = np.where(np.sum(q * q0, axis=1) < 0, -1.0, 1.0)[:, None]      # follow one sheet of q ~ -q
-        return np.einsum("eij,ej->ei", K, sign * np.concatenate((qd, q), axis=1)).ravel()
+        return np.asarray(np.einsum("eij,ej->ei", K, sign * np.concatenate((qd, q), axis=1)).ravel(), dtype=np.float64)
 
     r = least_squares(residuals, np.zeros(6 * int(free.sum())), method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
     return _perturbed(T0, free, r.x)

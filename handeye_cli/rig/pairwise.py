@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,8 +35,8 @@ class ClockOffset:
     method: str
     warnings: tuple[str, ...] = ()
 
-    def as_dict(self) -> dict:
-        out: dict = {"seconds": self.offset_ns / 1e9, "method": self.method}
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"seconds": self.offset_ns / 1e9, "method": self.method}
         if self.std_ns is not None:
             out["std_seconds"] = self.std_ns / 1e9
         return out

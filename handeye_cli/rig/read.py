@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from ..errors import ConfigError
 from ..io import read_log_streams, read_stream
@@ -30,7 +31,7 @@ class StreamSpec:
     frames: tuple[str, str] | None = None
     path: str | None = None
 
-    def describe(self) -> dict:
+    def describe(self) -> dict[str, Any]:
         if self.path:
             return {"file": self.path}
         return {"topic": self.topic} if self.topic else {"frames": list(self.frames or ())}

@@ -9,6 +9,7 @@ result beside the pair's own (pairwise-only) result, with both residual summarie
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,13 +27,13 @@ __all__ = ["RigResult", "transform_entry"]
 Array = NDArray[np.float64]
 
 
-def transform_entry(parent: str, child: str, T: Array) -> dict:
+def transform_entry(parent: str, child: str, T: Array) -> dict[str, Any]:
     """``{parent, child, translation, quaternion_xyzw}`` of ``T_parent_child`` (4x4)."""
     t, q = se3.to_xyz_quat(T)
     return {"parent": parent, "child": child, "translation": t.tolist(), "quaternion_xyzw": q.tolist()}
 
 
-def _closure(c: Closure, names: list[str]) -> dict:
+def _closure(c: Closure, names: list[str]) -> dict[str, Any]:
     return {"streams": [names[i] for i in c.nodes], "rotation_deg": c.rotation_deg, "translation_m": c.translation_m}
 
 
@@ -62,15 +63,15 @@ class RigResult:
     consistency: Consistency
     uncertainty: RigUncertainty | None = None
     warnings: list[str] = field(default_factory=list)
-    inputs: dict = field(default_factory=dict)
-    settings: dict = field(default_factory=dict)
+    inputs: dict[str, Any] = field(default_factory=dict)
+    settings: dict[str, Any] = field(default_factory=dict)
 
     def T(self, parent: str, child: str) -> Array:
         """``T_parent_child`` (4x4) of the joint result."""
         i, j = self.names.index(parent), self.names.index(child)
-        return se3.inverse(self.matrices[i]) @ self.matrices[j]
+        return np.asarray(se3.inverse(self.matrices[i]) @ self.matrices[j], dtype=np.float64)
 
-    def _pair(self, edge: Edge, weight: Array) -> dict:
+    def _pair(self, edge: Edge, weight: Array) -> dict[str, Any]:
         names, A, B = self.names, edge.calibration.pairs.A, edge.calibration.pairs.B
         joint = self.T(names[edge.j], names[edge.k])
         mask = None if edge.calibration.weights is None else edge.calibration.weights > 0
@@ -82,12 +83,12 @@ class RigResult:
                 "residuals": {"joint": pair_residuals(A, B, joint).summary(mask).as_dict(),
                               "pairwise_only": pair_residuals(A, B, edge.matrix).summary(mask).as_dict()}}
 
-    def _streams(self) -> list[dict]:
+    def _streams(self) -> list[dict[str, Any]]:
         return [{"name": name, "source": s.source, "frame_id": s.frame_id, "child_frame_id": s.child_frame_id,
                  "samples": len(s), "inverted": inv, "time_offset": off.as_dict()}
                 for name, s, inv, off in zip(self.names, self.streams, self.inverted, self.offsets, strict=True)]
 
-    def _uncertainty(self) -> dict | None:
+    def _uncertainty(self) -> dict[str, Any] | None:
         u = self.uncertainty
         if u is None:
             return None
@@ -97,7 +98,7 @@ class RigResult:
                                    "translation_std_m": u.translation_std_m[i].tolist()}
                             for i, name in enumerate(self.names) if i != self.reference}}
 
-    def document(self) -> dict:
+    def document(self) -> dict[str, Any]:
         """The rig result as a plain dict (see the module docstring)."""
         names, ref = self.names, self.names[self.reference]
         c = self.consistency
@@ -120,4 +121,5 @@ class RigResult:
             "inputs": self.inputs, "settings": self.settings, "version": __version__,
             "warnings": list(self.warnings),
         }
-        return plain({k: v for k, v in doc.items() if v is not None})
+        out: dict[str, Any] = plain({k: v for k, v in doc.items() if v is not None})
+        return out

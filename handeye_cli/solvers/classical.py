@@ -85,7 +85,7 @@ def tsai(A: Array, B: Array, w: Array) -> Array:
 def _procrustes(H: Array) -> Array:
     """The rotation ``R`` maximising ``tr(Rᵀ H)`` (det +1)."""
     U, _, Vt = np.linalg.svd(H)
-    return U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+    return np.asarray(U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt, dtype=np.float64)
 
 
 def park(A: Array, B: Array, w: Array) -> Array:
