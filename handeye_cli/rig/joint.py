@@ -35,7 +35,7 @@ __all__ = ["Motions", "JointProblem", "refine", "bootstrap_rig", "RigUncertainty
 
 Array = NDArray[np.float64]
 Motions = tuple[Array, Array, Array, Array]   # motions A, B (N, 4, 4); start stamps [ns] (N,); pair weights (N,)
-_SIGMA2_FLOOR = 1e-30
+_SIGMA2_FLOOR = 1e-18     # (1e-9 rad)², (α · 1 nm)²: below it residuals are rounding, not noise
 
 
 def split_forms(A: Array, B: Array, counts: Array, alpha: float) -> Array:
