@@ -14,6 +14,7 @@ import click
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..config import presets
 from ..errors import ConfigError
 from ..output.writers import check_writable, output_format
 from .common import CONTEXT, StrictFailure, emit
@@ -65,7 +66,7 @@ def _summary(doc: dict[str, Any]) -> str:
               help="Block length of the bootstrap over the shared samples.")
 @apply(flags(*RIG_OPTIONS),
        click.option("--config", "config_file", type=click.Path(), help="YAML file of options applied to every pair."),
-       click.option("--preset", help="Preset of options applied to every pair (see handeye calibrate --help)."))
+       click.option("--preset", type=click.Choice(presets()), help="Preset of options applied to every pair."))
 @output_options
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 def rig(log: str | None, **p: Any) -> None:
@@ -81,7 +82,7 @@ def rig(log: str | None, **p: Any) -> None:
     \b
     Examples:
       handeye rig sample_data/rig4.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose \\
-          --stream lidar=/lidar/odom --stream wheels=tf:odom,base_link
+          --stream lidar=/lidar/odom --stream imu=tf:odom,imu_link
       handeye rig log.mcap --stream cam0=/cam0/pose --stream wheels=wheels.tum --reference cam0 \\
           --time-offset wheels=0.05 --bootstrap 200 -o rig.yaml
     """
