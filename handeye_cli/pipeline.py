@@ -6,6 +6,8 @@ frame in sensor a's frame (maps points from b to a), where each stream holds ``T
 Options are the typed :class:`~handeye_cli.options.Options`; keyword arguments use the same flat
 names as the command line.
 
+Examples
+--------
 >>> import handeye_cli
 >>> cal = handeye_cli.calibrate_files("sample_data/rig_a.tum", "sample_data/rig_b.tum", method="dqopt")
 >>> cal.matrix.shape, cal.options.solver.method
@@ -30,15 +32,18 @@ from .analysis import (
     robust_solve,
 )
 from .analysis.diagnosis import data_warning, too_few_pairs
+from .analysis.inversion import InversionVerdict, check_inversion
 from .config import load_options
 from .errors import ConfigError
 from .io.pairfile import read_extrinsic
 from .options import Options, ReadOptions
 from .output.document import result_document
 from .solvers import Prior, Solution, solve
+from .solvers.scale import scale_translations, solve_with_scale
 from .stages.counts import SampleCounts
 from .stages.gates import pose_jump_gate
 from .stages.pairs import Pairs, make_pairs
+from .stages.stations import Stations, detect_stations
 from .stages.sync import Synced, associate
 from .streams import PoseStream
 
@@ -191,22 +196,54 @@ def _prior(options: Options) -> Prior | None:
 
 
 def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options,
-             offset_ns: int) -> tuple[Synced, Pairs, SampleCounts]:
-    """Sync, gates and pair formation: (kept samples, pairs, counts of every stage)."""
+             offset_ns: int) -> tuple[Synced, Pairs, SampleCounts, Stations | None]:
+    """Sync, gates and pair formation: (kept samples, pairs, counts of every stage, stations).
+
+    A station capture (see :mod:`~handeye_cli.stages.stations`) skips sync and the pose-jump gate:
+    its averaged stations are the samples, paired all with all."""
     sync, gates, p = options.sync, options.gates, options.pairs
-    synced, sync_counts = associate(stream_a, stream_b, method=sync.sync, max_dt_ns=int(round(sync.max_dt * 1e9)),
-                                    time_offset_ns=offset_ns)
-    max_rot = None if gates.max_jump_deg is None else np.deg2rad(gates.max_jump_deg)
-    kept, jump_counts = pose_jump_gate(synced, max_translation_m=gates.max_jump, max_rotation_rad=max_rot)
-    pairs, pair_counts = make_pairs(kept, p.pairs, keyframe_rotation_rad=np.deg2rad(p.keyframe_rotation),
+    max_dt_ns = int(round(sync.max_dt * 1e9))
+    stations = None if p.stations == "off" else detect_stations(stream_a, stream_b, time_offset_ns=offset_ns,
+                                                                 max_dt_ns=max_dt_ns)
+    if stations is not None:
+        kept, strategy = stations.synced, "all"
+        stage_counts = [{"read_a": len(stream_a), "read_b": len(stream_b), "synced": len(stations)}]
+    else:
+        synced, sync_counts = associate(stream_a, stream_b, method=sync.sync, max_dt_ns=max_dt_ns,
+                                        time_offset_ns=offset_ns)
+        max_rot = None if gates.max_jump_deg is None else np.deg2rad(gates.max_jump_deg)
+        kept, jump_counts = pose_jump_gate(synced, max_translation_m=gates.max_jump, max_rotation_rad=max_rot)
+        strategy, stage_counts = p.pairs, [sync_counts, jump_counts]
+    pairs, pair_counts = make_pairs(kept, strategy, keyframe_rotation_rad=np.deg2rad(p.keyframe_rotation),
                                     keyframe_translation_m=p.keyframe_translation,
                                     min_rotation_rad=np.deg2rad(p.min_rotation), max_pairs=p.max_pairs, seed=p.seed)
-    samples = SampleCounts.of(sync_counts, jump_counts, pair_counts, synced_kept=len(kept),
+    samples = SampleCounts.of(*stage_counts, pair_counts, synced_kept=len(kept),
                               duplicates_dropped_a=stream_a.duplicates_dropped,
                               duplicates_dropped_b=stream_b.duplicates_dropped)
     if len(pairs) < options.solver.min_pairs:
         raise too_few_pairs(len(pairs), samples, options)
-    return kept, pairs, samples
+    return kept, pairs, samples, stations
+
+
+def _with_scale(kept: Synced, pairs: Pairs, options: Options, diagnostics: dict[str, Any]) -> tuple[Synced, Pairs]:
+    """``--scale auto``: estimate b's scale with T_a_b and return b's samples and motions in metres."""
+    alpha = 1.0 if options.solver.alpha == "auto" else float(options.solver.alpha)
+    est = solve_with_scale(pairs.A, pairs.B, alpha=alpha, samples=(pairs.i, pairs.j))
+    diagnostics["scale"] = est.as_dict()
+    return (replace(kept, T_b=scale_translations(kept.T_b, est.scale)),
+            replace(pairs, B=scale_translations(pairs.B, est.scale)))
+
+
+def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float) -> InversionVerdict | None:
+    """The inversion check; raises its refusal when the evidence is overwhelming and the user set no
+    ``--invert-*`` / ``--no-invert-*`` flag explicitly."""
+    read = options.read
+    verdict = check_inversion(kept.T_a, kept.T_b, pairs.i, pairs.j, alpha=alpha,
+                              inverted_now=(bool(read.invert_a), bool(read.invert_b)))
+    refusal = verdict and verdict.refusal(read.invert_a is not None or read.invert_b is not None)
+    if refusal:
+        raise refusal
+    return verdict
 
 
 def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None,
@@ -235,14 +272,21 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     ``overrides`` given by flat option name (``method="dqopt"``, ``max_jump="off"``…). Raises a
     :class:`~handeye_cli.errors.HandEyeError` subclass on data that cannot be calibrated.
 
-    Order: time offset → sync → gates → pairs → [robust] → [α auto] → weighted solve →
-    observability warnings, residuals, inversion check → [bootstrap].
+    Order: [fixed scale of b] → time offset → stations, or sync → gates → pairs → [scale auto] →
+    [robust] → [α auto] → weighted solve → observability warnings, residuals, inversion check
+    (first warning; refuses the result when overwhelming) → [bootstrap].
     """
     opts = Options.from_flat(options, **overrides) if overrides else (options or Options())
+    if opts.solver.scale not in (1.0, "auto"):
+        stream_b = replace(stream_b, xyz=stream_b.xyz * float(opts.solver.scale))
     offset_ns, offset_report, warnings = _time_offset(stream_a, stream_b, opts)
-    kept, pairs, samples = pairs_of(stream_a, stream_b, opts, offset_ns)
+    kept, pairs, samples, stations = pairs_of(stream_a, stream_b, opts, offset_ns)
     prior = _prior(opts)
     diagnostics: dict[str, Any] = {"time_offset": offset_report}
+    if stations is not None:
+        diagnostics["stations"] = stations.as_dict()
+    if opts.solver.scale == "auto":
+        kept, pairs = _with_scale(kept, pairs, opts, diagnostics)
     solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, diagnostics)
 
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
@@ -251,8 +295,10 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     diagnostics["observability"] = obs.as_dict()
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    suspect = data_warning(stream_a, stream_b, res, weights, samples,
-                           lambda a, b: pairs_of(a, b, opts, offset_ns))
+    verdict = _inversion(kept, pairs, opts, alpha)
+    if verdict is not None:
+        diagnostics["inversion"] = verdict.as_dict()
+    suspect = verdict.message() if verdict else data_warning(res, weights, samples)
     if suspect:
         warnings.insert(0, suspect)
     boot = None

@@ -62,10 +62,15 @@ def test_prior_fixes_the_planar_log(capsys, tmp_path):
 def test_forgotten_inversion_is_diagnosed(capsys, tmp_path):
     _, _, (a, b) = _files(tmp_path)
     fb_inv = write_tum(tmp_path / "b_inv.tum", b.inverted())
+    # Inverted, b fits 15x better: without an explicit choice the result is refused (exit 2) …
     code, out, err = run(capsys, "calibrate", tmp_path / "a.tum", fb_inv, "-q", "--pairs", "random:300")
-    assert code == 0
+    assert code == 2 and not out and "almost certainly inverted" in err and "--invert-b" in err
+    # … and with one (--no-invert-b: "b is right as it is") it is the first warning.
+    code, out, err = run(capsys, "calibrate", tmp_path / "a.tum", fb_inv, "-q", "--pairs", "random:300",
+                         "--no-invert-b")
+    assert code == 0, err
     warnings = yaml.safe_load(out)["warnings"]
-    assert any("stream b looks inverted" in w and "--invert-b" in w for w in warnings), warnings
+    assert "looks inverted" in warnings[0] and "--invert-b" in warnings[0], warnings
 
 
 def test_robust_rejects_outlier_pairs(tmp_path):

@@ -181,3 +181,29 @@ def test_readme_python_example_runs(monkeypatch):
     cal = handeye_cli.calibrate_files("sample_data/rig_a.tum", "sample_data/rig_b.tum", method="dqopt")
     truth = yaml.safe_load((ROOT / "sample_data" / "truth.yaml").read_text())
     assert pose_error(cal.matrix, np.array(truth["matrix"]))[1] < 0.001
+
+
+def test_calibrate_against_a_nominal_exits_1_on_drift_and_0_within_tolerance(capsys, rig, tmp_path):
+    truth = yaml.safe_dump({"translation": rig["X"][:3, 3].tolist(),
+                            "quaternion_xyzw": handeye_cli.se3.to_xyz_quat(rig["X"])[1].tolist()})
+    (tmp_path / "nominal.yaml").write_text(truth)
+    code, out, err = run(capsys, "calibrate", rig["a"], rig["b"], "--against", tmp_path / "nominal.yaml",
+                         "--max-rotation-deg", "1", "--max-translation-m", "0.01")
+    assert code == 0 and _doc(out)["verdict"]["drift"] is False and "within tolerance" in err, err
+    moved = rig["X"].copy()
+    moved[0, 3] += 0.05
+    (tmp_path / "moved.yaml").write_text(yaml.safe_dump({"matrix": moved.tolist()}))
+    code, out, err = run(capsys, "calibrate", rig["a"], rig["b"], "--against", tmp_path / "moved.yaml", "-q")
+    assert code == 1 and _doc(out)["verdict"]["drift"] is True and "DRIFT" in err
+
+
+def test_format_from_the_output_name_round_trips_as_a_nominal(capsys, rig, tmp_path):
+    from handeye_cli.io.nominal import read_nominal
+
+    for name in ("x.urdf", "x.launch", "x.launch.py", "x.sh"):
+        code, _, err = run(capsys, "calibrate", rig["a"], rig["b"], "-o", tmp_path / name, "--name-a", "a",
+                           "--name-b", "b", "-q")
+        assert code == 0, err
+        T = read_nominal(str(tmp_path / name)).transform("a", "b")
+        code, out, _ = run(capsys, "calibrate", rig["a"], rig["b"], "-q")
+        np.testing.assert_allclose(T, np.array(_doc(out)["matrix"]), atol=1e-9)

@@ -39,7 +39,8 @@ def plain(value: Any) -> Any:
 
 
 def _static_transform_command(t: np.ndarray, q: np.ndarray, frames: dict) -> str:
-    nums = " ".join(f"--{k} {v:.9g}" for k, v in zip(("x", "y", "z", "qx", "qy", "qz", "qw"), [*t, *q], strict=True))
+    names = ("x", "y", "z", "qx", "qy", "qz", "qw")
+    nums = " ".join(f"--{k} {float(v)!r}" for k, v in zip(names, [*t, *q], strict=True))   # repr: round-trips
     return (f"ros2 run tf2_ros static_transform_publisher {nums} "
             f"--frame-id {frames.get('a', 'a')} --child-frame-id {frames.get('b', 'b')}")
 

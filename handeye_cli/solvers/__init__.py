@@ -110,6 +110,25 @@ def solve(motions_a: np.ndarray, motions_b: np.ndarray, method: str = "dqopt", a
     HandEyeError
         Bad shapes, non-finite values, non-rotation blocks, unknown method, or a problem whose
         motions cannot determine the extrinsic.
+
+    Examples
+    --------
+    Noise-free motions of the paper's "random" scenario (appendix D.2) give back the true
+    extrinsic; with noise, dqopt has the lowest cost (8) of all methods.
+
+    >>> import numpy as np
+    >>> from handeye_cli.solvers import METHODS, solve
+    >>> from handeye_cli.simulation import motion_pairs, random_transform
+    >>> rng = np.random.default_rng(0)
+    >>> X = random_transform(rng)                      # the true T_a_b
+    >>> A, B = motion_pairs(50, X, rng)                 # (50, 4, 4) each, A_i X = X B_i
+    >>> sol = solve(A, B, method="dqopt", alpha=1.0)
+    >>> bool(np.allclose(sol.matrix, X, atol=1e-9)), sol.pairs, sol.method
+    (True, 50, 'dqopt')
+    >>> A, B = motion_pairs(50, X, rng, sigma_r=0.01, sigma_t=0.01)
+    >>> costs = {m: solve(A, B, method=m).cost for m in METHODS}
+    >>> all(costs["dqopt"] <= cost * (1 + 1e-12) for cost in costs.values())   # ties to rounding allowed
+    True
     """
     if method not in METHODS:
         raise ConfigError(f"unknown method {method!r}", "method", f"choose one of {', '.join(METHODS)}")
