@@ -38,20 +38,13 @@ def cli(debug: bool) -> None:
 def _register() -> None:
     from .batch import batch, report
     from .calibrate import calibrate
-<<<<<<< HEAD
-    from .compare import compare
-=======
     from .check import check
->>>>>>> main
+    from .compare import compare
     from .inspect import inspect
     from .rig import rig
     from .solve import solve
 
-<<<<<<< HEAD
-    for command in (calibrate, solve, inspect, rig, compare):
-=======
-    for command in (calibrate, solve, inspect, batch, check, report):
->>>>>>> main
+    for command in (calibrate, solve, inspect, batch, check, report, rig, compare):
         cli.add_command(command)
 
 
