@@ -4,7 +4,7 @@ A separate command rather than ``calibrate`` with more streams: its inputs are a
 streams (any number, one of them the reference) with per-stream clock offsets and inversion,
 where calibrate's are exactly a and b (``--topic-a``, ``--invert-b``, ``--name-a``…); and its
 result is a different document — a list of transforms, the pairwise table, loop closures and the
-consistency diagnostic — not the single ``T_a_b`` of DESIGN.md's schema that scripts read.
+consistency diagnostic — not the single ``T_a_b`` of the result schema (docs/design.md) that scripts read.
 """
 from __future__ import annotations
 
