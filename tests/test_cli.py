@@ -132,7 +132,7 @@ def test_gates_can_be_switched_off(capsys, rig):
     (["calibrate", "{a}", "{b}", "--time-offset", "soon"], "bad value"),
     (["calibrate", "{a}", "{b}", "--alpha", "big"], "bad value"),
     (["calibrate", "{a}", "{b}", "--config", "{dir}/bad.yaml"], "grouped key 'pairs'"),
-    (["calibrate", "{a}", "{b}", "--method", "tsai"], "Invalid value"),
+    (["calibrate", "{a}", "{b}", "--method", "kabsch"], "Invalid value"),
     (["solve", "{dir}/bad_pairs.csv"], "unexpected CSV header"),
 ])
 def test_errors_are_one_line_exit_2_and_leave_no_output(capsys, rig, args, message):

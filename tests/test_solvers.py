@@ -218,7 +218,7 @@ def test_singular_m_noise_free_is_exact_for_dqopt_details():
     (lambda A, B: (A * np.array([1, 1, 2, 1])[:, None], B, {}), "not a rotation"),
     (lambda A, B: (A[:-1], B, {}), "same number"),
     (lambda A, B: (A[:1], B[:1], {}), "at least 2"),
-    (lambda A, B: (A, B, {"method": "tsai"}), "unknown method"),
+    (lambda A, B: (A, B, {"method": "kabsch"}), "unknown method"),
     (lambda A, B: (A, B, {"alpha": 0.0}), "alpha"),
     (lambda A, B: (A, B, {"weights": -np.ones(len(A))}), "weights"),
 ])

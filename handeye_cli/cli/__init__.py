@@ -39,10 +39,12 @@ def _register() -> None:
     from .batch import batch, report
     from .calibrate import calibrate
     from .check import check
+    from .compare import compare
     from .inspect import inspect
+    from .rig import rig
     from .solve import solve
 
-    for command in (calibrate, solve, inspect, batch, check, report):
+    for command in (calibrate, solve, inspect, batch, check, report, rig, compare):
         cli.add_command(command)
 
 

@@ -16,13 +16,14 @@ from .._typing import FloatArray
 from ..errors import ConfigError, UnderdeterminedError
 from . import dualquat
 from .approximate import dq2ndord, dq2steps, dqconvrlx
+from .classical import CLASSICAL
 from .daniilidis import daniilidis
 from .optimal import dqitr, dqopt
 from .problem import Prior, Problem, build_problem, eigh, pair_blocks, problem_from_blocks, validate_motions
 
 __all__ = ["METHODS", "Prior", "Problem", "Solution", "build_problem", "solve", "dq_cost"]
 
-METHODS = ("dqopt", "dq2steps", "dqconvrlx", "dq2ndord", "dqitr", "daniilidis")
+METHODS = ("dqopt", "dq2steps", "dqconvrlx", "dq2ndord", "dqitr", "daniilidis", *CLASSICAL)
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,6 +146,9 @@ def solve(motions_a: FloatArray, motions_b: FloatArray, method: str = "dqopt", a
         r = (dqopt if method == "dqopt" else dqitr)(problem)
         return common(dualquat.to_transform(r.q, r.qd), problem.cost(r.q, r.qd), lam=r.lam, mu=r.mu,
                       iterations=r.iterations, converged=r.converged, details={"singular_m": r.singular_m})
+    if method in CLASSICAL:
+        X = CLASSICAL[method](A, B, w)
+        return common(X, problem.cost(*dualquat.from_transforms(X)))
     if method == "daniilidis":
         q, qd = daniilidis(E, F, alpha=alpha, weights=w)
         return common(dualquat.to_transform(q, qd), problem.cost(q, qd))

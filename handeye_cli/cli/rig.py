@@ -1,0 +1,105 @@
+"""``handeye rig``: every sensor of a rig from one log, jointly consistent.
+
+A separate command rather than ``calibrate`` with more streams: its inputs are a set of *named*
+streams (any number, one of them the reference) with per-stream clock offsets and inversion,
+where calibrate's are exactly a and b (``--topic-a``, ``--invert-b``, ``--name-a``…); and its
+result is a different document — a list of transforms, the pairwise table, loop closures and the
+consistency diagnostic — not the single ``T_a_b`` of the result schema (docs/design.md) that scripts read.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import click
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..config import presets
+from ..errors import ConfigError
+from ..output.writers import check_writable, output_format
+from .common import CONTEXT, StrictFailure, emit
+from .params import apply, flags, options_from_cli, output_options
+
+__all__ = ["rig"]
+
+# The calibrate options that apply to every pair of a rig (the a/b-specific ones do not).
+RIG_OPTIONS = ("time_source", "csv_columns", "sync", "max_dt", "max_time_offset", "max_jump", "max_jump_deg",
+               "pairs", "min_rotation", "keyframe_rotation", "keyframe_translation", "max_pairs", "seed",
+               "method", "alpha", "min_pairs", "robust", "bootstrap", "strict")
+
+
+def _named(values: tuple[str, ...], flag: str) -> dict[str, str]:
+    out = {}
+    for text in values:
+        name, sep, value = text.partition("=")
+        if not sep or not name.strip() or not value.strip():
+            raise ConfigError(f"bad value {text!r}", flag, "write NAME=SECONDS or NAME=auto")
+        out[name.strip()] = value.strip()
+    return out
+
+
+def _summary(doc: dict[str, Any]) -> str:
+    lines = [f"rig of {len(doc['transforms']) + 1} sensors, reference {doc['reference']}:"]
+    for t in doc["transforms"]:
+        angle = np.linalg.norm(Rotation.from_quat(t["quaternion_xyzw"]).as_rotvec(degrees=True))
+        x, y, z = t["translation"]
+        lines.append(f"  T_{t['parent']}_{t['child']}: translation [{x:.4f}, {y:.4f}, {z:.4f}] m, "
+                     f"rotation {angle:.3f}°")
+    worst = max(doc["loop_closures"]["pairwise_only"], key=lambda c: c["rotation_deg"], default=None)
+    if worst:
+        lines.append(f"  worst pairwise loop closure {'-'.join(worst['streams'])}: {worst['rotation_deg']:.3f}° / "
+                     f"{worst['translation_m'] * 1e3:.1f} mm (joint: identity)")
+    return "\n".join(lines) + "\n"
+
+
+@click.command("rig", context_settings=CONTEXT)
+@click.argument("log", required=False)
+@click.option("--stream", "streams", multiple=True, required=True, metavar="NAME=SOURCE",
+              help="A sensor: NAME=/topic or NAME=tf:PARENT,CHILD of LOG, or NAME=FILE (TUM, EuRoC, CSV). "
+              "Repeat for every sensor (at least two).")
+@click.option("--reference", metavar="NAME", help="The sensor every T_ref_k is expressed in [default: the first].")
+@click.option("--time-offset", "offsets", multiple=True, metavar="NAME=SECONDS|auto",
+              help="How far NAME's clock is ahead of the reference's [default: auto for every stream].")
+@click.option("--invert", multiple=True, metavar="NAME", help="Invert stream NAME first (it records "
+              "T_sensor_world). Repeatable.")
+@click.option("--block", "block_s", type=float, default=2.0, show_default=True, metavar="SECONDS",
+              help="Block length of the bootstrap over the shared samples.")
+@apply(flags(*RIG_OPTIONS),
+       click.option("--config", "config_file", type=click.Path(), help="YAML file of options applied to every pair."),
+       click.option("--preset", type=click.Choice(presets()), help="Preset of options applied to every pair."))
+@output_options
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
+def rig(log: str | None, **p: Any) -> None:
+    """Calibrate every sensor of a rig from one log: T_ref_k for each stream k, jointly.
+
+    Every pair of streams is calibrated (dqopt), the pairwise results are synchronised (rotation
+    averaging, translation least squares) and refined jointly on the summed pairwise costs, so
+    that T_j_k = T_ref_j⁻¹ T_ref_k agrees with the data of every pair. The log is read once.
+    The result lists every T_ref_k and T_j_k, per-pair residuals (joint vs pairwise-only),
+    the pairwise loop closures and the stream that spoils them, and with --bootstrap N the
+    uncertainty of each extrinsic.
+
+    \b
+    Examples:
+      handeye rig sample_data/rig4.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose \\
+          --stream lidar=/lidar/odom --stream imu=tf:odom,imu_link
+      handeye rig log.mcap --stream cam0=/cam0/pose --stream wheels=wheels.tum --reference cam0 \\
+          --time-offset wheels=0.05 --bootstrap 200 -o rig.yaml
+    """
+    from ..rig import RigOptions, calibrate_rig_files, parse_stream
+
+    options = options_from_cli(p)
+    specs = [parse_stream(s) for s in p["streams"]]
+    check_writable(p["output"], "-o")
+    fmt = output_format(p["output"], p["fmt"])
+    opts = RigOptions(reference=p["reference"], time_offsets=_named(p["offsets"], "--time-offset"),
+                      invert=tuple(p["invert"]), block_s=p["block_s"], options=options)
+    result = calibrate_rig_files(log, specs, opts, quiet=p["quiet"])
+    doc = result.document()
+    emit(doc, p["output"], fmt)
+    if not p["quiet"]:
+        click.echo(_summary(doc), err=True, nl=False)
+    for w in doc["warnings"]:
+        click.echo(f"warning: {w}", err=True)
+    if doc["warnings"] and options.analysis.strict:
+        raise StrictFailure(f"{len(doc['warnings'])} warning(s) under --strict (the result was still written)")

@@ -1,0 +1,127 @@
+"""Whole-rig calibration: every sensor's ``T_ref_k`` from one log, jointly consistent.
+
+Pipeline: read all streams (one pass per log, :mod:`.read`) → per-stream clock offsets and
+inversion → one optimal calibration per pair of streams (:mod:`.pairwise`) → graph
+synchronisation (chordal rotation averaging, translation least squares, :mod:`.graph`) → joint
+refinement of the summed pairwise dual-quaternion costs (:mod:`.joint`) → loop closures, the
+bad-stream diagnostic and the block bootstrap → :class:`RigResult`.
+
+Frames: stream k holds ``T_wk_k(t)``; ``T_ref_k`` is the pose of sensor k in the reference
+sensor's frame (maps points from k to ref); quaternions x-y-z-w; metres; int64 ns stamps.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError, DataError
+from ..options import Options
+from ..streams import PoseStream
+from .graph import consistency, loop_closures, synchronise
+from .joint import JointProblem, Motions, bootstrap_rig, refine
+from .pairwise import ClockOffset, Edge, clock_offsets, solve_edges
+from .read import StreamSpec, parse_stream, read_rig
+from .result import RigResult, transform_entry
+
+__all__ = ["RigOptions", "RigResult", "StreamSpec", "calibrate_rig", "calibrate_rig_files", "parse_stream",
+           "read_rig", "transform_entry"]
+
+
+@dataclass(frozen=True)
+class RigOptions:
+    """Settings of a rig calibration.
+
+    reference: name of the reference sensor (default: the first stream).
+    time_offsets: per stream name, seconds its clock is ahead of the reference's, or ``'auto'``
+        (the default for every stream not named).
+    invert: names of streams recorded as ``T_sensor_world`` (inverted before use).
+    block_s: block length [s] of the bootstrap.
+    options: the settings of every pairwise calibration (time source, sync, gates, pairs, solver)
+        and of the rig's own analysis (``bootstrap`` replicates, ``max_time_offset``, ``seed``);
+        the single-pair keys (``time_offset``, ``invert_a/b``, ``name_a/b``, ``prior``) are not used.
+    """
+
+    reference: str | None = None
+    time_offsets: Mapping[str, float | str] = field(default_factory=dict)
+    invert: tuple[str, ...] = ()
+    block_s: float = 2.0
+    options: Options = field(default_factory=Options)
+
+
+def _check(names: list[str], options: RigOptions) -> int:
+    if len(names) < 2:
+        raise ConfigError(f"{len(names)} stream(s) given", "rig", "name at least two streams (--stream NAME=…)")
+    if len(set(names)) != len(names):
+        raise ConfigError("stream names repeat", ", ".join(names), "give every --stream a different NAME")
+    for what, given in (("--time-offset", options.time_offsets), ("--invert", options.invert)):
+        unknown = sorted(set(given) - set(names))
+        if unknown:
+            raise ConfigError(f"unknown stream {unknown[0]!r}", what, f"use one of {', '.join(names)}")
+    if not options.block_s > 0:
+        raise ConfigError(f"bad block length {options.block_s!r}", "--block", "give a number of seconds > 0")
+    if options.reference is not None and options.reference not in names:
+        raise ConfigError(f"unknown reference {options.reference!r}", "--reference", f"use one of {', '.join(names)}")
+    return 0 if options.reference is None else names.index(options.reference)
+
+
+def _motions(edges: list[Edge], offsets: list[ClockOffset]) -> list[Motions]:
+    """Per edge: motions, their start stamps in the reference's clock [ns], and pair weights."""
+    out: list[Motions] = []
+    for e in edges:
+        p, w = e.calibration.pairs, e.calibration.weights
+        out.append((p.A, p.B, p.t_i_ns - offsets[e.j].offset_ns, np.ones(len(p)) if w is None else w))
+    return out
+
+
+def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None = None, *,
+                  inputs: dict[str, Any] | None = None) -> RigResult:
+    """Calibrate every ``T_ref_k`` of a rig from its pose streams ``{name: T_wk_k(t)}`` (in order;
+    the first is the reference unless ``options.reference`` names another). Raises HandEyeError
+    when a sensor cannot be calibrated against any other."""
+    opts = options or RigOptions()
+    names = list(streams)
+    ref = _check(names, opts)
+    cfg = opts.options
+    inverted = [name in opts.invert for name in names]
+    used = [s.inverted() if inv else s for s, inv in zip(streams.values(), inverted, strict=True)]
+    offsets = clock_offsets(used, ref, {names.index(k): v for k, v in opts.time_offsets.items()},
+                            cfg.sync.max_time_offset)
+    edges, warnings = solve_edges(used, names, offsets, cfg)
+    warnings = [f"{names[k]}: time offset: {w}" for k, o in enumerate(offsets) for w in o.warnings] + warnings
+    if not edges:
+        raise DataError("no pair of streams could be calibrated", ", ".join(names), "see the warnings above")
+    pairs = [(e.j, e.k) for e in edges]
+    X = np.stack([e.matrix for e in edges])
+    problem = JointProblem(len(names), ref, pairs, np.stack([e.forms for e in edges]),
+                           JointProblem.pair_weights(np.stack([e.sigma2 for e in edges])))
+    T0 = synchronise(len(names), pairs, X, problem.weights.sum(axis=1), ref)
+    T = refine(problem, T0)
+    closures = loop_closures(len(names), dict(zip(pairs, X, strict=True)))
+    joint = loop_closures(len(names), {p: Xj for p, Xj in zip(pairs, problem.relative(T), strict=True)})
+    alpha = edges[0].calibration.solution.alpha
+    cons = consistency(len(names), closures, alpha)
+    if cons.suspect is not None:
+        warnings.append(f"stream {names[cons.suspect]} is inconsistent with the others: without it the pairwise "
+                        f"loop closures improve from {cons.score:.4g} to {cons.without[cons.suspect]:.4g} "
+                        "(rad + α·m); check its topic, time offset, inversion and mounting")
+    unc = None
+    if cfg.analysis.bootstrap > 0:
+        unc = bootstrap_rig(problem, T, _motions(edges, offsets), alpha, cfg.analysis.bootstrap,
+                            block_s=opts.block_s, seed=cfg.pairs.seed)
+    settings = {"reference": names[ref], "time_offsets": dict(opts.time_offsets), "invert": list(opts.invert),
+                "block_seconds": opts.block_s, "options": cfg.flat()}
+    return RigResult(names, ref, used, inverted, offsets, edges, problem, T0, T, closures, joint, cons, unc,
+                     warnings, dict(inputs or {}), settings)
+
+
+def calibrate_rig_files(log: str | None, specs: list[StreamSpec], options: RigOptions | None = None, *,
+                        quiet: bool = True) -> RigResult:
+    """Read the streams (:func:`read_rig`) and :func:`calibrate_rig`."""
+    opts = options or RigOptions()
+    read = opts.options.read
+    streams = read_rig(log, specs, time_source=read.time_source, columns=read.csv_columns, quiet=quiet)
+    inputs = {"log": log, "streams": {s.name: s.describe() for s in specs}, "time_source": read.time_source}
+    return calibrate_rig(streams, opts, inputs=inputs)

@@ -1,0 +1,116 @@
+"""Pairwise stage of a rig: per-stream clock offsets, then one optimal calibration per pair of streams.
+
+Streams are ``T_wk_k(t)`` (int64 ns stamps in each sensor's own clock). The clock offset ``o_k``
+of stream k is how far its clock is ahead of the reference's (the sign convention of
+:func:`handeye_cli.stages.sync.associate`); pair (j, k) is then calibrated with the offset
+``o_k - o_j`` by :func:`handeye_cli.pipeline.calibrate` (sync → gates → pairs → solver, the same
+stages and settings as ``handeye calibrate``), giving ``T_j_k`` (pose of k in j; maps points
+from k to j) and its motion pairs ``A_i X = X B_i``.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import ConfigError, HandEyeError
+from ..options import Options
+from ..pipeline import Calibration, calibrate
+from ..streams import PoseStream
+from .joint import part_costs, split_forms
+
+__all__ = ["ClockOffset", "Edge", "clock_offsets", "solve_edges"]
+
+
+@dataclass(frozen=True)
+class ClockOffset:
+    """How far a stream's clock is ahead of the reference's: ``offset_ns`` [ns], its 1-σ
+    ``std_ns`` (None when fixed), and ``method`` (``fixed``, ``reference`` or the estimator's)."""
+
+    offset_ns: int
+    std_ns: float | None
+    method: str
+    warnings: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"seconds": self.offset_ns / 1e9, "method": self.method}
+        if self.std_ns is not None:
+            out["std_seconds"] = self.std_ns / 1e9
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class Edge:
+    """The pairwise-only result of streams ``j < k`` (indices into the rig's stream list).
+
+    calibration: what :func:`~handeye_cli.pipeline.calibrate` returned (``matrix`` = ``T_j_k``).
+    forms: (2, 8, 8) the rotational and dual parts of its cost (8) (``[q'; q]`` order, its α and
+    per-pair weights): the pair's cost of any ``T_j_k`` is ``Σ_p [q'; q]ᵀ forms[p] [q'; q]``.
+    sigma2: (2,) each part's cost per degree of freedom at the pairwise optimum (noise levels).
+    """
+
+    j: int
+    k: int
+    calibration: Calibration
+    forms: NDArray[np.float64]
+    sigma2: NDArray[np.float64]
+
+    @property
+    def matrix(self) -> NDArray[np.float64]:
+        """``T_j_k`` from this pair alone."""
+        return self.calibration.matrix
+
+
+def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int, float | str],
+                  max_offset_s: float | None = None) -> list[ClockOffset]:
+    """Each stream's clock offset to the reference: ``given[k]`` seconds, or estimated (``'auto'``,
+    the default) from the angular velocities of stream k and the reference."""
+    from ..stages.timeoffset import estimate_time_offset  # scipy.signal: import only when used
+
+    out = []
+    for k, stream in enumerate(streams):
+        value = given.get(k, "auto")
+        if k == reference:
+            out.append(ClockOffset(0, None, "reference"))
+        elif isinstance(value, str) and value.strip().lower() == "auto":
+            est = estimate_time_offset(streams[reference], stream, max_offset_s=max_offset_s)
+            out.append(ClockOffset(est.offset_ns, est.std_ns, est.method, tuple(est.warnings)))
+        else:
+            try:
+                out.append(ClockOffset(int(round(float(value) * 1e9)), None, "fixed"))
+            except (TypeError, ValueError):
+                raise ConfigError(f"bad time offset {value!r}", stream.source or f"stream {k}",
+                                  "give seconds (the stream's clock ahead of the reference's) or 'auto'") from None
+    return out
+
+
+def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset], options: Options) -> Edge:
+    # the rig's bootstrap resamples all pairs at once; a prior is of one T_a_b, not of every pair
+    opts = Options.from_flat(options, time_offset=(offsets[k].offset_ns - offsets[j].offset_ns) / 1e9,
+                             bootstrap=0, prior=None)
+    cal = calibrate(streams[j], streams[k], opts)
+    A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
+    forms = split_forms(A, B, np.ones((1, len(A))) if w is None else w[None], cal.solution.alpha)[0]
+    used = len(A) if w is None else int(np.count_nonzero(w))
+    return Edge(j, k, cal, forms, part_costs(forms[None], cal.matrix[None])[0] / max(used - 3, 1))
+
+
+def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[ClockOffset],
+                options: Options) -> tuple[list[Edge], list[str]]:
+    """Calibrate every pair ``j < k`` with ``options`` (sync, gates, pairs, solver; the time offset
+    is the pair's, from ``offsets``); a pair that cannot be calibrated is left out with a warning. Returns the edges and
+    the warnings (each pair's own warnings prefixed with its names)."""
+    edges, warnings = [], []
+    for j in range(len(streams)):
+        for k in range(j + 1, len(streams)):
+            try:
+                edge = _edge(streams, j, k, offsets, options)
+            except HandEyeError as e:
+                warnings.append(f"pair {names[j]}-{names[k]} left out: {e}")
+                continue
+            edges.append(edge)
+            warnings += [f"pair {names[j]}-{names[k]}: {w}" for w in edge.calibration.warnings]
+    return edges, warnings

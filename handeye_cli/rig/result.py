@@ -1,0 +1,125 @@
+"""The rig result and its document (YAML/JSON).
+
+Every transform is listed as ``{parent, child, translation, quaternion_xyzw}``: the pose of the
+child sensor's frame in the parent's (maps points from child to parent), translation [m],
+Hamilton quaternion x-y-z-w with w ≥ 0. ``transforms`` holds every ``T_ref_k`` (the writers of
+URDF / TF-static launch files take this list); ``pairwise`` every ``T_j_k`` (j < k) of the joint
+result beside the pair's own (pairwise-only) result, with both residual summaries.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .. import __version__, se3
+from ..analysis import extrinsic_error, pair_residuals
+from ..output.document import plain
+from ..streams import PoseStream
+from .graph import Closure, Consistency
+from .joint import JointProblem, RigUncertainty
+from .pairwise import ClockOffset, Edge
+
+__all__ = ["RigResult", "transform_entry"]
+
+Array = NDArray[np.float64]
+
+
+def transform_entry(parent: str, child: str, T: Array) -> dict[str, Any]:
+    """``{parent, child, translation, quaternion_xyzw}`` of ``T_parent_child`` (4x4)."""
+    t, q = se3.to_xyz_quat(T)
+    return {"parent": parent, "child": child, "translation": t.tolist(), "quaternion_xyzw": q.tolist()}
+
+
+def _closure(c: Closure, names: list[str]) -> dict[str, Any]:
+    return {"streams": [names[i] for i in c.nodes], "rotation_deg": c.rotation_deg, "translation_m": c.translation_m}
+
+
+@dataclass(frozen=True, eq=False)
+class RigResult:
+    """Everything a rig calibration produced.
+
+    names, reference: the sensors and the reference's index; streams: as used (after inversion);
+    inverted: per stream; offsets: each clock's offset to the reference's; edges: the calibrated
+    pairs (pairwise-only results); problem: the joint cost; synchronised: ``T_ref_k`` (n, 4, 4)
+    of the graph synchronisation; matrices: the joint ``T_ref_k`` (n, 4, 4); closures: the
+    pairwise-only loop closures; joint_closures: those of the joint result; consistency: the
+    bad-stream diagnostic; uncertainty: bootstrap spread (or None); warnings, inputs, settings.
+    """
+
+    names: list[str]
+    reference: int
+    streams: list[PoseStream]
+    inverted: list[bool]
+    offsets: list[ClockOffset]
+    edges: list[Edge]
+    problem: JointProblem
+    synchronised: Array
+    matrices: Array
+    closures: list[Closure]
+    joint_closures: list[Closure]
+    consistency: Consistency
+    uncertainty: RigUncertainty | None = None
+    warnings: list[str] = field(default_factory=list)
+    inputs: dict[str, Any] = field(default_factory=dict)
+    settings: dict[str, Any] = field(default_factory=dict)
+
+    def T(self, parent: str, child: str) -> Array:
+        """``T_parent_child`` (4x4) of the joint result."""
+        i, j = self.names.index(parent), self.names.index(child)
+        return np.asarray(se3.inverse(self.matrices[i]) @ self.matrices[j], dtype=np.float64)
+
+    def _pair(self, edge: Edge, weight: Array) -> dict[str, Any]:
+        names, A, B = self.names, edge.calibration.pairs.A, edge.calibration.pairs.B
+        joint = self.T(names[edge.j], names[edge.k])
+        mask = None if edge.calibration.weights is None else edge.calibration.weights > 0
+        rot, trans = extrinsic_error(joint, edge.matrix)
+        return {**transform_entry(names[edge.j], names[edge.k], joint),
+                "pairwise_only": transform_entry(names[edge.j], names[edge.k], edge.matrix),
+                "difference": {"rotation_deg": rot, "translation_m": trans},
+                "pairs_used": len(A), "weights": {"rotation": weight[0], "translation": weight[1]},
+                "residuals": {"joint": pair_residuals(A, B, joint).summary(mask).as_dict(),
+                              "pairwise_only": pair_residuals(A, B, edge.matrix).summary(mask).as_dict()}}
+
+    def _streams(self) -> list[dict[str, Any]]:
+        return [{"name": name, "source": s.source, "frame_id": s.frame_id, "child_frame_id": s.child_frame_id,
+                 "samples": len(s), "inverted": inv, "time_offset": off.as_dict()}
+                for name, s, inv, off in zip(self.names, self.streams, self.inverted, self.offsets, strict=True)]
+
+    def _uncertainty(self) -> dict[str, Any] | None:
+        u = self.uncertainty
+        if u is None:
+            return None
+        return {"method": "block bootstrap over the shared samples, joint re-solve", "replicates": u.replicates,
+                "block_seconds": u.block_s, "seed": u.seed,
+                "sensors": {name: {"rotation_std_deg": u.rotation_std_deg[i].tolist(),
+                                   "translation_std_m": u.translation_std_m[i].tolist()}
+                            for i, name in enumerate(self.names) if i != self.reference}}
+
+    def document(self) -> dict[str, Any]:
+        """The rig result as a plain dict (see the module docstring)."""
+        names, ref = self.names, self.names[self.reference]
+        c = self.consistency
+        doc = {
+            "reference": ref,
+            "transforms": [transform_entry(ref, name, T) for name, T in zip(names, self.matrices, strict=True)
+                           if name != ref],
+            "method": "pairwise dqopt, graph synchronisation, joint refinement of the summed pairwise costs",
+            "alpha": self.edges[0].calibration.solution.alpha if self.edges else None,
+            "cost": self.problem.cost(self.matrices),
+            "pairwise": [self._pair(e, w) for e, w in zip(self.edges, self.problem.weights, strict=True)],
+            "loop_closures": {
+                "pairwise_only": [_closure(cl, names) for cl in self.closures],
+                "joint_max": {"rotation_deg": max((cl.rotation_deg for cl in self.joint_closures), default=0.0),
+                              "translation_m": max((cl.translation_m for cl in self.joint_closures), default=0.0)}},
+            "consistency": {"score": c.score, "without": dict(zip(names, c.without, strict=True)),
+                            "suspect": None if c.suspect is None else names[c.suspect]},
+            "streams": self._streams(),
+            "uncertainty": self._uncertainty(),
+            "inputs": self.inputs, "settings": self.settings, "version": __version__,
+            "warnings": list(self.warnings),
+        }
+        out: dict[str, Any] = plain({k: v for k, v in doc.items() if v is not None})
+        return out

@@ -1,0 +1,212 @@
+"""Whole-rig calibration (handeye_cli.rig): exactness, accuracy on simulated rigs of four sensors
+with different rates, noise, drift and clock offsets, loop closures, the bad-stream diagnostic,
+the bootstrap and the graph synchronisation."""
+from __future__ import annotations
+
+import itertools
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from _util import pose_error
+
+from handeye_cli import se3
+from handeye_cli.errors import ConfigError
+from handeye_cli.options import Options
+from handeye_cli.rig import RigOptions, calibrate_rig
+from handeye_cli.rig.graph import synchronise
+from handeye_cli.rig.simulate import SimSensor, simulate_streams
+from handeye_cli.simulation import _smooth_trajectory, random_transform
+from handeye_cli.streams import PoseStream
+
+DEG = np.deg2rad(1.0)
+OFFSETS_NS = (0, 15_000_000, -40_000_000, 70_000_000)
+
+
+def _mounts(seed: int) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return [np.eye(4)] + [random_transform(rng, 0.3) for _ in range(3)]
+
+
+def _sensors(T: list[np.ndarray], *, drift: bool = True, bad_scale: float = 1.0) -> list[SimSensor]:
+    """Four sensors: 30, 20, 10 and 50 Hz; 0.2–0.5° / 2–5 mm noise; clock offsets; drifting odometry."""
+    d1 = (0, 0, 0.5 * DEG / 60, 0.01 / 60, 0, 0) if drift else (0.0,) * 6
+    d2 = (0, 0, 1.0 * DEG / 60, 0.02 / 60, 0.01 / 60, 0) if drift else (0.0,) * 6
+    return [SimSensor("cam0", T[0], 30, 0.2 * DEG, 0.002),
+            SimSensor("cam1", T[1], 20, 0.3 * DEG, 0.003, OFFSETS_NS[1]),
+            SimSensor("lidar", T[2], 10, 0.1 * DEG, 0.002, OFFSETS_NS[2], drift=d1),
+            SimSensor("wheels", T[3], 50, 0.5 * DEG, 0.005, OFFSETS_NS[3], drift=d2, scale=bad_scale)]
+
+
+KNOWN_OFFSETS = {"cam1": OFFSETS_NS[1] / 1e9, "lidar": OFFSETS_NS[2] / 1e9, "wheels": OFFSETS_NS[3] / 1e9}
+
+
+@pytest.fixture(scope="module")
+def noisy_rig():
+    """A 4-sensor rig with auto clock offsets: (truth, result)."""
+    T = _mounts(0)
+    return T, calibrate_rig(simulate_streams(_sensors(T), duration_s=40, seed=0))
+
+
+def test_noise_free_rig_is_exact() -> None:
+    """Common stamps, no noise: every T_ref_k and every T_j_k to 1e-9, pairwise and joint."""
+    T = _mounts(1)
+    t = np.arange(0, 30, 0.05)
+    T_w = _smooth_trajectory(0.5 * t, "3d", np.random.default_rng(2))
+    rng = np.random.default_rng(3)
+    stamps = 1_700_000_000_000_000_000 + np.round(t * 1e9).astype(np.int64)
+    streams = {f"s{k}": PoseStream.from_matrices(stamps, random_transform(rng, 5.0) @ T_w @ Tk)
+               for k, Tk in enumerate(T)}
+    res = calibrate_rig(streams, RigOptions(time_offsets={f"s{k}": 0 for k in range(1, 4)}))
+    for k in range(4):
+        assert np.abs(res.matrices[k] - T[k]).max() < 1e-9
+    for e in res.edges:
+        assert np.abs(e.matrix - se3.inverse(T[e.j]) @ T[e.k]).max() < 1e-9
+    assert max(c.rotation_deg for c in res.closures) < 1e-7 and res.consistency.suspect is None
+
+
+def test_noisy_rig_recovered(noisy_rig) -> None:
+    T, res = noisy_rig
+    assert res.names == ["cam0", "cam1", "lidar", "wheels"] and len(res.edges) == 6
+    for k in range(1, 4):
+        rot, trans = pose_error(res.matrices[k], T[k])
+        assert rot < 0.2 and trans < 0.01, (res.names[k], rot, trans)
+        assert abs(res.offsets[k].offset_ns - OFFSETS_NS[k]) < 2_000_000     # auto, per stream
+    assert res.consistency.suspect is None and not res.warnings
+
+
+def test_joint_loop_closure_is_identity(noisy_rig) -> None:
+    _, res = noisy_rig
+    assert len(res.joint_closures) == 4
+    assert max(c.rotation_deg for c in res.joint_closures) < 1e-9
+    assert max(c.translation_m for c in res.joint_closures) < 1e-9
+    assert max(c.rotation_deg for c in res.closures) > 1e-3       # the pairwise ones it replaced do not close
+    doc = res.document()
+    assert len(doc["loop_closures"]["pairwise_only"]) == 4 and doc["loop_closures"]["joint_max"]["rotation_deg"] < 1e-9
+
+
+def test_joint_fits_pairs_almost_as_well_as_pairwise_only(noisy_rig) -> None:
+    """Each pair's residuals at the joint result stay close to its own optimum (and never below it)."""
+    _, res = noisy_rig
+    for pair in res.document()["pairwise"]:
+        joint, own = pair["residuals"]["joint"], pair["residuals"]["pairwise_only"]
+        assert joint["rotation_median_deg"] < 1.1 * own["rotation_median_deg"] + 1e-3
+        assert pair["difference"]["rotation_deg"] < 0.2
+    costs = res.problem.edge_costs(res.matrices)
+    own_costs = np.array([e.calibration.solution.cost for e in res.edges])
+    assert np.all(costs >= own_costs * (1 - 1e-9))
+
+
+def _chain_errors(res, truth: list[np.ndarray], k: int) -> dict[tuple[int, ...], tuple[float, float]]:
+    """Error of every simple chain of pairwise-only results from the reference (0) to sensor k."""
+    rel = {(e.j, e.k): e.matrix for e in res.edges}
+    rel.update({(b, a): se3.inverse(X) for (a, b), X in list(rel.items())})
+    others = [i for i in range(1, len(res.names)) if i != k]
+    out = {}
+    for r in range(len(others) + 1):
+        for mid in itertools.permutations(others, r):
+            path = (0, *mid, k)
+            X = np.eye(4)
+            for a, b in itertools.pairwise(path):
+                X = X @ rel[(a, b)]
+            out[path] = pose_error(X, truth[k])
+    return out
+
+
+def test_joint_at_least_as_accurate_as_best_pairwise_chain() -> None:
+    """Over several simulated rigs whose sensors lose tracking at different times (cam0 2–9 s,
+    cam1 9–15 s, lidar 15–21 s of 30 s), the joint estimate's RMS error per sensor is no larger
+    than that of the best pairwise chain (the chain of pairwise-only results from the reference
+    with the smallest RMS error). Error: rotation [rad] + α · translation [m] with the cost's α = 1/m.
+    (Without gaps the chains are nearly as good: benchmarks/rig.py prints both cases.)"""
+    joint, chains = {}, {}
+    gaps = (((2.0, 9.0),), ((9.0, 15.0),), ((15.0, 21.0),), ())
+    for seed in range(6):
+        T = _mounts(seed)
+        sensors = [replace(s, gaps=g) for s, g in zip(_sensors(T, drift=False), gaps, strict=True)]
+        res = calibrate_rig(simulate_streams(sensors, duration_s=30, seed=seed), RigOptions(time_offsets=KNOWN_OFFSETS))
+        for k in range(1, 4):
+            joint.setdefault(k, []).append(_combined(pose_error(res.matrices[k], T[k])))
+            for path, err in _chain_errors(res, T, k).items():
+                chains.setdefault(k, {}).setdefault(path, []).append(_combined(err))
+    for k in range(1, 4):
+        best = min(_rms(v) for v in chains[k].values())
+        assert _rms(joint[k]) <= best, (k, _rms(joint[k]), best)
+        assert _rms(joint[k]) < _rms(chains[k][(0, k)])              # strictly better than the direct pair
+
+
+def _combined(err: tuple[float, float]) -> float:
+    return float(np.deg2rad(err[0]) + err[1])
+
+
+def _rms(values: list[float]) -> float:
+    return float(np.sqrt(np.mean(np.square(values))))
+
+
+def test_bad_stream_is_named() -> None:
+    """A stream whose translations are 20 % short (e.g. monocular VO scale) spoils every loop it is in."""
+    T = _mounts(0)
+    res = calibrate_rig(simulate_streams(_sensors(T, bad_scale=0.8), duration_s=40, seed=0),
+                        RigOptions(time_offsets=KNOWN_OFFSETS))
+    assert res.names[res.consistency.suspect] == "wheels"
+    assert any("stream wheels is inconsistent" in w for w in res.warnings)
+    doc = res.document()
+    assert doc["consistency"]["suspect"] == "wheels"
+    assert doc["consistency"]["without"]["wheels"] < doc["consistency"]["score"] / 3
+
+
+def test_bootstrap_uncertainty(noisy_rig) -> None:
+    T, res = noisy_rig
+    streams = simulate_streams(_sensors(T), duration_s=40, seed=0)
+    boot = calibrate_rig(streams, RigOptions(time_offsets={n: o.offset_ns / 1e9 for n, o in
+                                                           zip(res.names[1:], res.offsets[1:], strict=True)},
+                                             options=Options.from_flat(bootstrap=40)))
+    u = boot.uncertainty
+    assert u is not None and u.replicates == 40
+    assert np.all(u.rotation_std_deg[0] == 0) and np.all(u.translation_std_m[0] == 0)   # the reference
+    for k in range(1, 4):
+        assert np.all(u.rotation_std_deg[k] > 0) and np.all(u.translation_std_m[k] > 0)
+        rot, trans = pose_error(boot.matrices[k], T[k])
+        assert rot < 6 * np.linalg.norm(u.rotation_std_deg[k]) + 0.02
+    sensors = boot.document()["uncertainty"]["sensors"]
+    assert set(sensors) == {"cam1", "lidar", "wheels"}
+
+
+def test_inversion_flag_per_stream(noisy_rig) -> None:
+    T, res = noisy_rig
+    streams = simulate_streams(_sensors(T), duration_s=40, seed=0)
+    streams["lidar"] = streams["lidar"].inverted()          # recorded as T_sensor_world
+    fixed = calibrate_rig(streams, RigOptions(invert=("lidar",), time_offsets=KNOWN_OFFSETS))
+    assert fixed.inverted == [False, False, True, False]
+    assert pose_error(fixed.matrices[2], T[2])[0] < 0.2
+
+
+def test_reference_and_option_errors(noisy_rig) -> None:
+    T, _ = noisy_rig
+    streams = simulate_streams(_sensors(T), duration_s=10, seed=0)
+    with pytest.raises(ConfigError, match="unknown reference"):
+        calibrate_rig(streams, RigOptions(reference="radar"))
+    with pytest.raises(ConfigError, match="unknown stream"):
+        calibrate_rig(streams, RigOptions(invert=("radar",)))
+    with pytest.raises(ConfigError, match="stream"):
+        calibrate_rig({"cam0": streams["cam0"]})
+
+
+def test_other_reference_gives_the_same_rig(noisy_rig) -> None:
+    T, res = noisy_rig
+    streams = simulate_streams(_sensors(T), duration_s=40, seed=0)
+    offsets = {n: o.offset_ns / 1e9 for n, o in zip(res.names, res.offsets, strict=True)}
+    other = calibrate_rig(streams, RigOptions(reference="lidar", time_offsets={
+        n: v - offsets["lidar"] for n, v in offsets.items() if n != "lidar"}))
+    assert np.abs(other.matrices[2] - np.eye(4)).max() < 1e-12
+    rot, trans = pose_error(other.T("cam0", "wheels"), res.T("cam0", "wheels"))
+    assert rot < 0.01 and trans < 5e-4
+
+
+def test_synchronise_recovers_consistent_graph() -> None:
+    rng = np.random.default_rng(9)
+    T = np.stack([np.eye(4)] + [random_transform(rng, 1.0) for _ in range(4)])
+    pairs = [(0, 1), (1, 2), (2, 3), (3, 4), (0, 4), (1, 3)]
+    X = np.stack([se3.inverse(T[j]) @ T[k] for j, k in pairs])
+    out = synchronise(5, pairs, X, np.array([1.0, 0.5, 2.0, 1.0, 0.1, 3.0]), reference=0)
+    assert np.abs(out - T).max() < 1e-9
