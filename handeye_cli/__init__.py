@@ -7,6 +7,7 @@ Public API::
     handeye_cli.calibrate_files("log.mcap", topic_a="/cam0/pose", topic_b="/cam1/pose", alpha="auto")
     handeye_cli.calibrate(stream_a, stream_b, max_jump="off")          # two PoseStreams → Calibration
     handeye_cli.load_options(config_file=None, preset=None, **options) # defaults < preset < file < keywords
+    handeye_cli.calibrate_rig_files("log.mcap", ["cam0=/cam0/pose", "imu=tf:odom,imu_link"], RigOptions())
 
 Keyword options have the command line's names without dashes (``--max-jump`` → ``max_jump``);
 see :mod:`handeye_cli.options`.
@@ -20,8 +21,10 @@ from .config import load_options
 from .errors import HandEyeError
 from .options import Options
 from .pipeline import Calibration, StreamSpec, calibrate, calibrate_files
+from .rig import RigOptions, RigResult, calibrate_rig, calibrate_rig_files
 from .solvers import METHODS, Prior, Solution, solve
 from .streams import PoseStream
 
 __all__ = ["HandEyeError", "METHODS", "PoseStream", "Prior", "Solution", "solve", "Calibration", "StreamSpec",
-           "calibrate", "calibrate_files", "load_options", "Options", "__version__"]
+           "calibrate", "calibrate_files", "load_options", "Options", "RigOptions", "RigResult", "calibrate_rig",
+           "calibrate_rig_files", "__version__"]
