@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from .. import se3
 from ..errors import HandEyeError
 from ..streams import PoseStream
-from .common import PoseBuffer, make_stream
+from .common import LOG_STAMPS_FIX, PoseBuffer, make_stream
 from .messages import PoseRecord
 
 __all__ = ["TfTree"]
@@ -58,11 +58,11 @@ class TfTree:
 
     def _edge_stream(self, key: tuple[str, str]) -> PoseStream:
         """The validated samples of an edge (dynamic if it has any, else static), sorted by stamp."""
-        buf = self._dynamic.get(key) or self._static[key]
-        stamps, xyz, quat = buf.arrays()
+        dynamic = self._dynamic.get(key)
+        stamps, xyz, quat = (dynamic or self._static[key]).arrays()
         return make_stream(stamps, xyz, quat, source=f"{self.name}: TF {key[0]}->{key[1]}",
                            frame_id=key[0], child_frame_id=key[1], time_source="",
-                           where=lambda i: f"transform {i}")
+                           where=lambda i: f"transform {i}", zero_stamps_fix=LOG_STAMPS_FIX if dynamic else None)
 
     @staticmethod
     def _edge_at(edge: PoseStream, static: bool, t: np.ndarray) -> np.ndarray:
@@ -139,4 +139,5 @@ class TfTree:
         T = se3.inverse(compose(keys_p)) @ compose(keys_c)
         xyz, quat = se3.to_xyz_quat(T)
         return PoseStream(t, xyz, quat, frame_id=parent, child_frame_id=child, source=source,
-                          time_source=time_source, duplicates_dropped=ref.duplicates_dropped)
+                          time_source=time_source, duplicates_dropped=ref.duplicates_dropped,
+                          warnings=tuple(w for e in edges.values() for w in e.warnings))
