@@ -219,12 +219,15 @@ def test_malformed_text(tmp_path):
 def test_csv_columns(tmp_path):
     csv = tmp_path / "c.csv"
     csv.write_text("time,x,y,height,qx,qy,qz,qw\n1.0,1,2,3,0,0,0,1\n")
-    fails(lambda: read_stream(csv), "CSV column for 'z' not found", "header has: time, x, y, height",
-          "columns=")
+    e = fails(lambda: read_stream(csv), "CSV column for 'z' not found", "header has: time, x, y, height",
+              "csv_columns in a --config file")
+    assert "columns={" not in str(e)
     assert read_stream(csv, columns={"z": "height"}).xyz.tolist() == [[1.0, 2.0, 3.0]]
     fails(lambda: read_stream(csv, columns={"z": "height", "t_unit": "days"}), "unknown time unit 'days'")
     csv.write_text("timestamp,x,y,z,qx,qy,qz,qw\n1700000000000000000,1,2,3,0,0,0,1\n")
-    fails(lambda: read_stream(csv), "out of the int64 nanosecond range .wrong time unit", "line 2")
+    fails(lambda: read_stream(csv, time_unit="s"), "out of the int64 nanosecond range .wrong time unit", "line 2",
+          "--time-unit")
+    assert read_stream(csv).stamps_ns.tolist() == [1700000000000000000]     # auto: epoch nanoseconds
 
 
 def test_inspect_errors(tmp_path):
