@@ -7,18 +7,15 @@ stamps sorted ascending, positions [m], unit quaternions x-y-z-w.
 """
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from pathlib import Path
 
-from ..errors import ConfigError, HandEyeError
+from ..errors import ConfigError
 from ..streams import PoseStream
 from .detect import LOG_FORMATS, detect_format
 from .inputs import existing, spooled, valid_frame_id
 from .logs import Request, inspect_source, read_requests
-from .mcap_reader import McapSource
-from .rosbag_reader import BagSource
-from .source import LogSource
+from .opening import open_log
 from .text import read_text
 
 __all__ = ["read_stream", "read_log_streams", "inspect_log", "detect_format", "valid_frame_id"]
@@ -32,16 +29,6 @@ def _inputs(paths: str | Path | Sequence[str | Path]) -> tuple[list[Path], list[
     plist = [existing(p) for p in ([paths] if isinstance(paths, (str, Path)) else list(paths))]
     fmts = [detect_format(p) for p in plist]
     return [spooled(p, _SUFFIX[f]) if f in LOG_FORMATS else p for p, f in zip(plist, fmts, strict=True)], fmts
-
-
-@contextmanager
-def _open_log(paths: list[Path], fmts: list[str]) -> Iterator[LogSource]:
-    if len(paths) > 1 and (len(set(fmts)) > 1 or fmts[0] != "rosbag1"):
-        raise HandEyeError("several files are read as one log only when all are ROS 1 .bag files",
-                           ", ".join(map(str, paths)), "pass one file, or the split .bag files of one recording")
-    source = McapSource(paths[0]) if fmts[0] == "mcap" else BagSource(paths, fmts[0])
-    with source:
-        yield source
 
 
 def read_stream(paths: str | Path | Sequence[str | Path], *, topic: str | None = None,
@@ -77,7 +64,7 @@ def read_stream(paths: str | Path | Sequence[str | Path], *, topic: str | None =
     plist, fmts = _inputs(paths)
     if fmts[0] not in LOG_FORMATS:
         if len(plist) > 1 or topic is not None or frames is not None:
-            raise HandEyeError(f"a {fmts[0].upper()} text file holds one stream: no topic/frames and one "
+            raise ConfigError(f"a {fmts[0].upper()} text file holds one stream: no topic/frames and one "
                                "file per stream", ", ".join(map(str, plist)),
                                "drop --topic/--frames and pass one text file per stream")
         return read_text(plist[0], fmts[0], columns, quaternion_order=quaternion_order, time_unit=time_unit)
@@ -93,7 +80,7 @@ def read_log_streams(paths: str | Path | Sequence[str | Path], requests: Sequenc
     if time_source not in _TIME_SOURCES:
         raise ConfigError(f"unknown time source {time_source!r}", "time_source", "use 'header' or 'log'")
     if not plist or fmts[0] not in LOG_FORMATS:
-        raise HandEyeError("not a log (MCAP, ROS 1 or ROS 2 bag)", ", ".join(map(str, plist)) or "read_log_streams",
+        raise ConfigError("not a log (MCAP, ROS 1 or ROS 2 bag)", ", ".join(map(str, plist)) or "read_log_streams",
                            "read text files one stream at a time with read_stream")
     return _read_log(plist, fmts, requests, time_source, quiet)
 
@@ -102,9 +89,9 @@ def _read_log(plist: list[Path], fmts: list[str], requests: Sequence[Request], t
               quiet: bool) -> list[PoseStream]:
     for topic, frames in requests:
         if (topic is None) == (frames is None):
-            raise HandEyeError("give exactly one of a topic or a (parent, child) frame pair",
+            raise ConfigError("give exactly one of a topic or a (parent, child) frame pair",
                                ", ".join(map(str, plist)), "use --topic-a/--topic-b or --frames-a/--frames-b")
-    with _open_log(plist, fmts) as src:
+    with open_log(plist, fmts) as src:
         return read_requests(src, requests, time_source=time_source, quiet=quiet)
 
 
@@ -123,5 +110,5 @@ def inspect_log(path: str | Path, *, quiet: bool = True) -> dict:
         return {"format": fmt, "path": str(p), "rows": len(s) + s.duplicates_dropped,
                 "start_ns": int(s.stamps_ns[0]), "end_ns": int(s.stamps_ns[-1]), "duration_ns": span,
                 "rate_hz": round((len(s) - 1) / span * 1e9, 3) if span else 0.0}
-    with _open_log([p], [fmt]) as src:
+    with open_log([p], [fmt]) as src:
         return {"format": fmt, "path": str(p), **inspect_source(src, quiet)}

@@ -75,6 +75,14 @@ class PoseBuffer:
                 self._last = rec[1:3]
                 self.pairs[self._last] = None
 
+    def add_arrays(self, pair: tuple[str, str], stamps: np.ndarray, values: np.ndarray) -> None:
+        """Append int64 stamps [ns] and (N, 7) values (x, y, z, qx, qy, qz, qw) of one (frame, child) pair."""
+        self.stamps.frombytes(np.ascontiguousarray(stamps, dtype=np.int64).tobytes())
+        self.values.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+        if len(stamps):
+            self._last = pair
+            self.pairs[pair] = None
+
     def __len__(self) -> int:
         return len(self.stamps)
 
@@ -168,8 +176,10 @@ def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source
             notes.append(f"{int(differs.sum())} sample(s) of {source} repeat a stamp with a different pose "
                          f"(the first is kept), e.g. {where(int(idx[np.argmax(differs)]))}")
     idx = idx[~repeat]
+    if len(idx) == len(stamps) and not np.any(np.diff(idx) != 1):    # nothing moved: no copies
+        idx = slice(None)
     q = quat[idx]
-    return PoseStream(t[~repeat], xyz[idx], q / np.linalg.norm(q, axis=1)[:, None],
+    return PoseStream(t[~repeat], xyz[idx], q / np.sqrt(np.einsum("ij,ij->i", q, q))[:, None],
                       frame_id=frame_id, child_frame_id=child_frame_id, source=source,
                       time_source=time_source, duplicates_dropped=int(repeat.sum()),
                       warnings=tuple(notes), recovered_truncated=recovered_truncated)

@@ -71,7 +71,7 @@ def open_binary(path: str | Path) -> BinaryIO:
     """The whole content as a binary file object, positioned at the start."""
     if is_stream(path):
         return io.BytesIO(_slurp(path))
-    return open(path, "rb")  # noqa: SIM115 - the caller closes it
+    return open(path, "rb")
 
 
 def spooled(path: Path, suffix: str) -> Path:

@@ -2,10 +2,13 @@
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
+from dataclasses import replace
 
-from ..errors import HandEyeError
+from ..errors import DataError, HandEyeError
 from ..streams import PoseStream
 from .common import DECODE_ERRORS, PoseBuffer, make_stream
+from .inputs import valid_frame_id
+from .mcap_fast import FastPoses
 from .messages import POSE_TYPES, TF_TYPES, PoseRecord, UnsupportedContent
 from .progress import progress
 from .source import LogSource, TopicInfo
@@ -67,24 +70,35 @@ def _check_topic(src: LogSource, infos: list[TopicInfo], topic: str) -> None:
                            f"pose topics in this file: {_pose_topics(infos)}")
 
 
-def _topic_stream(src: LogSource, topic: str, buf: PoseBuffer, time_source: str) -> PoseStream:
+def _truncation(src: LogSource, n: int) -> list[str]:
+    """The source's warnings (``notes``) and, for a cut-off recording, how many messages (``n``) were recovered."""
+    notes = list(getattr(src, "notes", ()))
+    if getattr(src, "truncated", False):
+        notes.append(f"recovered {n} messages from truncated {src.name}; the rest is lost")
+    return notes
+
+
+def _topic_stream(src: LogSource, topic: str, buf: PoseBuffer | FastPoses, time_source: str) -> PoseStream:
     source = f"{src.name}:{topic}"
     if len(buf.pairs) > 1:
         pairs = ", ".join(f"{p or '?'}->{c or '?'}" for p, c in list(buf.pairs)[:8])
-        raise HandEyeError(f"topic carries poses of several frame pairs ({pairs})", source,
-                           "select one pair with frames=(PARENT, CHILD) / --frames-a PARENT CHILD")
+        raise DataError(f"topic carries poses of several frame pairs ({pairs})", source,
+                        "select one pair with frames=(PARENT, CHILD) / --frames-a PARENT CHILD")
     frame, child = next(iter(buf.pairs), ("", ""))
     stamps, xyz, quat = buf.arrays()
-    return make_stream(stamps, xyz, quat, source=source, frame_id=frame, child_frame_id=child or topic,
-                       time_source=time_source, where=lambda i: f"message {i}")
+    truncated = getattr(src, "truncated", False)
+    return make_stream(stamps, xyz, quat, source=source, frame_id=frame, child_frame_id=child or valid_frame_id(topic),
+                       time_source=time_source, where=lambda i: f"message {i}", warnings=_truncation(src, len(buf)),
+                       recovered_truncated=len(buf) if truncated else 0)
 
 
 def read_requests(src: LogSource, requests: Sequence[Request], *, time_source: str = "header",
                   quiet: bool = True) -> list[PoseStream]:
     """Several pose streams of one log in a single pass over it, one per request: ``(topic, None)``
     reads the poses ``T_frame_child`` on a pose topic (child = child_frame_id, else the topic
-    name); ``(None, (parent, child))`` resolves ``T_parent_child(t)`` through the TF topics
-    (TFMessage, Foxglove FrameTransform(s))."""
+    name as a valid frame id); ``(None, (parent, child))`` resolves ``T_parent_child(t)`` through
+    the TF topics (TFMessage, Foxglove FrameTransform(s)). Topics the source's fast path decodes
+    (``read_fast``, MCAP) come as arrays; the rest message by message."""
     infos = src.topics()
     wanted = {topic for topic, _ in requests if topic is not None}
     for topic in wanted:
@@ -93,18 +107,38 @@ def read_requests(src: LogSource, requests: Sequence[Request], *, time_source: s
     if any(frames is not None for _, frames in requests):
         tf_topics = {t.topic for t in infos if t.msgtype in TF_TYPES}
         if not tf_topics:
-            raise HandEyeError("no TF topics (/tf, /tf_static) in this file", src.name,
-                               f"read a pose topic instead; pose topics: {_pose_topics(infos)}")
-    buffers = {topic: PoseBuffer() for topic in wanted}
-    tree = TfTree(src.name)
+            raise DataError("no TF topics (/tf, /tf_static) in this file", src.name,
+                            f"read a pose topic instead; pose topics: {_pose_topics(infos)}")
     label = "reading " + ", ".join(sorted(wanted) + (["TF"] if tf_topics else []))
-    for topic, recs in _records(src, [t for t in infos if t.topic in wanted | tf_topics], label, time_source, quiet):
+    fast: dict[str, FastPoses] = {}
+    if hasattr(src, "read_fast"):
+        todo = [t for t in infos if t.topic in wanted | tf_topics]
+        with progress(sum(t.count for t in todo), label, quiet=quiet) as bar:
+            fast = src.read_fast(sorted(wanted | tf_topics), time_source)
+            bar.update(sum(t.count for t in todo if t.topic in fast))
+    buffers: dict[str, PoseBuffer | FastPoses] = {topic: fast.get(topic) or PoseBuffer() for topic in wanted}
+    tree = TfTree(src.name)
+    tf_messages = 0
+    for topic in tf_topics & fast.keys():
+        for k, (parent, child) in enumerate(fast[topic].pair_names):
+            tree.add_arrays(parent, child, *fast[topic].of_pair(k), static=is_static_topic(topic))
+    slow = [t for t in infos if t.topic in (wanted | tf_topics) - fast.keys()]
+    for topic, recs in _records(src, slow, label, time_source, quiet):
         if topic in buffers:
             buffers[topic].add(recs)
         if topic in tf_topics:
+            tf_messages += 1
             tree.add(recs, static=is_static_topic(topic))
-    return [_topic_stream(src, topic, buffers[topic], time_source) if topic is not None
-            else tree.lookup(*frames, time_source=time_source) for topic, frames in requests]
+    streams = []
+    for topic, frames in requests:
+        if topic is not None:
+            streams.append(_topic_stream(src, topic, buffers[topic], time_source))
+            continue
+        s = tree.lookup(*frames, time_source=time_source)
+        n = tf_messages + sum(len(fast[t]) for t in tf_topics & fast.keys())
+        streams.append(replace(s, warnings=(*_truncation(src, n), *s.warnings),
+                               recovered_truncated=n if getattr(src, "truncated", False) else 0))
+    return streams
 
 
 def _tf_tree(src: LogSource, infos: list[TopicInfo], time_source: str,

@@ -118,9 +118,14 @@ def _time_digits(b: NDArray[np.uint8], pos: NDArray[np.int64]) -> tuple[NDArray,
     if (point - neg > 18).any() or (length - point - 1 > 9).any():
         return None
     d = win.astype(np.int64) - ord("0")
+    if (point == point[0]).all() and (length == length[0]).all() and (neg == neg[0]).all():  # one layout
+        p, n, s = int(point[0]), int(length[0]), int(neg[0])
+        t_int = d[:, s:p] @ _P10[:p - s][::-1]
+        t_frac = d[:, p + 1:n] @ _P10[9 - (n - p - 1):9][::-1] if n > p + 1 else np.zeros(len(pos), np.int64)
+        return t_int, t_frac, neg
     t_int = np.zeros(len(pos), np.int64)
     t_frac = np.zeros(len(pos), np.int64)
-    for j in range(_WINDOW):
+    for j in range(int(length.max())):
         is_int = inside[:, j] & (j < point)
         t_int += np.where(is_int, d[:, j] * _P10[np.clip(point - 1 - j, 0, 18)], 0)
         is_frac = inside[:, j] & (j > point)
@@ -153,7 +158,7 @@ def _fast_block(block: bytes, line0: int, skip: int, k: int | None,
     if (counts != k).any() or t_col >= k:
         return None
     try:
-        values = np.fromstring(b.tobytes().decode("ascii"), sep=" ")  # noqa: NPY201 - text mode is not deprecated
+        values = np.fromstring(b.tobytes().decode("ascii"), sep=" ")
     except (UnicodeDecodeError, ValueError):
         return None
     if len(values) != len(rows) * k:

@@ -118,6 +118,13 @@ def _looks_wxyz(q: NDArray[np.float64]) -> bool:
     return one_sign and float(np.median(first)) > 0.7 > float(np.median(last))
 
 
+def _columns(values: NDArray[np.float64], cols: NDArray[np.intp]) -> NDArray[np.float64]:
+    """``values[:, cols]``, as a view when the columns are adjacent and in order (no copy of a large table)."""
+    if (np.diff(cols) == 1).all():
+        return values[:, cols[0]:cols[-1] + 1]
+    return values[:, cols]
+
+
 def _check_args(quaternion_order: str, time_unit: str) -> None:
     if quaternion_order not in QUATERNION_ORDERS:
         raise ConfigError(f"unknown quaternion order {quaternion_order!r}", "quaternion_order",
@@ -158,12 +165,13 @@ def read_text(path: Path | str, fmt: str, columns: dict | None = None, *, quater
         unit = time_unit
     elif unit is None:
         unit = _auto_unit(table.time_float(), name, notes)
-    v = table.values[:, index[1:]]
-    quat = v[:, [4, 5, 6, 3]] if order == "wxyz" else v[:, 3:]
+    cols = np.asarray(index[1:])
+    xyz = _columns(table.values, cols[:3])
+    quat = _columns(table.values, cols[[4, 5, 6, 3]] if order == "wxyz" else cols[3:])
     if fmt != "euroc" and order == "xyzw" and _looks_wxyz(quat):
         notes.append(f"the quaternions of {name} look like w-x-y-z order (the first quaternion column is near "
                      "±1 with one sign, the last is not); if so, pass --wxyz-a (first stream) or --wxyz-b (second)")
     lines = table.lines
-    return make_stream(table.stamps_ns(_DIGITS[unit], name), v[:, :3], quat, source=name, frame_id="world",
+    return make_stream(table.stamps_ns(_DIGITS[unit], name), xyz, quat, source=name, frame_id="world",
                        child_frame_id=valid_frame_id(stem_of(path)), time_source="header",
                        where=lambda i: f"line {lines[i]}", warnings=notes, zero_stamps_fix=_TEXT_STAMPS_FIX)

@@ -40,6 +40,13 @@ class TfTree:
             key = (rec[1].lstrip("/"), rec[2].lstrip("/"))
             edges.setdefault(key, PoseBuffer()).add([(rec[0], *key, *rec[3:])])
 
+    def add_arrays(self, parent: str, child: str, stamps: np.ndarray, values: np.ndarray, *, static: bool) -> None:
+        """Add the transforms ``T_parent_child`` of one edge: int64 stamps [ns], values (N, 7) =
+        x, y, z [m], qx, qy, qz, qw."""
+        edges = self._static if static else self._dynamic
+        key = (parent.lstrip("/"), child.lstrip("/"))
+        edges.setdefault(key, PoseBuffer()).add_arrays(key, stamps, values)
+
     def edges(self) -> list[dict]:
         """Tree edges ``[{parent, child, static, count}]``, sorted by parent then child."""
         rows = {k: {"parent": k[0], "child": k[1], "static": True, "count": len(b)}
