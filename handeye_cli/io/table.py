@@ -65,12 +65,12 @@ class Table:
             raise _range_error(str(self.t_exact[bad]), name, int(self.lines[bad]))
         m = _P10[9 - digits]
         q, r = np.divmod(self.t_frac, m)
-        q += (2 * r > m) | ((2 * r == m) & (q % 2 == 1))
-        limit = (2**63 - 1 - q) // _P10[digits]
+        limit = (2**63 - 2 - q) // _P10[digits]
         if (self.t_int > limit).any():
             i = int(np.argmax(self.t_int > limit))
             raise _range_error(f"{self.t_int[i]}.{self.t_frac[i]:09d}", name, int(self.lines[i]))
         ns = self.t_int * _P10[digits] + q
+        ns += (2 * r > m) | ((2 * r == m) & (ns % 2 == 1))     # round half to even, like Decimal
         return np.where(self.t_neg, -ns, ns)
 
 
