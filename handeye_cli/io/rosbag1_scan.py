@@ -81,7 +81,7 @@ class Bag1Scan:
                     raw = decompressors[header.get_string("compression")](data)
                     yield from self._walk(self._records(io.BytesIO(raw)), conns)
                 elif op == RecordType.CONNECTION:
-                    meta = Header.read(io.BytesIO(data))
+                    meta = Header.read(io.BytesIO(len(data).to_bytes(4, "little") + data))   # fields, unprefixed
                     self._conns[header.get_uint32("conn")] = (
                         header.get_string("topic"), meta.get_string("type"), meta.get_string("message_definition"))
                 elif op == RecordType.MSGDATA:
