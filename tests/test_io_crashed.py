@@ -108,8 +108,6 @@ def test_mcap_cut_mid_chunk(tmp_path, streams, compression):
     assert len(s) < len(streams[0]) and s.recovered_truncated == len(s)
     (w,) = s.warnings
     assert re.fullmatch(rf"recovered {len(s)} messages from truncated .*r\.mcap; the rest is lost", w)
-    with pytest.raises(HandEyeError):        # all of the chunk before the cut is there: messages of both topics
-        read_stream(path, topic="/c")
 
 
 def test_mcap_without_footer(tmp_path, streams):

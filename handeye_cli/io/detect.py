@@ -36,7 +36,7 @@ def _classify_header(name: str, suffix: str, line: str) -> str:
         return "csv"
     kind = ("a Markdown/text document" if suffix in (".md", ".rst", ".txt")
             else "text that is neither numbers nor a CSV header")
-    raise _not_a_stream(name, f"{kind} (first line {line[:60]!r})")
+    raise _not_a_stream(f"{name}, first data line {line[:60]!r}", kind)
 
 
 def text_format(name: str, suffix: str, head: bytes) -> str:
