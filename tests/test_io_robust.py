@@ -140,7 +140,8 @@ def test_wxyz_quaternions(tmp_path):
 def test_time_units(tmp_path, rig, unit, scale, since_start, warned):
     a = rig[0]
     t = (a.stamps_ns - (a.stamps_ns[0] if since_start else 0)) // scale
-    rows = [f"{ti} " + " ".join(repr(float(v)) for v in (*p, *q)) for ti, p, q in zip(t, a.xyz, a.quat_xyzw, strict=True)]
+    rows = [f"{ti} " + " ".join(repr(float(v)) for v in (*p, *q))
+            for ti, p, q in zip(t, a.xyz, a.quat_xyzw, strict=True)]
     if unit == "s":
         rows = [f"{ti / 1e9:.9f} " + r.split(" ", 1)[1]
                 for ti, r in zip(a.stamps_ns - a.stamps_ns[0], rows, strict=True)]
