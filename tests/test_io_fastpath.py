@@ -150,3 +150,22 @@ def test_tum_round_trip_on_many_blocks(tmp_path, monkeypatch, rig):
     s = read_stream(path)
     np.testing.assert_array_equal(s.stamps_ns, rig[0].stamps_ns)
     np.testing.assert_allclose(s.xyz, rig[0].xyz, rtol=0, atol=0)
+
+
+# --- inspect ----------------------------------------------------------------------------------
+def test_inspect_samples_tf_unless_asked_for_all(tmp_path, rig):
+    """Counts come from the summary; TF edges from the first TF_SAMPLE messages unless all_tf."""
+    from handeye_cli.io import inspect_log
+    from handeye_cli.io.logs import TF_SAMPLE
+    a = simulate_rig(Rig(np.eye(4)), duration_s=60.0, rate_a=50.0, seed=4)[0]
+    late = (int(a.stamps_ns[-1]), [(int(a.stamps_ns[-1]), "world", "late_frame", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)])
+    path = write_mcap(tmp_path / "tf.mcap", [Channel("/tf", TF, [(r[0], [r]) for r in records(a, "world", "base")]
+                                                     + [late])])
+    n = len(a) + 1
+    assert n > TF_SAMPLE
+    quick, full = inspect_log(path), inspect_log(path, all_tf=True)
+    assert quick["topics"][0]["count"] == full["topics"][0]["count"] == n
+    assert (quick["tf_messages_read"], quick["tf_complete"]) == (TF_SAMPLE, False)
+    assert (full["tf_messages_read"], full["tf_complete"]) == (n, True)
+    assert [e["child"] for e in quick["tf_frames"]] == ["base"]
+    assert [e["child"] for e in full["tf_frames"]] == ["base", "late_frame"]

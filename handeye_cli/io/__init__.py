@@ -95,13 +95,14 @@ def _read_log(plist: list[Path], fmts: list[str], requests: Sequence[Request], t
         return read_requests(src, requests, time_source=time_source, quiet=quiet)
 
 
-def inspect_log(path: str | Path, *, quiet: bool = True) -> dict:
+def inspect_log(path: str | Path, *, quiet: bool = True, all_tf: bool = False) -> dict:
     """A JSON-able overview of one file.
 
     Logs: ``format``, ``path``, ``start_ns``/``end_ns``/``duration_ns`` (log time),
     ``topics`` [{topic, type, encoding, count, rate_hz (mean over the log), pose}],
-    ``tf_frames`` [{parent, child, static, count}]. Text files: ``format``, ``path``,
-    ``rows``, ``start_ns``, ``end_ns``, ``duration_ns``, ``rate_hz``.
+    ``tf_frames`` [{parent, child, static, count}] from the first 2000 TF messages unless ``all_tf``
+    (``tf_messages_read``, ``tf_complete`` say which; counts of a sample are the sample's).
+    Text files: ``format``, ``path``, ``rows``, ``start_ns``, ``end_ns``, ``duration_ns``, ``rate_hz``.
     """
     (p,), (fmt,) = _inputs(path)
     if fmt not in LOG_FORMATS:
@@ -111,4 +112,4 @@ def inspect_log(path: str | Path, *, quiet: bool = True) -> dict:
                 "start_ns": int(s.stamps_ns[0]), "end_ns": int(s.stamps_ns[-1]), "duration_ns": span,
                 "rate_hz": round((len(s) - 1) / span * 1e9, 3) if span else 0.0}
     with open_log([p], [fmt]) as src:
-        return {"format": fmt, "path": str(p), **inspect_source(src, quiet)}
+        return {"format": fmt, "path": str(p), **inspect_source(src, quiet, all_tf=all_tf)}

@@ -141,25 +141,36 @@ def read_requests(src: LogSource, requests: Sequence[Request], *, time_source: s
     return streams
 
 
-def _tf_tree(src: LogSource, infos: list[TopicInfo], time_source: str,
-             quiet: bool) -> tuple[TfTree, dict[str, set[tuple[str, str]]]]:
-    """The TF tree of every TF topic, and the (parent, child) pairs each TF topic carries."""
+TF_SAMPLE = 2000
+"""Messages of the TF topics ``inspect`` reads (from the start of the file) unless asked for all."""
+
+
+def _tf_tree(src: LogSource, infos: list[TopicInfo], quiet: bool,
+             limit: int | None) -> tuple[TfTree, dict[str, set[tuple[str, str]]], int]:
+    """The TF tree of the first ``limit`` (None: all) TF messages, the (parent, child) pairs each TF
+    topic carries in them, and how many messages were read."""
     tree = TfTree(src.name)
     pairs: dict[str, set[tuple[str, str]]] = {t.topic: set() for t in infos if t.msgtype in TF_TYPES}
-    for topic, recs in _records(src, [t for t in infos if t.topic in pairs], "reading TF", time_source, quiet):
+    n = 0
+    for topic, recs in _records(src, [t for t in infos if t.topic in pairs], "reading TF", "header", quiet):
         tree.add(recs, static=is_static_topic(topic))
         pairs[topic].update((r[1], r[2]) for r in recs)
-    return tree, pairs
+        n += 1
+        if limit is not None and n >= limit:
+            break
+    return tree, pairs, n
 
 
-def inspect_source(src: LogSource, quiet: bool = True) -> dict:
-    """Topics (type, encoding, count, mean rate over the log's span, ``pose``: readable as one
-    pose stream with ``read_requests`` — a TF topic only when it carries a single frame pair) and
-    the TF edges."""
+def inspect_source(src: LogSource, quiet: bool = True, *, all_tf: bool = False) -> dict:
+    """Topics (type, encoding, count, mean rate over the log's span — from the summary/index, no
+    message read —, ``pose``: readable as one pose stream with ``read_requests``, for a TF topic
+    only when it carries a single frame pair) and the TF edges, from the first
+    :data:`TF_SAMPLE` TF messages unless ``all_tf`` (then every TF message, exact counts).
+    ``tf_messages_read``: how many TF messages the edges come from; ``tf_complete``: all were read."""
     infos = src.topics()
     span = src.span()
     duration = span[1] - span[0] if span else 0
-    tree, tf_pairs = _tf_tree(src, infos, "header", quiet)
+    tree, tf_pairs, n_tf = _tf_tree(src, infos, quiet, None if all_tf else TF_SAMPLE)
 
     def one_stream(t: TopicInfo) -> bool:
         return t.msgtype in POSE_TYPES and (t.topic not in tf_pairs or len(tf_pairs[t.topic]) == 1)
@@ -167,5 +178,7 @@ def inspect_source(src: LogSource, quiet: bool = True) -> dict:
     topics = [{"topic": t.topic, "type": t.msgtype, "encoding": t.encoding, "count": t.count,
                "rate_hz": round(t.count / duration * 1e9, 3) if duration else 0.0,
                "pose": one_stream(t)} for t in sorted(infos, key=lambda t: t.topic)]
+    total_tf = sum(t.count for t in infos if t.topic in tf_pairs)
     return {"start_ns": span[0] if span else None, "end_ns": span[1] if span else None,
-            "duration_ns": duration, "topics": topics, "tf_frames": tree.edges()}
+            "duration_ns": duration, "topics": topics, "tf_frames": tree.edges(),
+            "tf_messages_read": n_tf, "tf_complete": n_tf >= total_tf}
