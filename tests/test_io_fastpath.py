@@ -10,7 +10,6 @@ import pytest
 from _logs import (
     ODOM,
     POSE,
-    POSE_COV,
     ROS_POSE_TYPES,
     TF,
     TRANSFORM,
