@@ -142,7 +142,10 @@ def _names(u: NDArray[np.uint8], start: NDArray[np.int64], length: NDArray[np.in
         return np.zeros(len(start), np.intp), [""]
     cols = np.arange(width)
     mat = np.where(cols < length[:, None], u[np.minimum(start[:, None] + cols, len(u) - 1)], 0).astype(np.uint8)
-    rows, codes = np.unique(mat, axis=0, return_inverse=True)
+    if (mat == mat[0]).all():           # the usual case: one frame id throughout
+        rows, codes = mat[:1], np.zeros(len(start), np.intp)
+    else:
+        rows, codes = np.unique(mat, axis=0, return_inverse=True)
     try:
         return codes.ravel(), [bytes(r).rstrip(b"\0").decode() for r in rows]
     except UnicodeDecodeError as exc:

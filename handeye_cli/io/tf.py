@@ -8,6 +8,7 @@ from frame ids.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
@@ -137,6 +138,12 @@ class TfTree:
             raise HandEyeError("empty stream: the moving TF edges on the chain do not overlap in time",
                                source, "check the recording of /tf")
 
+        notes = tuple(w for e in edges.values() for w in e.warnings)
+        if len(edges) == 1:         # one moving edge, sampled at its own stamps: no interpolation, no products
+            edge = ref if keys_c else ref.inverted()
+            return replace(edge, frame_id=parent, child_frame_id=child, source=source, time_source=time_source,
+                           warnings=notes)
+
         def compose(keys: list[tuple[str, str]]) -> np.ndarray:   # T_common_frame
             T = np.broadcast_to(np.eye(4), (len(t), 4, 4))
             for key in keys:
@@ -146,5 +153,4 @@ class TfTree:
         T = se3.inverse(compose(keys_p)) @ compose(keys_c)
         xyz, quat = se3.to_xyz_quat(T)
         return PoseStream(t, xyz, quat, frame_id=parent, child_frame_id=child, source=source,
-                          time_source=time_source, duplicates_dropped=ref.duplicates_dropped,
-                          warnings=tuple(w for e in edges.values() for w in e.warnings))
+                          time_source=time_source, duplicates_dropped=ref.duplicates_dropped, warnings=notes)
