@@ -161,6 +161,15 @@ def test_rosbag1_never_indexed(tmp_path, streams, compression):
     assert {t["topic"] for t in inspect_log(path)["topics"]} == {"/a", "/b"}
 
 
+def test_rosbag1_with_a_damaged_index(tmp_path, streams):
+    """The index section at the end lost its last bytes: the chunks are intact and read by a scan."""
+    path = write_bag1(tmp_path / "r.bag", [pose_channel("/a", POSE, records(streams[0], "w", ""))])
+    path.write_bytes(path.read_bytes()[:-8])
+    s = read_stream(path, topic="/a")
+    np.testing.assert_array_equal(s.stamps_ns, streams[0].stamps_ns)
+    assert any("no usable index" in w for w in s.warnings)
+
+
 # --- ROS 2 bags -------------------------------------------------------------------------------
 @pytest.mark.parametrize("kind", ["bag2_sqlite", "bag2_mcap"])
 def test_rosbag2_without_metadata(tmp_path, streams, kind):

@@ -84,6 +84,22 @@ def test_every_pose_type(tmp_path, rig, msgtype, time_source):
     assert_identical(a, b)
 
 
+def test_chunk_decompressed_only_as_far_as_needed(tmp_path, rig, monkeypatch):
+    """/early ends early in the (only) chunk: the zstd stream stops after its last message."""
+    import handeye_cli.io.mcap_fast as mcap_fast
+    a, b = rig
+    early = records(a, "w", "")[: len(a) // 6]
+    path = write_mcap(tmp_path / "e.mcap", [pose_channel("/early", POSE, early),
+                                            pose_channel("/all", POSE, records(b, "w", ""))])
+    lengths = []
+    real = mcap_fast._chunk_data
+    monkeypatch.setattr(mcap_fast, "_chunk_data", lambda f, index, last: lengths.append(
+        (len(out := real(f, index, last)), index.uncompressed_size)) or out)
+    (fast,), (slow,) = both_paths(path, [("/early", None)])
+    assert_identical(fast, slow)
+    assert len(fast) == len(early) and lengths and all(n < total * 0.6 for n, total in lengths)
+
+
 @pytest.mark.parametrize("msgtype", [POSE, ODOM])
 def test_frame_ids_of_varying_length(tmp_path, rig, msgtype):
     """Strings of different lengths per message move every later offset: the fast path sees the

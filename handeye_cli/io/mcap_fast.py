@@ -168,32 +168,44 @@ def _message_index(blob: bytes, wanted: set[int]) -> list[tuple[int, NDArray[np.
     return out
 
 
-def _chunk_data(f: Any, index: Any, upto: int) -> NDArray[np.uint8]:
-    """The uncompressed records of the chunk at ``index``, at least through byte ``upto``; CRC-checked
-    when the whole chunk was decompressed (a partial one cannot be checked)."""
+def _read_to(reader: Any, size: int, raw: bytes) -> bytes:
+    """``raw`` extended from the streaming ``reader`` to at least ``size`` bytes (fewer at the end)."""
+    while len(raw) < size:
+        more = reader.read(size - len(raw))
+        if not more:
+            break
+        raw += more
+    return raw
+
+
+def _chunk_data(f: Any, index: Any, last: int) -> NDArray[np.uint8]:
+    """The uncompressed records of the chunk at ``index``, at least through the message record at
+    offset ``last``. A zstd chunk whose wanted messages end early is decompressed only that far
+    (streaming); otherwise the whole chunk is decompressed and its CRC checked."""
     f.seek(index.chunk_start_offset + 9 + 8 + 8 + 8)
     crc = int.from_bytes(f.read(4), "little")
     n = int.from_bytes(f.read(4), "little")
     compression = f.read(n).decode()
     size = int.from_bytes(f.read(8), "little")
     data = f.read(size)
+    total = index.uncompressed_size
     if len(data) != size:
         raise _Decline("chunk cut off")
+    if compression == "zstd" and last < total // 2:
+        with zstandard.ZstdDecompressor().stream_reader(data) as r:
+            raw = _read_to(r, last + 9, b"")
+            if len(raw) < last + 9:
+                raise _Decline("index beyond chunk")
+            return np.frombuffer(_read_to(r, last + 9 + _U64.unpack_from(raw, last + 1)[0], raw), np.uint8)
     if compression == "":
         raw = data
     elif compression == "zstd":
-        with zstandard.ZstdDecompressor().stream_reader(data) as r:
-            raw = r.read(min(upto, index.uncompressed_size))
-            while len(raw) < min(upto, index.uncompressed_size):
-                more = r.read(index.uncompressed_size - len(raw))
-                if not more:
-                    break
-                raw += more
+        raw = zstandard.ZstdDecompressor().decompress(data, max_output_size=total)
     elif compression == "lz4":
         raw = lz4.frame.decompress(data)
     else:
         raise _Decline(f"compression {compression!r}")
-    if crc and len(raw) == index.uncompressed_size and zlib.crc32(raw) != crc:
+    if crc and zlib.crc32(raw) != crc:
         raise _Decline("chunk CRC mismatch")
     return np.frombuffer(raw, np.uint8)
 
@@ -250,13 +262,7 @@ def read_fast(path: Path, chunks: Sequence[Any], channels: dict[int, tuple[str, 
                 entries = _message_index(f.read(index.message_index_length), cids)
                 if not entries:
                     continue
-                last = max(int(e[:, 1].max()) for _, e in entries)
-                u = _chunk_data(f, index, last + _MSG_HEADER)
-                if last + 9 > len(u):
-                    raise _Decline("index beyond chunk")
-                needed = last + 9 + _U64.unpack_from(u.data, last + 1)[0]
-                if needed > len(u):
-                    u = _chunk_data(f, index, needed)
+                u = _chunk_data(f, index, max(int(e[:, 1].max()) for _, e in entries))
             except (_Decline, zstandard.ZstdError, RuntimeError, struct.error, ValueError):
                 return {}
             for topic in {wanted[c][0] for c, _ in entries} - declined:
