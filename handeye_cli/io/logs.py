@@ -4,7 +4,7 @@ from __future__ import annotations
 from collections.abc import Iterator, Sequence
 from dataclasses import replace
 
-from ..errors import DataError, HandEyeError
+from ..errors import ConfigError, DataError, ReadError
 from ..streams import PoseStream
 from .common import DECODE_ERRORS, PoseBuffer, make_stream
 from .inputs import valid_frame_id
@@ -43,10 +43,10 @@ def _records(src: LogSource, infos: list[TopicInfo], label: str, time_source: st
             try:
                 recs = decode(raw)
             except UnsupportedContent as exc:
-                raise HandEyeError(str(exc), f"{src.name}:{topic}, message {i}",
+                raise ReadError(str(exc), f"{src.name}:{topic}, message {i}",
                                    "convert the topic to a supported pose message") from exc
             except DECODE_ERRORS as exc:
-                raise HandEyeError(f"cannot decode message: {type(exc).__name__}: {exc}",
+                raise ReadError(f"cannot decode message: {type(exc).__name__}: {exc}",
                                    f"{src.name}:{topic}, message {i}",
                                    "the message is corrupt or not of its declared type") from exc
             if time_source == "log":
@@ -63,9 +63,9 @@ Request = tuple[str | None, tuple[str, str] | None]   # (topic, None) or (None, 
 def _check_topic(src: LogSource, infos: list[TopicInfo], topic: str) -> None:
     info = next((t for t in infos if t.topic == topic), None)
     if info is None:
-        raise HandEyeError(f"unknown topic {topic!r}", src.name, f"pose topics in this file: {_pose_topics(infos)}")
+        raise ConfigError(f"unknown topic {topic!r}", src.name, f"pose topics in this file: {_pose_topics(infos)}")
     if info.msgtype not in POSE_TYPES:
-        raise HandEyeError(f"unsupported message type {info.msgtype!r}", f"{src.name}:{topic}",
+        raise ReadError(f"unsupported message type {info.msgtype!r}", f"{src.name}:{topic}",
                            f"supported types: {', '.join(sorted(POSE_TYPES))}; "
                            f"pose topics in this file: {_pose_topics(infos)}")
 

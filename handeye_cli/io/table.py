@@ -169,21 +169,58 @@ def _fast_block(block: bytes, line0: int, skip: int, k: int | None,
     return Table(rows.astype(np.int64) + line0 + 1, values.reshape(-1, k), *t), k
 
 
+_FIELDS = ("lines", "values", "t_int", "t_frac", "t_neg")
+
+
+def _size(f: BinaryIO) -> int:
+    """Bytes from the current position to the end of ``f`` (0 if it cannot seek)."""
+    try:
+        here = f.tell()
+        end = f.seek(0, 2)
+        f.seek(here)
+        return end - here
+    except (OSError, ValueError):
+        return 0
+
+
+class _Rows:
+    """Table columns filled block by block into arrays sized from the file size (no concatenation
+    of per-block parts, whose copy would double the peak memory); grown by half when short."""
+
+    def __init__(self) -> None:
+        self.n = 0
+        self.cols: dict[str, np.ndarray] = {}
+
+    def add(self, part: Table, capacity: int) -> None:
+        m = len(part.lines)
+        if not self.cols:
+            self.cols = {a: np.empty((max(capacity, m),) + getattr(part, a).shape[1:], getattr(part, a).dtype)
+                         for a in _FIELDS}
+        if self.n + m > len(self.cols["lines"]):
+            grow = max(self.n + m, len(self.cols["lines"]) * 3 // 2)
+            for a, col in self.cols.items():
+                self.cols[a] = np.resize(col, (grow,) + col.shape[1:])
+        for a in _FIELDS:
+            self.cols[a][self.n:self.n + m] = getattr(part, a)
+        self.n += m
+
+    def table(self) -> Table:
+        return Table(*(self.cols[a][:self.n] for a in _FIELDS))
+
+
 def fast_table(f: BinaryIO, *, skip: int = 0, t_col: int = 0) -> Table | None:
     """The numeric table in ``f`` (lines ``#…``, blank lines and line number ``skip`` ignored;
     fields separated by spaces, tabs or commas; every data line the same number of fields), or
     None if the fast path cannot read it exactly (then use :func:`slow_table`)."""
-    parts, k = [], None
+    rows, k, size = _Rows(), None, _size(f)
     for line0, block in _blocks(f):
         got = _fast_block(block, line0, skip, k, t_col)
         if got is None:
             return None
         part, k = got
-        parts.append(part)
-    if not parts:
-        return None
-    return Table(np.concatenate([p.lines for p in parts]), np.concatenate([p.values for p in parts]),
-                 *(np.concatenate([getattr(p, a) for p in parts]) for a in ("t_int", "t_frac", "t_neg")))
+        if len(part.lines):     # rows expected in the whole file, from this block's bytes per row (+2 %)
+            rows.add(part, int(size / len(block) * len(part.lines) * 1.02) + 16)
+    return rows.table() if rows.n else None
 
 
 def slow_table(f: BinaryIO, name: str, *, need: int, expected: str, skip: int = 0, t_col: int = 0,

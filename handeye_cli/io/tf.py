@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from .. import se3
-from ..errors import HandEyeError
+from ..errors import ConfigError, DataError
 from ..streams import PoseStream
 from .common import LOG_STAMPS_FIX, PoseBuffer, make_stream
 from .messages import PoseRecord
@@ -60,7 +60,7 @@ class TfTree:
         parent_of: dict[str, str] = {}
         for parent, child in [*self._static, *self._dynamic]:
             if parent_of.setdefault(child, parent) != parent:
-                raise HandEyeError(f"TF frame {child!r} has two parents ({parent_of[child]!r} and "
+                raise DataError(f"TF frame {child!r} has two parents ({parent_of[child]!r} and "
                                    f"{parent!r})", self.name, "the TF tree is inconsistent; use a topic instead")
         return parent_of
 
@@ -95,7 +95,7 @@ class TfTree:
         known = sorted(set(parent_of) | set(parent_of.values()))
         for frame in (parent, child):
             if frame not in known:
-                raise HandEyeError(f"unknown TF frame {frame!r}", self.name,
+                raise ConfigError(f"unknown TF frame {frame!r}", self.name,
                                    f"known frames: {', '.join(known) or '(none: no /tf or /tf_static data)'}")
 
         def up(frame: str) -> list[str]:
@@ -107,7 +107,7 @@ class TfTree:
         up_p, up_c = up(parent), up(child)
         common = next((f for f in up_c if f in up_p), None)
         if common is None:
-            raise HandEyeError(f"TF frames {parent!r} and {child!r} are not connected "
+            raise DataError(f"TF frames {parent!r} and {child!r} are not connected "
                                f"(roots {up_p[-1]!r} and {up_c[-1]!r})", self.name,
                                "pick two frames of the same TF tree (handeye inspect FILE)")
         return ([(parent_of[f], f) for f in up_p[:up_p.index(common)]],
@@ -128,14 +128,14 @@ class TfTree:
         dynamic = [e for k, e in edges.items() if k in self._dynamic]
         source = f"{self.name}:{parent}->{child}"
         if not dynamic:
-            raise HandEyeError("empty stream: the frames are linked by static transforms only, "
+            raise DataError("empty stream: the frames are linked by static transforms only, "
                                "so they never move", source, "pick a frame pair with a moving (/tf) edge")
         ref = max(dynamic, key=len)     # first of the most frequent: ties keep chain order
         lo = max(e.stamps_ns[0] for e in dynamic)
         hi = min(e.stamps_ns[-1] for e in dynamic)
         t = ref.stamps_ns[(ref.stamps_ns >= lo) & (ref.stamps_ns <= hi)]
         if len(t) == 0:
-            raise HandEyeError("empty stream: the moving TF edges on the chain do not overlap in time",
+            raise DataError("empty stream: the moving TF edges on the chain do not overlap in time",
                                source, "check the recording of /tf")
 
         notes = tuple(w for e in edges.values() for w in e.warnings)
