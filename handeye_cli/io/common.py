@@ -176,10 +176,11 @@ def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source
             notes.append(f"{int(differs.sum())} sample(s) of {source} repeat a stamp with a different pose "
                          f"(the first is kept), e.g. {where(int(idx[np.argmax(differs)]))}")
     idx = idx[~repeat]
+    rows: np.ndarray | slice = idx
     if len(idx) == len(stamps) and not np.any(np.diff(idx) != 1):    # nothing moved: no copies
-        idx = slice(None)
-    q = quat[idx]
-    return PoseStream(t[~repeat], xyz[idx], q / np.sqrt(np.einsum("ij,ij->i", q, q))[:, None],
+        rows = slice(None)
+    q = quat[rows]
+    return PoseStream(t[~repeat], xyz[rows], q / np.sqrt(np.einsum("ij,ij->i", q, q))[:, None],
                       frame_id=frame_id, child_frame_id=child_frame_id, source=source,
                       time_source=time_source, duplicates_dropped=int(repeat.sum()),
                       warnings=tuple(notes), recovered_truncated=recovered_truncated)

@@ -116,7 +116,7 @@ def read_requests(src: LogSource, requests: Sequence[Request], *, time_source: s
         with progress(sum(t.count for t in todo), label, quiet=quiet) as bar:
             fast = src.read_fast(sorted(wanted | tf_topics), time_source)
             bar.update(sum(t.count for t in todo if t.topic in fast))
-    buffers: dict[str, PoseBuffer | FastPoses] = {topic: fast.get(topic) or PoseBuffer() for topic in wanted}
+    buffers = {topic: PoseBuffer() for topic in wanted - fast.keys()}
     tree = TfTree(src.name)
     tf_messages = 0
     for topic in tf_topics & fast.keys():
@@ -130,10 +130,11 @@ def read_requests(src: LogSource, requests: Sequence[Request], *, time_source: s
             tf_messages += 1
             tree.add(recs, static=is_static_topic(topic))
     streams = []
-    for topic, frames in requests:
-        if topic is not None:
-            streams.append(_topic_stream(src, topic, buffers[topic], time_source))
+    for name, frames in requests:
+        if name is not None:
+            streams.append(_topic_stream(src, name, fast.get(name) or buffers[name], time_source))
             continue
+        assert frames is not None
         s = tree.lookup(*frames, time_source=time_source)
         n = tf_messages + sum(len(fast[t]) for t in tf_topics & fast.keys())
         streams.append(replace(s, warnings=(*_truncation(src, n), *s.warnings),

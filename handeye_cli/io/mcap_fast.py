@@ -124,7 +124,7 @@ def _decode(u: NDArray[np.uint8], o: NDArray[np.int64], end: NDArray[np.int64], 
     base = o + 4
     msg = np.arange(len(o))
     if msgtype in SPECS:
-        return [(msg, *_transform(u, base, base, end, SPECS[msgtype].cdr_child)[:6])]
+        return [(msg, *_transform(u, base, base, end, bool(SPECS[msgtype].cdr_child))[:6])]
     _check(o + 8, end)
     count, pos, out = _u32(u, base), o + 8, []
     for k in range(int(count.max(initial=0))):

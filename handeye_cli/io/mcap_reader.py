@@ -50,6 +50,11 @@ class McapSource:
     the numpy fast path (tests compare both paths).
     """
 
+    _schemas: dict[int, Schema]
+    _channels: dict[int, Channel]
+    _counts: dict[int, int]
+    _span: tuple[int, int] | None
+
     def __init__(self, path: Path, *, fast: bool = True) -> None:
         self.name = str(path)
         self._path = path
@@ -96,16 +101,14 @@ class McapSource:
 
     def _scan_index(self) -> None:
         """Schemas, channels, counts and span by a linear scan (no usable summary section)."""
-        self._schemas: dict[int, Schema] = {}
-        self._channels: dict[int, Channel] = {}
+        self._schemas, self._channels = {}, {}
         counts: Counter[int] = Counter()
-        lo = hi = None
+        lo, hi = 2**64, -1
         with unreadable(self.name, _RECOVER):
             for record in self._records():
                 if isinstance(record, Message):
                     counts[record.channel_id] += 1
-                    lo = record.log_time if lo is None else min(lo, record.log_time)
-                    hi = record.log_time if hi is None else max(hi, record.log_time)
+                    lo, hi = min(lo, record.log_time), max(hi, record.log_time)
                 elif isinstance(record, Schema):
                     self._schemas[record.id] = record
                 elif isinstance(record, Channel):

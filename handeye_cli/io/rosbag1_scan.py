@@ -23,6 +23,7 @@ from .source import Decoder, TopicInfo
 __all__ = ["Bag1Scan"]
 
 _MAGIC = b"#ROSBAG V2.0\n"
+_ERRORS: tuple[type[BaseException], ...] = (ReaderError, KeyError, *DECODE_ERRORS)
 
 
 class Bag1Scan:
@@ -34,15 +35,14 @@ class Bag1Scan:
         self.truncated = False
         self._conns: dict[int, tuple[str, str, str]] = {}     # id → (topic, type, message definition)
         self._counts: Counter[int] = Counter()
-        lo = hi = None
+        stamps = []
         for conn, stamp, _ in self._messages(None):
             self._counts[conn] += 1
-            lo = stamp if lo is None else min(lo, stamp)
-            hi = stamp if hi is None else max(hi, stamp)
+            stamps.append(stamp)
         if not self._counts:
             raise ReadError(f"cannot read file: {reason}; no complete message found by a linear scan", self.name,
                             "the bag is empty or damaged; try `rosbag reindex` (ROS 1)")
-        self._span = (lo, hi) if lo is not None else None
+        self._span = (min(stamps), max(stamps))
         self.notes = (f"{self.name} has no usable index ({reason}); read by a linear scan of its records",)
 
     def __enter__(self) -> Bag1Scan:
@@ -60,7 +60,7 @@ class Bag1Scan:
             try:
                 header = Header.read(src)
                 data = read_bytes(src, read_uint32(src))
-            except (ReaderError, *DECODE_ERRORS):
+            except _ERRORS:
                 self.truncated = True
                 return
             yield header, data
@@ -88,7 +88,7 @@ class Bag1Scan:
                     conn = header.get_uint32("conn")
                     if conns is None or conn in conns:
                         yield conn, header.get_time("time"), data
-            except (ReaderError, KeyError, *DECODE_ERRORS):
+            except _ERRORS:
                 self.truncated = True
                 return
 

@@ -205,7 +205,8 @@ class _Rows:
         self.n += m
 
     def table(self) -> Table:
-        return Table(*(self.cols[a][:self.n] for a in _FIELDS))
+        c = {a: col[:self.n] for a, col in self.cols.items()}
+        return Table(c["lines"], c["values"], c["t_int"], c["t_frac"], c["t_neg"])
 
 
 def fast_table(f: BinaryIO, *, skip: int = 0, t_col: int = 0) -> Table | None:

@@ -96,8 +96,8 @@ def _auto_unit(t: NDArray[np.float64], name: str, notes: list[str]) -> str:
     for limit, unit in ((1e17, "ns"), (1e14, "us"), (1e11, "ms"), (1e8, "s")):
         if magnitude >= limit:
             return unit
-    step = np.diff(t)
-    step = float(np.median(step[step > 0])) if (step > 0).any() else 0.0
+    steps = np.diff(t)
+    step = float(np.median(steps[steps > 0])) if (steps > 0).any() else 0.0
     if step <= 1.0:
         return "s"
     unit = "ms" if step <= 1e3 else "us" if step <= 1e6 else "ns"
@@ -146,7 +146,7 @@ def read_text(path: Path | str, fmt: str, columns: dict | None = None, *, quater
     warning naming ``--time-unit``) or one of ``s``, ``ms``, ``us``, ``ns`` for every format.
     """
     _check_args(quaternion_order, time_unit)
-    name, notes = str(path), []
+    name, notes = str(path), list[str]()
     if columns is not None or fmt == "csv":
         skip, index, unit, expected = _csv_layout(path, columns)
         table = _table(path, need=max(index) + 1, expected=f"at least {max(index) + 1} fields of {expected}",
