@@ -141,11 +141,15 @@ def _names(u: NDArray[np.uint8], start: NDArray[np.int64], length: NDArray[np.in
     if width == 0:
         return np.zeros(len(start), np.intp), [""]
     cols = np.arange(width)
+    if (length == width).all():         # the usual case: one frame id throughout, checked byte by byte
+        mat = u[start[:, None] + cols]
+        if (mat == mat[0]).all():
+            try:
+                return np.zeros(len(start), np.intp), [bytes(mat[0]).decode()]
+            except UnicodeDecodeError as exc:
+                raise _Decline("frame id is not UTF-8") from exc
     mat = np.where(cols < length[:, None], u[np.minimum(start[:, None] + cols, len(u) - 1)], 0).astype(np.uint8)
-    if (mat == mat[0]).all():           # the usual case: one frame id throughout
-        rows, codes = mat[:1], np.zeros(len(start), np.intp)
-    else:
-        rows, codes = np.unique(mat, axis=0, return_inverse=True)
+    rows, codes = np.unique(mat, axis=0, return_inverse=True)
     try:
         return codes.ravel(), [bytes(r).rstrip(b"\0").decode() for r in rows]
     except UnicodeDecodeError as exc:
@@ -235,7 +239,8 @@ class _Collect:
 
     def result(self) -> FastPoses:
         pair = np.concatenate(self.pairs)
-        used = list(dict.fromkeys(pair.tolist()))         # pairs in order of first appearance
+        ids, first = np.unique(pair, return_index=True)
+        used = ids[np.argsort(first)].tolist()             # pairs in order of first appearance
         remap = np.zeros(len(self.names), np.intp)
         remap[used] = np.arange(len(used))
         names = list(self.names)
