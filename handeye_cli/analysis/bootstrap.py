@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..errors import HandEyeError
+from ..errors import ConfigError, DataError
 from ..solvers import Prior, solve
 from ..solvers import dualquat as dq
 from ..solvers.optimal import dqopt
@@ -220,7 +220,7 @@ def _sample_counts(samples: tuple[np.ndarray, np.ndarray], use: np.ndarray, repl
     pair's weight ``c[i]·c[j]`` as (R, len(use)). Returns K and the weights."""
     i, j = (np.asarray(v).reshape(-1) for v in samples)
     if i.shape != j.shape or len(i) < use.max(initial=-1) + 1:
-        raise HandEyeError(f"samples must be two index arrays of one entry per pair ({len(i)}, {len(j)})",
+        raise DataError(f"samples must be two index arrays of one entry per pair ({len(i)}, {len(j)})",
                            "bootstrap", "pass (pairs.i, pairs.j)")
     nodes, inv = np.unique(np.concatenate([i[use], j[use]]), return_inverse=True)
     k = len(nodes)
@@ -264,7 +264,7 @@ def bootstrap(motions_a: np.ndarray, motions_b: np.ndarray, replicates: int = 10
     """
     A, B, w = validate_motions(motions_a, motions_b, weights)
     if replicates < 2:
-        raise HandEyeError(f"{replicates} bootstrap replicates", "bootstrap", "ask for at least 2 (e.g. 1000)")
+        raise ConfigError(f"{replicates} bootstrap replicates", "bootstrap", "ask for at least 2 (e.g. 1000)")
     use = np.flatnonzero(w > 0)
     A, B, w = A[use], B[use], w[use]
     X_hat = solve(A, B, alpha=alpha, prior=prior, weights=w).matrix

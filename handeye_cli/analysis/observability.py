@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..errors import HandEyeError
+from ..errors import HandEyeError, UnderdeterminedError
 from ..solvers import Prior, build_problem, solve
 from ..solvers import dualquat as dq
 from ..solvers.approximate import dqconvrlx
@@ -141,7 +141,7 @@ def _estimate(A: np.ndarray, B: np.ndarray, alpha: float, prior: Prior | None, w
     """DQOpt estimate, or the DQConvRlx one (Alg. 3) when the solver refuses a degenerate problem."""
     try:
         return solve(A, B, alpha=alpha, prior=prior, weights=w).matrix
-    except HandEyeError:
+    except UnderdeterminedError:
         r = dqconvrlx(build_problem(A, B, alpha=alpha, prior=prior, weights=w))
         return dq.to_transform(r.q, r.qd)
 
@@ -240,6 +240,25 @@ def _covariance_warnings(cov: LinearCovariance, R_x: np.ndarray, max_rot_deg: fl
     return out
 
 
+def _rotation_checks(A: np.ndarray, rotvec: np.ndarray, angles: np.ndarray, rotating: np.ndarray,
+                     R_x: np.ndarray, small_rotation_deg: float, max_axis_spread_deg: float,
+                     fixed_line_tolerance: float) -> tuple[np.ndarray | None, float, list[ObservabilityWarning]]:
+    """The principal rotation axis, its spread [deg] and the warnings about how the motions rotate:
+    not at all, too little, or about a single axis."""
+    if not rotating.any():
+        return None, float("nan"), _pure_translation(A, angles, max_axis_spread_deg, R_x)
+    found: list[ObservabilityWarning] = []
+    axis, spread = _principal(rotvec[rotating])
+    if float(np.median(angles)) < small_rotation_deg:
+        found.append(_warning("small_rotations", f"the motions rotate little (median {np.median(angles):.2f}°, "
+                              f"{100 * np.mean(angles < small_rotation_deg):.0f}% below {small_rotation_deg:g}°): "
+                              "the extrinsic is sensitive to noise", "pair samples further apart in time, "
+                              "or rotate the rig more"))
+    if spread < max_axis_spread_deg:
+        found += _single_axis(A[rotating], len(A), axis, spread, max_axis_spread_deg, fixed_line_tolerance, R_x)
+    return axis, spread, found
+
+
 def assess_observability(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np.ndarray | None = None, *,
                          alpha: float = 1.0, prior: Prior | None = None, weights: np.ndarray | None = None,
                          min_pairs: int = 10, min_rotation_deg: float = 1.0, small_rotation_deg: float = 2.0,
@@ -289,18 +308,9 @@ def assess_observability(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np
     if len(A) < min_pairs:
         found.append(_warning("too_few_pairs", f"only {len(A)} motion pairs", "record more motion, or pair "
                               f"more samples (at least {min_pairs} pairs are advised)"))
-    axis, spread = None, float("nan")
-    if not rotating.any():
-        found += _pure_translation(A, angles, max_axis_spread_deg, R_x)
-    else:
-        axis, spread = _principal(rotvec[rotating])
-        if float(np.median(angles)) < small_rotation_deg:
-            found.append(_warning("small_rotations", f"the motions rotate little (median {np.median(angles):.2f}°, "
-                                  f"{100 * np.mean(angles < small_rotation_deg):.0f}% below {small_rotation_deg:g}°): "
-                                  "the extrinsic is sensitive to noise", "pair samples further apart in time, "
-                                  "or rotate the rig more"))
-        if spread < max_axis_spread_deg:
-            found += _single_axis(A[rotating], len(A), axis, spread, max_axis_spread_deg, fixed_line_tolerance, R_x)
+    axis, spread, rotation_warnings = _rotation_checks(A, rotvec, angles, rotating, R_x, small_rotation_deg,
+                                                       max_axis_spread_deg, fixed_line_tolerance)
+    found += rotation_warnings
     try:
         cov = linear_covariance(A, B, X, alpha=alpha, prior=prior, weights=w, samples=samples)
     except (HandEyeError, np.linalg.LinAlgError):

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..errors import HandEyeError
+from ..errors import TooFewPairsError
 from ..solvers import Prior, Solution, solve
 from ..solvers.problem import pair_blocks, validate_motions
 from .residuals import Residuals, residuals_batch
@@ -167,7 +167,7 @@ def robust_solve(motions_a: np.ndarray, motions_b: np.ndarray, *, method: str = 
     A, B, _ = validate_motions(motions_a, motions_b)
     n = len(A)
     if sample_size < 2 or n < 2 * sample_size:
-        raise HandEyeError(f"{n} motion pairs are too few for outlier rejection with samples of "
+        raise TooFewPairsError(f"{n} motion pairs are too few for outlier rejection with samples of "
                            f"{sample_size}", "robust", f"record at least {2 * max(sample_size, 2)} "
                            "motion pairs, or solve without --robust")
     rng = np.random.default_rng(seed)

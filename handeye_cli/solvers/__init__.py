@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import HandEyeError
+from ..errors import ConfigError, UnderdeterminedError
 from . import dualquat
 from .approximate import dq2ndord, dq2steps, dqconvrlx
 from .daniilidis import daniilidis
@@ -76,7 +76,7 @@ def _check_determined(problem: Problem) -> None:
     ev, _ = eigh(problem.form, vectors=False)
     null = int(np.count_nonzero(ev <= 1e-13 * max(ev[-1], 1e-300)))
     if null >= 3:
-        raise HandEyeError("the motions cannot determine the extrinsic: a family of solutions fits "
+        raise UnderdeterminedError("the motions cannot determine the extrinsic: a family of solutions fits "
                            "them exactly (all motions about one axis, or planar, or too few)",
                            "motions", "add motion about a second rotation axis, or pass a prior "
                            "(--prior FILE) to fix the unobservable directions")
@@ -109,9 +109,28 @@ def solve(motions_a: np.ndarray, motions_b: np.ndarray, method: str = "dqopt", a
     HandEyeError
         Bad shapes, non-finite values, non-rotation blocks, unknown method, or a problem whose
         motions cannot determine the extrinsic.
+
+    Examples
+    --------
+    Noise-free motions of the paper's "random" scenario (appendix D.2) give back the true
+    extrinsic; with noise, dqopt has the lowest cost (8) of all methods.
+
+    >>> import numpy as np
+    >>> from handeye_cli.solvers import METHODS, solve
+    >>> from handeye_cli.simulation import motion_pairs, random_transform
+    >>> rng = np.random.default_rng(0)
+    >>> X = random_transform(rng)                      # the true T_a_b
+    >>> A, B = motion_pairs(50, X, rng)                 # (50, 4, 4) each, A_i X = X B_i
+    >>> sol = solve(A, B, method="dqopt", alpha=1.0)
+    >>> bool(np.allclose(sol.matrix, X, atol=1e-9)), sol.pairs, sol.method
+    (True, 50, 'dqopt')
+    >>> A, B = motion_pairs(50, X, rng, sigma_r=0.01, sigma_t=0.01)
+    >>> costs = {m: solve(A, B, method=m).cost for m in METHODS}
+    >>> all(costs["dqopt"] <= cost * (1 + 1e-12) for cost in costs.values())   # ties to rounding allowed
+    True
     """
     if method not in METHODS:
-        raise HandEyeError(f"unknown method {method!r}", "method", f"choose one of {', '.join(METHODS)}")
+        raise ConfigError(f"unknown method {method!r}", "method", f"choose one of {', '.join(METHODS)}")
     A, B, w = validate_motions(motions_a, motions_b, weights)
     E, F = pair_blocks(A, B)
     problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)

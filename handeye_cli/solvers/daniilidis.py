@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import HandEyeError
+from ..errors import DataError
 
 __all__ = ["daniilidis"]
 
@@ -39,7 +39,7 @@ def daniilidis(E: np.ndarray, F: np.ndarray, alpha: float = 1.0,
     if abs(a) > 1e-300:
         disc = b * b - 4 * a * c
         if disc < 0:
-            raise HandEyeError("Daniilidis' method found no real solution (noisy or degenerate motions)",
+            raise DataError("Daniilidis' method found no real solution (noisy or degenerate motions)",
                                "daniilidis", "use --method dqopt, which always has one")
         roots = (-b + np.array([1.0, -1.0]) * np.sqrt(disc)) / (2 * a)
         # pick the root maximising |s u1 + u2|², then scale to |q| = 1

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from .. import se3
-from ..errors import HandEyeError
+from ..errors import ConfigError, DataError
 from . import dualquat as dq
 from .dualquat import _L_INDEX, _L_SIGN
 
@@ -260,14 +260,14 @@ def _raise_first_bad(A: np.ndarray, B: np.ndarray) -> None:
     """Raise the error for the first bad motion array: wrong shape, non-finite, or not a rotation."""
     for name, T in (("motions_a", A), ("motions_b", B)):
         if T.ndim != 3 or T.shape[1:] != (4, 4):
-            raise HandEyeError(f"{name} has shape {T.shape}", name, "pass an array of shape (N, 4, 4)")
+            raise DataError(f"{name} has shape {T.shape}", name, "pass an array of shape (N, 4, 4)")
         if not np.isfinite(T).all():
             bad = int(np.flatnonzero(~np.isfinite(T).all(axis=(1, 2)))[0])
-            raise HandEyeError(f"{name}[{bad}] contains NaN or inf", name, "remove or repair that motion")
+            raise DataError(f"{name}[{bad}] contains NaN or inf", name, "remove or repair that motion")
         ok = se3.is_rotation(T[:, :3, :3], 1e-6)
         if not ok.all():
             bad = int(np.flatnonzero(~ok)[0])
-            raise HandEyeError(f"{name}[{bad}] has a rotation block that is not a rotation", name,
+            raise DataError(f"{name}[{bad}] has a rotation block that is not a rotation", name,
                                "pass rigid transforms (orthonormal rotation, det +1)")
 
 
@@ -280,16 +280,16 @@ def validate_motions(motions_a: np.ndarray, motions_b: np.ndarray,
     if not (shapes_ok and _all_rigid(np.concatenate((A, B)))):
         _raise_first_bad(A, B)
     if len(A) != len(B):
-        raise HandEyeError(f"motions_a has {len(A)} motions, motions_b {len(B)}", "motions",
+        raise DataError(f"motions_a has {len(A)} motions, motions_b {len(B)}", "motions",
                            "pass the same number of motions for both sensors")
     if len(A) < 2:
-        raise HandEyeError(f"{len(A)} motion pair(s)", "motions", "at least 2 motion pairs are needed")
+        raise DataError(f"{len(A)} motion pair(s)", "motions", "at least 2 motion pairs are needed")
     if weights is None:
         w = np.ones(len(A))
     else:
         w = np.asarray(weights, dtype=float).reshape(-1)
         if w.shape != (len(A),) or not np.isfinite(w).all() or (w < 0).any() or not (w > 0).any():
-            raise HandEyeError(f"weights must be {len(A)} finite non-negative numbers, not all zero",
+            raise DataError(f"weights must be {len(A)} finite non-negative numbers, not all zero",
                                "weights", "pass one weight per motion pair")
     return A, B, w
 
@@ -313,7 +313,7 @@ def problem_from_blocks(E: np.ndarray, F: np.ndarray, w: np.ndarray, alpha: floa
                         prior: Prior | None = None) -> Problem:
     """:func:`build_problem` from the per-pair blocks of :func:`pair_blocks` and validated weights."""
     if not (np.isfinite(alpha) and alpha > 0):
-        raise HandEyeError(f"alpha must be a positive number, got {alpha}", "alpha",
+        raise ConfigError(f"alpha must be a positive number, got {alpha}", "alpha",
                            "pass e.g. alpha=1.0 (units 1/m)")
     sw = np.sqrt(w)[:, None, None]
     P = (E * sw).reshape(-1, 4)
@@ -321,7 +321,7 @@ def problem_from_blocks(E: np.ndarray, F: np.ndarray, w: np.ndarray, alpha: floa
     Ed = alpha * P
     if prior is not None:
         if not (prior.a >= 0 and prior.b >= 0):
-            raise HandEyeError("prior weights must be non-negative", "prior", "pass a, b ≥ 0")
+            raise ConfigError("prior weights must be non-negative", "prior", "pass a, b ≥ 0")
         qp, qpd = dq.from_transforms(np.asarray(prior.T_a_b, dtype=float))
         Lc = dq.left(dq.conjugate(qp))                       # δq = L(q̂*) q            (eq 27)
         Lcd = dq.left(dq.conjugate(qpd))                     # δq' = L(q̂'*) q + L(q̂*) q'
