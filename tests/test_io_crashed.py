@@ -161,6 +161,15 @@ def test_rosbag1_never_indexed(tmp_path, streams, compression):
     assert {t["topic"] for t in inspect_log(path)["topics"]} == {"/a", "/b"}
 
 
+def test_rosbag1_cut_inside_its_chunk(tmp_path, streams):
+    """Power loss in the middle of the (only, uncompressed) chunk: its complete messages are read."""
+    path = write_bag1(tmp_path / "r.bag", [pose_channel("/a", POSE, records(streams[0], "w", ""))])
+    path.write_bytes(path.read_bytes()[: int(path.stat().st_size * 0.6)])
+    s = read_stream(path, topic="/a")
+    assert_prefix_of(s, streams[0], 100)
+    assert s.recovered_truncated == len(s) and any("truncated" in w for w in s.warnings)
+
+
 def test_rosbag1_with_a_damaged_index(tmp_path, streams):
     """The index section at the end lost its last bytes: the chunks are intact and read by a scan."""
     path = write_bag1(tmp_path / "r.bag", [pose_channel("/a", POSE, records(streams[0], "w", ""))])

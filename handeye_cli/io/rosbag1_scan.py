@@ -6,13 +6,15 @@ is read (``truncated`` is set when the file ends inside a record).
 """
 from __future__ import annotations
 
+import bz2
 import io
 from collections import Counter
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
-from rosbags.rosbag1.reader import Header, ReaderError, RecordType, decompressors, read_bytes, read_uint32
+import lz4.frame
+from rosbags.rosbag1.reader import Header, ReaderError, RecordType, decompressors, read_uint32
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from ..errors import ReadError
@@ -52,16 +54,23 @@ class Bag1Scan:
         pass
 
     def _records(self, src: BinaryIO) -> Iterator[tuple[Header, bytes]]:
-        """(header, data) of the records of ``src`` until its end or a damaged record (``truncated``)."""
+        """(header, data) of the records of ``src`` until its end or a damaged record (``truncated``).
+        A chunk cut off at the end comes with the bytes that are there (its complete records are read)."""
         while True:
             if not src.read(1):
                 return
             src.seek(-1, io.SEEK_CUR)
             try:
                 header = Header.read(src)
-                data = read_bytes(src, read_uint32(src))
+                size = read_uint32(src)
             except _ERRORS:
                 self.truncated = True
+                return
+            data = src.read(size)
+            if len(data) < size:
+                self.truncated = True
+                if header.get("op") == bytes([RecordType.CHUNK]):
+                    yield header, data
                 return
             yield header, data
 
@@ -78,7 +87,7 @@ class Bag1Scan:
             try:
                 op = header.get_uint8("op")
                 if op == RecordType.CHUNK:
-                    raw = decompressors[header.get_string("compression")](data)
+                    raw = _decompress(header.get_string("compression"), data)
                     yield from self._walk(self._records(io.BytesIO(raw)), conns)
                 elif op == RecordType.CONNECTION:
                     meta = Header.read(io.BytesIO(len(data).to_bytes(4, "little") + data))   # fields, unprefixed
@@ -114,3 +123,16 @@ class Bag1Scan:
         self.truncated = False
         for conn, stamp, raw in self._messages(ids):
             yield self._conns[conn][0], stamp, raw, decoders[conn]
+
+
+def _decompress(compression: str, data: bytes) -> bytes:
+    """A chunk's records; of a chunk cut off, as much as its complete compressed blocks give."""
+    if compression == "none":
+        return data
+    stream = {"bz2": bz2.BZ2Decompressor, "lz4": lz4.frame.LZ4FrameDecompressor}.get(compression)
+    if stream is None:
+        return bytes(decompressors[compression](data))     # rosbags names the unsupported compression
+    try:
+        return bytes(stream().decompress(data))
+    except (OSError, EOFError, RuntimeError, ValueError):
+        return b""

@@ -67,8 +67,8 @@ def _csv_layout(path: Path | str, columns: dict | None) -> tuple[int, list[int],
         found = next((lower[n.lower()] for n in names if n.lower() in lower), None)
         if found is None:
             raise ReadError(f"CSV column for {key!r} not found (looked for {', '.join(names)})",
-                            f"{name}, line {header_no}", f"name it under csv_columns in a --config file "
-                            f"(e.g. csv_columns: {{{key}: COLUMN}}); header has: {', '.join(header)}")
+                            f"{name}, line {header_no}", f"map it with --csv-columns {key}=COLUMN; header has: "
+                            f"{', '.join(header)}")
         index.append(found)
     if unit is None:        # "timestamp [ns]", "t_ns", "stamp_us" … name their unit
         m = _UNIT_IN_NAME.search(raw[index[0]])
