@@ -7,8 +7,9 @@ stamps sorted ascending, positions [m], unit quaternions x-y-z-w.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from ..errors import ConfigError
 from ..streams import PoseStream
@@ -33,7 +34,7 @@ def _inputs(paths: str | Path | Sequence[str | Path]) -> tuple[list[Path], list[
 
 def read_stream(paths: str | Path | Sequence[str | Path], *, topic: str | None = None,
                 frames: tuple[str, str] | None = None, time_source: str = "header",
-                columns: dict | None = None, quiet: bool = True, quaternion_order: str = "xyzw",
+                columns: Mapping[str, str] | None = None, quiet: bool = True, quaternion_order: str = "xyzw",
                 time_unit: str = "auto") -> PoseStream:
     """Read one pose stream ``T_frame_child(t)``.
 
@@ -95,7 +96,7 @@ def _read_log(plist: list[Path], fmts: list[str], requests: Sequence[Request], t
         return read_requests(src, requests, time_source=time_source, quiet=quiet)
 
 
-def inspect_log(path: str | Path, *, quiet: bool = True, all_tf: bool = False) -> dict:
+def inspect_log(path: str | Path, *, quiet: bool = True, all_tf: bool = False) -> dict[str, Any]:
     """A JSON-able overview of one file.
 
     Logs: ``format``, ``path``, ``start_ns``/``end_ns``/``duration_ns`` (log time),

@@ -7,6 +7,7 @@ import struct
 from array import array
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
+from typing import Any
 
 import numpy as np
 from mcap.exceptions import McapError
@@ -64,16 +65,16 @@ class PoseBuffer:
         self.stamps = array("q")
         self.values = array("d")
         self.pairs: dict[tuple[str, str], None] = {}    # (frame, child) pairs seen, in order
-        self._last: tuple = ()
+        self._last: tuple[Any, ...] = ()
 
-    def add(self, records: Sequence[tuple]) -> None:
+    def add(self, records: Sequence[tuple[Any, ...]]) -> None:
         """Append pose records ``(stamp_ns, frame, child, x, y, z, qx, qy, qz, qw)``."""
         for rec in records:
             self.stamps.append(rec[0])
             self.values.extend(rec[3:])
             if rec[1:3] != self._last:
                 self._last = rec[1:3]
-                self.pairs[self._last] = None
+                self.pairs[(rec[1], rec[2])] = None
 
     def add_arrays(self, pair: tuple[str, str], stamps: np.ndarray, values: np.ndarray) -> None:
         """Append int64 stamps [ns] and (N, 7) values (x, y, z, qx, qy, qz, qw) of one (frame, child) pair."""
@@ -115,7 +116,7 @@ def _drop_invalid(idx: np.ndarray, xyz: np.ndarray, quat: np.ndarray, source: st
                         "check the exporter (wrong columns or units?)")
     notes.append(f"dropped {len(bad)} invalid pose(s) of {source} (NaN/inf, |position| > 1e8 m or zero-norm "
                  f"quaternion), the first at {where(first)}: {detail}")
-    return idx[ok]
+    return np.asarray(idx[ok])
 
 
 def _longest_run(stamps: np.ndarray, source: str, where: Callable[[int], str], notes: list[str]) -> slice:

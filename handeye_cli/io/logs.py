@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from dataclasses import replace
+from typing import Any
 
 from ..errors import ConfigError, DataError, ReadError
 from ..streams import PoseStream
@@ -162,7 +163,7 @@ def _tf_tree(src: LogSource, infos: list[TopicInfo], quiet: bool,
     return tree, pairs, n
 
 
-def inspect_source(src: LogSource, quiet: bool = True, *, all_tf: bool = False) -> dict:
+def inspect_source(src: LogSource, quiet: bool = True, *, all_tf: bool = False) -> dict[str, Any]:
     """Topics (type, encoding, count, mean rate over the log's span — from the summary/index, no
     message read —, ``pose``: readable as one pose stream with ``read_requests``, for a TF topic
     only when it carries a single frame pair) and the TF edges, from the first

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import lz4.frame
+import lz4.frame  # type: ignore[import-untyped]
 import numpy as np
 import zstandard
 from numpy.typing import NDArray
@@ -75,11 +75,11 @@ FastTopics = dict[str, FastPoses]
 
 # --- CDR at computed offsets ------------------------------------------------------------------
 def _u32(u: NDArray[np.uint8], at: NDArray[np.int64]) -> NDArray[np.int64]:
-    return u[at[:, None] + _R[4]].view("<u4")[:, 0].astype(np.int64)
+    return np.asarray(u[at[:, None] + _R[4]].view("<u4")[:, 0], dtype=np.int64)
 
 
 def _i32(u: NDArray[np.uint8], at: NDArray[np.int64]) -> NDArray[np.int64]:
-    return u[at[:, None] + _R[4]].view("<i4")[:, 0].astype(np.int64)
+    return np.asarray(u[at[:, None] + _R[4]].view("<i4")[:, 0], dtype=np.int64)
 
 
 def _align(pos: NDArray[np.int64], base: NDArray[np.int64], k: int) -> NDArray[np.int64]:
@@ -91,7 +91,10 @@ def _check(pos: NDArray[np.int64], end: NDArray[np.int64]) -> None:
         raise _Decline("payload shorter than its layout")
 
 
-def _string(u: NDArray[np.uint8], at: NDArray[np.int64], end: NDArray[np.int64]) -> tuple[NDArray, NDArray, NDArray]:
+Ints = NDArray[np.int64]
+
+
+def _string(u: NDArray[np.uint8], at: Ints, end: Ints) -> tuple[Ints, Ints, Ints]:
     """(start, length without the NUL, offset after) of the CDR strings at ``at``."""
     _check(at + 4, end)
     n = _u32(u, at)
@@ -117,7 +120,7 @@ def _transform(u: NDArray[np.uint8], at: NDArray[np.int64], base: NDArray[np.int
     return stamp, fs, fl, cs, cl, values, pos + 56
 
 
-def _decode(u: NDArray[np.uint8], o: NDArray[np.int64], end: NDArray[np.int64], msgtype: str) -> list[tuple]:
+def _decode(u: NDArray[np.uint8], o: NDArray[np.int64], end: NDArray[np.int64], msgtype: str) -> list[tuple[Any, ...]]:
     """Per element index: (message index, stamp, frame start/len, child start/len, values) arrays."""
     if ((u[o] != 0) | (u[o + 1] != 1)).any():
         raise _Decline("not little-endian plain CDR")
@@ -135,7 +138,7 @@ def _decode(u: NDArray[np.uint8], o: NDArray[np.int64], end: NDArray[np.int64], 
     return out
 
 
-def _names(u: NDArray[np.uint8], start: NDArray[np.int64], length: NDArray[np.int64]) -> tuple[NDArray, list[str]]:
+def _names(u: NDArray[np.uint8], start: Ints, length: Ints) -> tuple[NDArray[np.intp], list[str]]:
     """(code per string, distinct strings) of the strings at ``start`` of ``length`` bytes."""
     width = int(length.max(initial=0))
     if width == 0:
@@ -223,7 +226,7 @@ class _Collect:
         self.pairs: list[NDArray[np.intp]] = []
         self.names: dict[tuple[str, str], int] = {}
 
-    def add(self, u: NDArray[np.uint8], parts: list[tuple], log_times: NDArray[np.int64], log: bool) -> None:
+    def add(self, u: NDArray[np.uint8], parts: list[tuple[Any, ...]], log_times: NDArray[np.int64], log: bool) -> None:
         msg = np.concatenate([p[0] for p in parts])
         elem = np.concatenate([np.full(len(p[0]), k) for k, p in enumerate(parts)])
         order = np.lexsort((elem, msg))          # message order, then element order within a message

@@ -13,7 +13,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
-import lz4.frame
+import lz4.frame  # type: ignore[import-untyped]
 from rosbags.rosbag1.reader import Header, ReaderError, RecordType, decompressors, read_uint32
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 

@@ -71,7 +71,7 @@ class Table:
             raise _range_error(f"{self.t_int[i]}.{self.t_frac[i]:09d}", name, int(self.lines[i]))
         ns = self.t_int * _P10[digits] + q
         ns += (2 * r > m) | ((2 * r == m) & (ns % 2 == 1))     # round half to even, like Decimal
-        return np.where(self.t_neg, -ns, ns)
+        return np.asarray(np.where(self.t_neg, -ns, ns), dtype=np.int64)
 
 
 def _range_error(token: str, name: str, line: int) -> ReadError:
@@ -98,7 +98,8 @@ def _blocks(f: BinaryIO) -> Iterator[tuple[int, bytes]]:
         yield line0, rest + b"\n"
 
 
-def _time_digits(b: NDArray[np.uint8], pos: NDArray[np.int64]) -> tuple[NDArray, NDArray, NDArray] | None:
+def _time_digits(b: NDArray[np.uint8],
+                 pos: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]] | None:
     """(integer part, 9-decimal fraction, negative) of the plain decimal tokens starting at ``pos``
     of the space-separated buffer ``b``; None if any token is not ``[-]digits[.digits≤9]``."""
     win = np.concatenate([b, np.full(_WINDOW, 32, np.uint8)])[pos[:, None] + np.arange(_WINDOW)]

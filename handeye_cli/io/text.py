@@ -16,6 +16,7 @@ Numbers are parsed by :mod:`.table` (a vectorised parser, with a line loop for o
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -48,7 +49,7 @@ _UNIT_IN_NAME = re.compile(r"(?:\[|_)(ns|us|ms|s)\]?$", re.IGNORECASE)
 _TEXT_STAMPS_FIX = "the time column holds no stamps; fix the export"
 
 
-def _csv_layout(path: Path | str, columns: dict | None) -> tuple[int, list[int], str | None, str]:
+def _csv_layout(path: Path | str, columns: Mapping[str, str] | None) -> tuple[int, list[int], str | None, str]:
     """(header line number, column indices of t, x, y, z, qx, qy, qz, qw, unit or None, description)."""
     name = str(path)
     with open_binary(path) as f:
@@ -133,7 +134,7 @@ def _check_args(quaternion_order: str, time_unit: str) -> None:
         raise ConfigError(f"unknown time unit {time_unit!r}", "time_unit", "use --time-unit auto|s|ms|us|ns")
 
 
-def read_text(path: Path | str, fmt: str, columns: dict | None = None, *, quaternion_order: str = "xyzw",
+def read_text(path: Path | str, fmt: str, columns: Mapping[str, str] | None = None, *, quaternion_order: str = "xyzw",
               time_unit: str = "auto") -> PoseStream:
     """Read one text trajectory (``fmt`` = ``tum``, ``euroc`` or ``csv``; ``-`` = stdin) as
     ``T_world_<stem>``: int64 ns stamps, positions [m], quaternions x-y-z-w.

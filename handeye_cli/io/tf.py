@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
@@ -48,7 +49,7 @@ class TfTree:
         key = (parent.lstrip("/"), child.lstrip("/"))
         edges.setdefault(key, PoseBuffer()).add_arrays(key, stamps, values)
 
-    def edges(self) -> list[dict]:
+    def edges(self) -> list[dict[str, Any]]:
         """Tree edges ``[{parent, child, static, count}]``, sorted by parent then child."""
         rows = {k: {"parent": k[0], "child": k[1], "static": True, "count": len(b)}
                 for k, b in self._static.items()}
