@@ -29,7 +29,13 @@ class PoseStream:
     time_source:
         ``"header"`` or ``"log"``.
     duplicates_dropped:
-        How many exact duplicate stamps the reader removed.
+        How many samples with a repeated stamp the reader removed (the first of each stamp is kept).
+    warnings:
+        What the reader noticed and repaired (dropped invalid poses, conflicting duplicates, a clock
+        jumping back, a guessed time unit or quaternion order, a recovered truncated file), one
+        line each; the calibration result carries them.
+    recovered_truncated:
+        How many messages were recovered from a truncated (crashed) recording; 0 for a complete file.
 
     Examples
     --------
@@ -53,6 +59,8 @@ class PoseStream:
     source: str = ""
     time_source: str = "header"
     duplicates_dropped: int = 0
+    warnings: tuple[str, ...] = ()
+    recovered_truncated: int = 0
 
     def __post_init__(self) -> None:
         stamps = np.ascontiguousarray(self.stamps_ns, dtype=np.int64)

@@ -90,13 +90,26 @@ def test_wrong_magic(tmp_path, suffix, kind):
     fails(lambda: read_stream(path, topic="/p"), f"not a valid {kind} file: wrong magic", f"x{suffix}")
 
 
+MCAP_KINDS = ("mcap", "mcap_ros1", "bag2_mcap")
+
+
 @pytest.mark.parametrize("kind, keep", [(k, keep) for k in LOG_KINDS for keep in (0.5, -8, 20)
-                                        if not (k in ("db3", "bag2_sqlite") and keep == -8)])
+                                        if not (k in ("db3", "bag2_sqlite", *MCAP_KINDS) and keep == -8)
+                                        and (k, keep) not in (("bag2_mcap", 0.5), ("bag1", -8), ("bag1", 0.5))])
 def test_truncated_logs(tmp_path, recs, kind, keep):
-    """Cut at half, minus the last 8 bytes (the closing magic; SQLite does not need those) or
-    down to 20 bytes."""
+    """Cut at half (inside the only chunk), minus the last 8 bytes (the closing magic; SQLite does
+    not need those) or down to 20 bytes: nothing intact to recover, so an error. (Recovery of the
+    intact part of crashed recordings — rosbag2's uncompressed MCAP or a ROS 1 bag cut at half, a ROS 1 bag
+    that lost the end of its index: tests/test_io_crashed.py.)"""
     path = cut(write_log(kind, tmp_path, [pose_channel("/p", POSE, recs), pose_channel("/q", POSE, recs)]), keep)
-    fails(lambda: read_stream(path, topic="/p"), "cannot read file|no summary section", str(path))
+    fails(lambda: read_stream(path, topic="/p"), "cannot read file", str(path))
+
+
+@pytest.mark.parametrize("kind", MCAP_KINDS)
+def test_mcap_without_closing_magic_reads_everything(tmp_path, recs, kind):
+    path = cut(write_log(kind, tmp_path, [pose_channel("/p", POSE, recs), pose_channel("/q", POSE, recs)]), -8)
+    s = read_stream(path, topic="/p")
+    assert len(s) == len(recs) and s.recovered_truncated == 0
 
 
 def test_truncated_json_mcap(tmp_path, recs):
@@ -163,7 +176,14 @@ def test_topic_with_several_frame_pairs(tmp_path, recs):
           "--frames-a PARENT CHILD")
 
 
-# --- invalid poses ----------------------------------------------------------------------------
+# --- invalid poses: dropped with a warning naming the sample --------------------------------
+def dropped(stream, *patterns: str) -> None:
+    """``stream`` lost exactly one sample and carries a warning matching every regex in ``patterns``."""
+    text = " | ".join(stream.warnings)
+    for p in ("dropped 1 invalid pose", *patterns):
+        assert re.search(p, text), f"{p!r} not in {text!r}"
+
+
 @pytest.mark.parametrize("kind", [*LOG_KINDS, "json"])
 @pytest.mark.parametrize("bad", [ZERO_Q, NAN_Q], ids=["zero", "nan"])
 def test_invalid_quaternion_in_logs(tmp_path, recs, kind, bad):
@@ -172,13 +192,15 @@ def test_invalid_quaternion_in_logs(tmp_path, recs, kind, bad):
         path = write_mcap(tmp_path / "j.mcap", [pose_channel("/p", "foxglove.PoseInFrame", broken)])
     else:
         path = write_log(kind, tmp_path, [pose_channel("/p", POSE, broken)])
-    fails(lambda: read_stream(path, topic="/p"), "zero-norm quaternion", r":/p, message 7", "1 invalid sample")
+    s = read_stream(path, topic="/p")
+    assert len(s) == len(recs) - 1 and recs[7][0] not in s.stamps_ns
+    dropped(s, "zero-norm quaternion", r":/p\b", "message 7")
 
 
 def test_nan_position(tmp_path, recs):
     broken = [*recs[:2], (recs[2][0], "world", "", float("nan"), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0), *recs[3:]]
-    fails(lambda: read_stream(write_mcap(tmp_path / "n.mcap", [pose_channel("/p", POSE, broken)]), topic="/p"),
-          "NaN/inf value", "message 2")
+    dropped(read_stream(write_mcap(tmp_path / "n.mcap", [pose_channel("/p", POSE, broken)]), topic="/p"),
+            "NaN/inf", "message 2")
 
 
 def test_invalid_quaternion_in_text_names_the_line(tmp_path):
@@ -187,12 +209,12 @@ def test_invalid_quaternion_in_text_names_the_line(tmp_path):
     lines = path.read_text().splitlines()
     lines[4] = " ".join(lines[4].split()[:4] + ["0", "0", "0", "0"])
     path.write_text("\n".join(lines) + "\n")
-    fails(lambda: read_stream(path), "zero-norm quaternion", r"a.tum, line 5")
+    dropped(read_stream(path), "zero-norm quaternion", r"a.tum", "line 5")
     euroc = write_euroc(tmp_path / "e.csv", a)
     lines = euroc.read_text().splitlines()
     lines[2] = lines[2].split(",")[0] + ",nan" + ",0" * 15
     euroc.write_text("\n".join(lines) + "\n")
-    fails(lambda: read_stream(euroc), "NaN/inf", r"e.csv, line 3")
+    dropped(read_stream(euroc), "NaN/inf", r"e.csv", "line 3")
 
 
 # --- text syntax ------------------------------------------------------------------------------
@@ -210,12 +232,15 @@ def test_malformed_text(tmp_path):
 def test_csv_columns(tmp_path):
     csv = tmp_path / "c.csv"
     csv.write_text("time,x,y,height,qx,qy,qz,qw\n1.0,1,2,3,0,0,0,1\n")
-    fails(lambda: read_stream(csv), "CSV column for 'z' not found", "header has: time, x, y, height",
-          "columns=")
+    e = fails(lambda: read_stream(csv), "CSV column for 'z' not found", "header has: time, x, y, height",
+              "--csv-columns z=COLUMN")
+    assert "columns={" not in str(e)
     assert read_stream(csv, columns={"z": "height"}).xyz.tolist() == [[1.0, 2.0, 3.0]]
     fails(lambda: read_stream(csv, columns={"z": "height", "t_unit": "days"}), "unknown time unit 'days'")
     csv.write_text("timestamp,x,y,z,qx,qy,qz,qw\n1700000000000000000,1,2,3,0,0,0,1\n")
-    fails(lambda: read_stream(csv), "out of the int64 nanosecond range .wrong time unit", "line 2")
+    fails(lambda: read_stream(csv, time_unit="s"), "out of the int64 nanosecond range .wrong time unit", "line 2",
+          "--time-unit")
+    assert read_stream(csv).stamps_ns.tolist() == [1700000000000000000]     # auto: epoch nanoseconds
 
 
 def test_inspect_errors(tmp_path):

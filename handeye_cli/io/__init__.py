@@ -7,68 +7,68 @@ stamps sorted ascending, positions [m], unit quaternions x-y-z-w.
 """
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
-from ..errors import HandEyeError
+from ..errors import ConfigError
 from ..streams import PoseStream
-from .detect import LOG_FORMATS, detect_format, existing
+from .detect import LOG_FORMATS, detect_format
+from .inputs import existing, spooled, valid_frame_id
 from .logs import Request, inspect_source, read_requests
-from .mcap_reader import McapSource
-from .rosbag_reader import BagSource
-from .source import LogSource
+from .opening import open_log
 from .text import read_text
 
-__all__ = ["read_stream", "read_log_streams", "inspect_log", "detect_format"]
+__all__ = ["read_stream", "read_log_streams", "inspect_log", "detect_format", "valid_frame_id"]
 
 _TIME_SOURCES = ("header", "log")
+_SUFFIX = {"mcap": ".mcap", "rosbag1": ".bag", "rosbag2": ".db3"}
 
 
-@contextmanager
-def _open_log(paths: list[Path], fmts: list[str]) -> Iterator[LogSource]:
-    if len(paths) > 1 and (len(set(fmts)) > 1 or fmts[0] != "rosbag1"):
-        raise HandEyeError("several files are read as one log only when all are ROS 1 .bag files",
-                           ", ".join(map(str, paths)), "pass one file, or the split .bag files of one recording")
-    source = McapSource(paths[0]) if fmts[0] == "mcap" else BagSource(paths, fmts[0])
-    with source:
-        yield source
+def _inputs(paths: str | Path | Sequence[str | Path]) -> tuple[list[Path], list[str]]:
+    """Existing paths (``-`` = stdin; logs arriving on a pipe spooled to a file) and their formats."""
+    plist = [existing(p) for p in ([paths] if isinstance(paths, (str, Path)) else list(paths))]
+    fmts = [detect_format(p) for p in plist]
+    return [spooled(p, _SUFFIX[f]) if f in LOG_FORMATS else p for p, f in zip(plist, fmts, strict=True)], fmts
 
 
 def read_stream(paths: str | Path | Sequence[str | Path], *, topic: str | None = None,
                 frames: tuple[str, str] | None = None, time_source: str = "header",
-                columns: dict | None = None, quiet: bool = True) -> PoseStream:
+                columns: Mapping[str, str] | None = None, quiet: bool = True, quaternion_order: str = "xyzw",
+                time_unit: str = "auto") -> PoseStream:
     """Read one pose stream ``T_frame_child(t)``.
 
     Logs (MCAP, ROS bags): give exactly one of ``topic`` (a pose-carrying topic: PoseStamped,
     PoseWithCovarianceStamped, TransformStamped, Odometry, TFMessage/FrameTransform(s) of one
     frame pair, Foxglove PoseInFrame/PosesInFrame) or ``frames=(parent, child)``, resolved
     through ``/tf`` + ``/tf_static`` into ``T_parent_child``. Several paths = split ROS 1 bags.
-    Text files (TUM, EuRoC, CSV): one path, no topic/frames; ``columns`` maps generic CSV
-    columns (keys ``t, t_unit, x, y, z, qx, qy, qz, qw``).
+    Text files (TUM, EuRoC, CSV; ``-`` = stdin, pipes are read once): one path, no topic/frames;
+    ``columns`` maps generic CSV columns (keys ``t, t_unit, x, y, z, qx, qy, qz, qw``);
+    ``quaternion_order`` (``"xyzw"`` | ``"wxyz"``) and ``time_unit`` (``"auto"`` | ``"s"`` |
+    ``"ms"`` | ``"us"`` | ``"ns"``) as in :func:`.text.read_text` (ignored for logs).
 
     ``time_source``: ``"header"`` (header.stamp / each transform's stamp) or ``"log"`` (the
     recorder's log time; logs only). ``quiet=False`` shows a progress bar on stderr when stderr
     is a terminal.
 
     Returns the poses of the child frame in the parent frame (text files: ``T_world_<file stem>``):
-    int64 nanosecond stamps sorted ascending (exact duplicate stamps dropped, first kept, counted
-    in ``duplicates_dropped``), positions in metres, unit Hamilton quaternions in x-y-z-w order.
-    Raises HandEyeError (one line: what, where, how to fix) on any bad input.
+    int64 nanosecond stamps sorted ascending (repeated stamps dropped, first kept, counted in
+    ``duplicates_dropped``), positions in metres, unit Hamilton quaternions in x-y-z-w order.
+    Invalid poses are dropped, a clock jumping back keeps its longest run, a truncated recording
+    is read up to its last intact message: each with a line in ``warnings`` (``recovered_truncated``
+    counts recovered messages). Raises HandEyeError (one line: what, where, how to fix) on any bad input.
     """
-    plist = [paths] if isinstance(paths, (str, Path)) else list(paths)
-    if not plist:
-        raise HandEyeError("no input file given", "read_stream", "pass a path")
+    if not ([paths] if isinstance(paths, (str, Path)) else list(paths)):
+        raise ConfigError("no input file given", "read_stream", "pass a path")
     if time_source not in _TIME_SOURCES:
-        raise HandEyeError(f"unknown time source {time_source!r}", "time_source", "use 'header' or 'log'")
-    plist = [existing(p) for p in plist]
-    fmts = [detect_format(p) for p in plist]
+        raise ConfigError(f"unknown time source {time_source!r}", "time_source", "use 'header' or 'log'")
+    plist, fmts = _inputs(paths)
     if fmts[0] not in LOG_FORMATS:
         if len(plist) > 1 or topic is not None or frames is not None:
-            raise HandEyeError(f"a {fmts[0].upper()} text file holds one stream: no topic/frames and one "
+            raise ConfigError(f"a {fmts[0].upper()} text file holds one stream: no topic/frames and one "
                                "file per stream", ", ".join(map(str, plist)),
                                "drop --topic/--frames and pass one text file per stream")
-        return read_text(plist[0], fmts[0], columns)
+        return read_text(plist[0], fmts[0], columns, quaternion_order=quaternion_order, time_unit=time_unit)
     return _read_log(plist, fmts, [(topic, frames)], time_source, quiet)[0]
 
 
@@ -77,12 +77,11 @@ def read_log_streams(paths: str | Path | Sequence[str | Path], requests: Sequenc
     """Several streams of one log (MCAP, ROS bags; several paths = split ROS 1 bags) in a single
     pass, one per request ``(topic, None)`` or ``(None, (parent, child))``, each as
     :func:`read_stream` returns it. Raises HandEyeError on any bad input."""
-    plist = [existing(p) for p in ([paths] if isinstance(paths, (str, Path)) else list(paths))]
-    fmts = [detect_format(p) for p in plist]
+    plist, fmts = _inputs(paths)
     if time_source not in _TIME_SOURCES:
-        raise HandEyeError(f"unknown time source {time_source!r}", "time_source", "use 'header' or 'log'")
+        raise ConfigError(f"unknown time source {time_source!r}", "time_source", "use 'header' or 'log'")
     if not plist or fmts[0] not in LOG_FORMATS:
-        raise HandEyeError("not a log (MCAP, ROS 1 or ROS 2 bag)", ", ".join(map(str, plist)) or "read_log_streams",
+        raise ConfigError("not a log (MCAP, ROS 1 or ROS 2 bag)", ", ".join(map(str, plist)) or "read_log_streams",
                            "read text files one stream at a time with read_stream")
     return _read_log(plist, fmts, requests, time_source, quiet)
 
@@ -91,27 +90,27 @@ def _read_log(plist: list[Path], fmts: list[str], requests: Sequence[Request], t
               quiet: bool) -> list[PoseStream]:
     for topic, frames in requests:
         if (topic is None) == (frames is None):
-            raise HandEyeError("give exactly one of a topic or a (parent, child) frame pair",
+            raise ConfigError("give exactly one of a topic or a (parent, child) frame pair",
                                ", ".join(map(str, plist)), "use --topic-a/--topic-b or --frames-a/--frames-b")
-    with _open_log(plist, fmts) as src:
+    with open_log(plist, fmts) as src:
         return read_requests(src, requests, time_source=time_source, quiet=quiet)
 
 
-def inspect_log(path: str | Path, *, quiet: bool = True) -> dict:
+def inspect_log(path: str | Path, *, quiet: bool = True, all_tf: bool = False) -> dict[str, Any]:
     """A JSON-able overview of one file.
 
     Logs: ``format``, ``path``, ``start_ns``/``end_ns``/``duration_ns`` (log time),
     ``topics`` [{topic, type, encoding, count, rate_hz (mean over the log), pose}],
-    ``tf_frames`` [{parent, child, static, count}]. Text files: ``format``, ``path``,
-    ``rows``, ``start_ns``, ``end_ns``, ``duration_ns``, ``rate_hz``.
+    ``tf_frames`` [{parent, child, static, count}] from the first 2000 TF messages unless ``all_tf``
+    (``tf_messages_read``, ``tf_complete`` say which; counts of a sample are the sample's).
+    Text files: ``format``, ``path``, ``rows``, ``start_ns``, ``end_ns``, ``duration_ns``, ``rate_hz``.
     """
-    p = existing(path)
-    fmt = detect_format(p)
+    (p,), (fmt,) = _inputs(path)
     if fmt not in LOG_FORMATS:
         s = read_text(p, fmt)
         span = int(s.stamps_ns[-1] - s.stamps_ns[0])
         return {"format": fmt, "path": str(p), "rows": len(s) + s.duplicates_dropped,
                 "start_ns": int(s.stamps_ns[0]), "end_ns": int(s.stamps_ns[-1]), "duration_ns": span,
                 "rate_hz": round((len(s) - 1) / span * 1e9, 3) if span else 0.0}
-    with _open_log([p], [fmt]) as src:
-        return {"format": fmt, "path": str(p), **inspect_source(src, quiet)}
+    with open_log([p], [fmt]) as src:
+        return {"format": fmt, "path": str(p), **inspect_source(src, quiet, all_tf=all_tf)}

@@ -7,6 +7,7 @@ import struct
 from array import array
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
+from typing import Any
 
 import numpy as np
 from mcap.exceptions import McapError
@@ -16,7 +17,7 @@ from rosbags.rosbag2 import ReaderError as Bag2ReaderError
 from rosbags.serde import SerdeError
 from rosbags.typesys import TypesysError
 
-from ..errors import HandEyeError
+from ..errors import DataError, HandEyeError, ReadError
 from ..streams import PoseStream
 
 __all__ = ["DECODE_ERRORS", "unreadable", "PoseBuffer", "make_stream"]
@@ -51,7 +52,7 @@ def unreadable(where: str, fix: str = "check that the file is complete and of a 
         raise
     except DECODE_ERRORS as exc:
         detail = str(exc) or type(exc).__name__
-        raise HandEyeError(f"cannot read file: {type(exc).__name__}: {detail}", where, fix) from exc
+        raise ReadError(f"cannot read file: {type(exc).__name__}: {detail}", where, fix) from exc
 
 
 class PoseBuffer:
@@ -64,16 +65,24 @@ class PoseBuffer:
         self.stamps = array("q")
         self.values = array("d")
         self.pairs: dict[tuple[str, str], None] = {}    # (frame, child) pairs seen, in order
-        self._last: tuple = ()
+        self._last: tuple[Any, ...] = ()
 
-    def add(self, records: Sequence[tuple]) -> None:
+    def add(self, records: Sequence[tuple[Any, ...]]) -> None:
         """Append pose records ``(stamp_ns, frame, child, x, y, z, qx, qy, qz, qw)``."""
         for rec in records:
             self.stamps.append(rec[0])
             self.values.extend(rec[3:])
             if rec[1:3] != self._last:
                 self._last = rec[1:3]
-                self.pairs[self._last] = None
+                self.pairs[(rec[1], rec[2])] = None
+
+    def add_arrays(self, pair: tuple[str, str], stamps: np.ndarray, values: np.ndarray) -> None:
+        """Append int64 stamps [ns] and (N, 7) values (x, y, z, qx, qy, qz, qw) of one (frame, child) pair."""
+        self.stamps.frombytes(np.ascontiguousarray(stamps, dtype=np.int64).tobytes())
+        self.values.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+        if len(stamps):
+            self._last = pair
+            self.pairs[pair] = None
 
     def __len__(self) -> int:
         return len(self.stamps)
@@ -84,28 +93,95 @@ class PoseBuffer:
         return np.frombuffer(self.stamps, dtype=np.int64).copy(), v[:, :3].copy(), v[:, 3:].copy()
 
 
+_MAX_POSITION_M = 1e8        # |x| beyond this is a corrupt sample, not a position
+_MIN_JUMP_NS = 500_000_000   # a backward step shorter than this (or 10 median steps) is jitter, not a clock jump
+LOG_STAMPS_FIX = "the publisher did not set header.stamp; use the recorder's clock with --time-source log"
+
+
+def _drop_invalid(idx: np.ndarray, xyz: np.ndarray, quat: np.ndarray, source: str,
+                  where: Callable[[int], str], notes: list[str]) -> np.ndarray:
+    """Indices of the valid samples among ``idx``: finite, |position| <= 1e8 m, a non-zero finite
+    quaternion. Invalid ones are dropped with a warning naming the first; DataError if none is valid."""
+    with np.errstate(all="ignore"):     # inf/NaN/1e300 rows must not leak numpy RuntimeWarnings
+        norm = np.sqrt(np.einsum("ij,ij->i", quat, quat))
+        ok = np.isfinite(norm) & (norm > 1e-12) & (np.abs(xyz) <= _MAX_POSITION_M).all(axis=1)
+    if ok.all():
+        return idx
+    bad = np.flatnonzero(~ok)
+    first = int(bad[0])
+    detail = f"position {xyz[first].tolist()}, quaternion {quat[first].tolist()}"
+    if not ok.any():
+        raise DataError("no valid pose: every sample has a NaN/inf value, |position| > 1e8 m or a zero-norm "
+                        f"quaternion ({detail})", f"{source}, {where(first)}",
+                        "check the exporter (wrong columns or units?)")
+    notes.append(f"dropped {len(bad)} invalid pose(s) of {source} (NaN/inf, |position| > 1e8 m or zero-norm "
+                 f"quaternion), the first at {where(first)}: {detail}")
+    return np.asarray(idx[ok])
+
+
+def _longest_run(stamps: np.ndarray, source: str, where: Callable[[int], str], notes: list[str]) -> slice:
+    """The samples (in arrival order) to keep when the clock jumps back.
+
+    A jump is a backward step longer than 0.5 s and 10 median forward steps. A few jumps split the
+    stream into runs and only the longest run is kept (a warning per jump): pairing across a clock
+    jump would be wrong. Many backward steps are a reordering, not a jump: everything is kept (and
+    sorted by the caller).
+    """
+    n = len(stamps)
+    step = np.diff(stamps)
+    forward = step[step > 0]
+    if n < 3 or not len(forward):
+        return slice(0, n)
+    limit = max(_MIN_JUMP_NS, 10 * int(np.median(forward)))
+    jumps = np.flatnonzero(step < -limit)
+    if not len(jumps) or len(jumps) > max(1, n // 100):
+        return slice(0, n)
+    bounds = np.r_[0, jumps + 1, n]
+    k = int(np.argmax(np.diff(bounds)))
+    for j in jumps:
+        notes.append(f"clock of {source} jumps back {-step[j] / 1e9:.3f} s at t={stamps[j] / 1e9:.3f} s "
+                     f"({where(int(j) + 1)}); kept the longest run without a jump "
+                     f"({bounds[k + 1] - bounds[k]} of {n} samples)")
+    return slice(int(bounds[k]), int(bounds[k + 1]))
+
+
 def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source: str,
                 frame_id: str, child_frame_id: str, time_source: str,
-                where: Callable[[int], str] = lambda i: f"message {i}") -> PoseStream:
-    """Validate, sort by stamp, drop exact duplicate stamps (keep the first), normalise quaternions.
+                where: Callable[[int], str] = lambda i: f"message {i}", warnings: Sequence[str] = (),
+                recovered_truncated: int = 0, zero_stamps_fix: str | None = LOG_STAMPS_FIX) -> PoseStream:
+    """Validate and order reader output (arrays in arrival order) into a :class:`PoseStream`.
 
-    ``where(i)`` names sample ``i`` (in input order) in error messages, e.g. "line 12".
-    Raises HandEyeError for an empty stream, non-finite positions, NaN or zero quaternions.
+    Drops invalid poses (warning), keeps the longest run when the clock jumps back (warning),
+    sorts by stamp, drops repeated stamps keeping the first (``duplicates_dropped``; a warning
+    when a repeat carries a different pose), normalises quaternions (x-y-z-w). ``where(i)`` names
+    sample ``i`` (arrival order) in messages, e.g. "line 12". ``warnings`` are the reader's own.
+    DataError for an empty stream, no valid pose, or — unless ``zero_stamps_fix`` is None —
+    every stamp zero (``zero_stamps_fix`` says what to do).
     """
     if len(stamps) == 0:
-        raise HandEyeError("empty stream: no poses", source,
-                           "choose a topic, frame pair or file that carries poses (handeye inspect FILE)")
-    norm = np.linalg.norm(quat, axis=1)
-    bad = ~(np.isfinite(norm) & (norm > 1e-12) & np.isfinite(xyz).all(axis=1))
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise HandEyeError(f"invalid pose: NaN/inf value or zero-norm quaternion "
-                           f"{quat[i].tolist()}", f"{source}, {where(i)}",
-                           f"remove or fix the {int(bad.sum())} invalid sample(s) (tracking dropouts?)")
-    order = np.argsort(stamps, kind="stable")
-    stamps = stamps[order]
-    keep = np.r_[True, stamps[1:] != stamps[:-1]]
-    order = order[keep]
-    return PoseStream(stamps[keep], xyz[order], quat[order] / norm[order, None],
+        raise DataError("empty stream: no poses", source,
+                        "choose a topic, frame pair or file that carries poses (handeye inspect FILE)")
+    notes = list(warnings)
+    stamps = np.asarray(stamps, dtype=np.int64)
+    if zero_stamps_fix is not None and len(stamps) > 1 and not stamps.any():
+        raise DataError(f"the stamps are all zero ({len(stamps)} samples)", source, zero_stamps_fix)
+    idx = _drop_invalid(np.arange(len(stamps)), xyz, quat, source, where, notes)
+    idx = idx[_longest_run(stamps[idx], source, lambda i: where(int(idx[i])), notes)]
+    idx = idx[np.argsort(stamps[idx], kind="stable")]
+    t = stamps[idx]
+    repeat = np.r_[False, t[1:] == t[:-1]]
+    if repeat.any():
+        first = idx[np.maximum.accumulate(np.where(repeat, 0, np.arange(len(t))))]
+        differs = repeat & ((xyz[idx] != xyz[first]).any(axis=1) | (quat[idx] != quat[first]).any(axis=1))
+        if differs.any():
+            notes.append(f"{int(differs.sum())} sample(s) of {source} repeat a stamp with a different pose "
+                         f"(the first is kept), e.g. {where(int(idx[np.argmax(differs)]))}")
+    idx = idx[~repeat]
+    rows: np.ndarray | slice = idx
+    if len(idx) == len(stamps) and not np.any(np.diff(idx) != 1):    # nothing moved: no copies
+        rows = slice(None)
+    q = quat[rows]
+    return PoseStream(t[~repeat], xyz[rows], q / np.sqrt(np.einsum("ij,ij->i", q, q))[:, None],
                       frame_id=frame_id, child_frame_id=child_frame_id, source=source,
-                      time_source=time_source, duplicates_dropped=int((~keep).sum()))
+                      time_source=time_source, duplicates_dropped=int(repeat.sum()),
+                      warnings=tuple(notes), recovered_truncated=recovered_truncated)

@@ -4,7 +4,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ..errors import HandEyeError
+from ..errors import ReadError
+from .inputs import existing, is_stream, read_head
 
 __all__ = ["FORMATS", "LOG_FORMATS", "detect_format", "existing"]
 
@@ -13,69 +14,91 @@ LOG_FORMATS = ("mcap", "rosbag1", "rosbag2")
 
 _MAGIC = ((b"\x89MCAP0\r\n", "mcap"), (b"#ROSBAG V2.0", "rosbag1"), (b"SQLite format 3\x00", "rosbag2"))
 _LOG_SUFFIXES = {".mcap": "MCAP", ".bag": "ROS 1 bag", ".db3": "ROS 2 SQLite bag"}
-_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
+_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf)$", re.IGNORECASE)
 _EUROC_HEADER = re.compile(r"p_RS_R_x|q_RS_w", re.IGNORECASE)
+_PAIRS_HEADER = re.compile(r"^#?\s*ax\s*,\s*ay\s*,\s*az\s*,\s*aqx\b", re.IGNORECASE)
+_YAML_LINE = re.compile(r"^(---|%YAML|[A-Za-z_][\w.\-]*:(\s|$))")
+_HEAD_BYTES = 65536
+_SUPPORTED = "pass a log (MCAP, ROS 1 .bag, ROS 2 bag) or a TUM / EuRoC / CSV trajectory"
 
 
-def existing(path: str | Path) -> Path:
-    """``path`` as a Path, or a HandEyeError if nothing is there."""
-    p = Path(path)
-    if not p.exists():
-        raise HandEyeError("file not found", str(p), "check the path")
-    return p
+def _not_a_stream(name: str, what: str, fix: str = _SUPPORTED) -> ReadError:
+    return ReadError(f"{what}, not a pose stream", name, fix)
 
 
-def _text_format(p: Path) -> str:
+def _classify_header(name: str, suffix: str, line: str) -> str:
+    """``csv`` for a CSV header row; a ReadError saying what the file is for anything else."""
+    if _PAIRS_HEADER.match(line):
+        raise _not_a_stream(name, "a motion-pairs file (ax, ay, az, aqx, …)", f"use `handeye solve {name}`")
+    if suffix in (".yaml", ".yml") or _YAML_LINE.match(line):
+        raise _not_a_stream(name, "a YAML file", "pass a configuration with --config; " + _SUPPORTED)
+    if line.count(",") >= 7:
+        return "csv"
+    kind = ("a Markdown/text document" if suffix in (".md", ".rst", ".txt")
+            else "text that is neither numbers nor a CSV header")
+    raise _not_a_stream(f"{name}, first data line {line[:60]!r}", kind)
+
+
+def text_format(name: str, suffix: str, head: bytes) -> str:
+    """``tum``, ``euroc`` or ``csv`` from the first bytes of a text file (ReadError if it is not a
+    pose table: binary, YAML, a motion-pairs file, prose)."""
     try:
-        with open(p, encoding="utf-8") as f:
-            for line in f:
-                s = line.strip()
-                if not s:
-                    continue
-                if s.startswith("#"):
-                    if _EUROC_HEADER.search(s):
-                        return "euroc"
-                    continue
-                fields = [x for x in re.split(r"[,\s]+", s) if x]
-                if not all(_NUMBER.match(x) for x in fields):
-                    return "csv"
-                # EuRoC: comma separated, integer nanosecond stamp; TUM: seconds, usually "t.fff"
-                if "," in s and fields[0].lstrip("+-").isdigit() and len(fields) >= 8:
-                    return "euroc"
-                return "tum"
+        text = head.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise HandEyeError("unrecognised file format (binary, but not MCAP, ROS bag or SQLite)",
-                           str(p), "supported: MCAP, ROS 1 .bag, ROS 2 bag (dir/.db3/.mcap), "
-                                   "TUM, EuRoC CSV, CSV with header") from exc
-    raise HandEyeError("empty file: no data lines", str(p), "check the file")
+        if exc.start < len(head) - 4:       # not just a character cut at the end of the head
+            raise ReadError("unrecognised file format (binary, but not MCAP, ROS bag or SQLite)", name,
+                            "supported: MCAP, ROS 1 .bag, ROS 2 bag (dir/.db3/.mcap), "
+                            "TUM, EuRoC CSV, CSV with header") from exc
+        text = head[:exc.start].decode("utf-8")
+    lines = text.splitlines()
+    for i, line in enumerate(lines):
+        s = line.strip()
+        if not s or (i == len(lines) - 1 and len(head) == _HEAD_BYTES):
+            continue
+        if s.startswith("#"):
+            if _EUROC_HEADER.search(s):
+                return "euroc"
+            if _PAIRS_HEADER.match(s):
+                return _classify_header(name, suffix, s)
+            continue
+        fields = [x for x in re.split(r"[,\s]+", s) if x]
+        if not all(_NUMBER.match(x) for x in fields):
+            return _classify_header(name, suffix, s)
+        # EuRoC: comma separated, integer nanosecond stamp; TUM: seconds, usually "t.fff"
+        if "," in s and fields[0].lstrip("+-").isdigit() and len(fields) >= 8:
+            return "euroc"
+        return "tum"
+    raise ReadError("empty file: no data lines", name, "check the file")
 
 
 def detect_format(path: str | Path) -> str:
     """One of ``mcap``, ``rosbag1``, ``rosbag2``, ``tum``, ``euroc``, ``csv``.
 
-    A directory with ``metadata.yaml`` is a ROS 2 bag; files are recognised by their magic
-    bytes (MCAP, ``#ROSBAG V2.0``, SQLite = bare rosbag2 ``.db3``; a ``.mcap``/``.bag``/``.db3``
-    without its magic is an error, not text); anything else is text:
-    EuRoC (``p_RS_R_x``/``q_RS_w`` header, or comma-separated rows starting with an integer
-    nanosecond stamp), generic CSV (a non-numeric header row) or TUM.
+    A directory with ``metadata.yaml`` (or only a ``.db3`` / ``.mcap`` storage file) is a ROS 2
+    bag; files are recognised by their magic bytes (MCAP, ``#ROSBAG V2.0``, SQLite = bare rosbag2
+    ``.db3``; a ``.mcap``/``.bag``/``.db3`` without its magic is an error, not text); anything else
+    is text: EuRoC (``p_RS_R_x``/``q_RS_w`` header, or comma-separated rows starting with an
+    integer nanosecond stamp), generic CSV (a header row with 8+ columns) or TUM. ``-`` (stdin)
+    and pipes are read once (see :mod:`.inputs`). A YAML, motion-pairs or prose file is a
+    ReadError that says what it is.
     """
     p = existing(path)
     if p.is_dir():
-        if (p / "metadata.yaml").is_file():
+        if (p / "metadata.yaml").is_file() or any(p.glob("*.db3")) or any(p.glob("*.mcap")):
             return "rosbag2"
-        raise HandEyeError("directory is not a ROS 2 bag (no metadata.yaml)", str(p),
-                           "pass a bag directory, an MCAP, a .bag or a text trajectory file")
+        raise ReadError("directory is not a ROS 2 bag (no metadata.yaml)", str(p),
+                        "pass a bag directory, an MCAP, a .bag or a text trajectory file")
     try:
-        with open(p, "rb") as f:
-            head = f.read(16)
+        head = read_head(path, _HEAD_BYTES)
     except OSError as exc:
-        raise HandEyeError(f"cannot open file: {exc.strerror or exc}", str(p), "check permissions") from exc
+        raise ReadError(f"cannot open file: {exc.strerror or exc}", str(p), "check permissions") from exc
     for magic, fmt in _MAGIC:
         if head.startswith(magic):
             return fmt
     if not head:
-        raise HandEyeError("empty file (0 bytes)", str(p), "the recording or export failed; check the file")
-    if p.suffix.lower() in _LOG_SUFFIXES:
-        raise HandEyeError(f"not a valid {_LOG_SUFFIXES[p.suffix.lower()]} file: wrong magic bytes {head[:8]!r}",
-                           str(p), "the file is damaged or misnamed; check it with `handeye inspect FILE`")
-    return _text_format(p)
+        raise ReadError("empty file (0 bytes)", str(path), "the recording or export failed; check the file")
+    suffix = "" if is_stream(path) else p.suffix.lower()
+    if suffix in _LOG_SUFFIXES:
+        raise ReadError(f"not a valid {_LOG_SUFFIXES[suffix]} file: wrong magic bytes {head[:8]!r}",
+                        str(p), "the file is damaged or misnamed; check it with `handeye inspect FILE`")
+    return text_format(str(path), suffix, head)

@@ -2,10 +2,14 @@
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
+from dataclasses import replace
+from typing import Any
 
-from ..errors import HandEyeError
+from ..errors import ConfigError, DataError, ReadError
 from ..streams import PoseStream
 from .common import DECODE_ERRORS, PoseBuffer, make_stream
+from .inputs import valid_frame_id
+from .mcap_fast import FastPoses
 from .messages import POSE_TYPES, TF_TYPES, PoseRecord, UnsupportedContent
 from .progress import progress
 from .source import LogSource, TopicInfo
@@ -40,10 +44,10 @@ def _records(src: LogSource, infos: list[TopicInfo], label: str, time_source: st
             try:
                 recs = decode(raw)
             except UnsupportedContent as exc:
-                raise HandEyeError(str(exc), f"{src.name}:{topic}, message {i}",
+                raise ReadError(str(exc), f"{src.name}:{topic}, message {i}",
                                    "convert the topic to a supported pose message") from exc
             except DECODE_ERRORS as exc:
-                raise HandEyeError(f"cannot decode message: {type(exc).__name__}: {exc}",
+                raise ReadError(f"cannot decode message: {type(exc).__name__}: {exc}",
                                    f"{src.name}:{topic}, message {i}",
                                    "the message is corrupt or not of its declared type") from exc
             if time_source == "log":
@@ -60,31 +64,42 @@ Request = tuple[str | None, tuple[str, str] | None]   # (topic, None) or (None, 
 def _check_topic(src: LogSource, infos: list[TopicInfo], topic: str) -> None:
     info = next((t for t in infos if t.topic == topic), None)
     if info is None:
-        raise HandEyeError(f"unknown topic {topic!r}", src.name, f"pose topics in this file: {_pose_topics(infos)}")
+        raise ConfigError(f"unknown topic {topic!r}", src.name, f"pose topics in this file: {_pose_topics(infos)}")
     if info.msgtype not in POSE_TYPES:
-        raise HandEyeError(f"unsupported message type {info.msgtype!r}", f"{src.name}:{topic}",
+        raise ReadError(f"unsupported message type {info.msgtype!r}", f"{src.name}:{topic}",
                            f"supported types: {', '.join(sorted(POSE_TYPES))}; "
                            f"pose topics in this file: {_pose_topics(infos)}")
 
 
-def _topic_stream(src: LogSource, topic: str, buf: PoseBuffer, time_source: str) -> PoseStream:
+def _truncation(src: LogSource, n: int) -> list[str]:
+    """The source's warnings (``notes``) and, for a cut-off recording, how many messages (``n``) were recovered."""
+    notes = list(getattr(src, "notes", ()))
+    if getattr(src, "truncated", False):
+        notes.append(f"recovered {n} messages from truncated {src.name}; the rest is lost")
+    return notes
+
+
+def _topic_stream(src: LogSource, topic: str, buf: PoseBuffer | FastPoses, time_source: str) -> PoseStream:
     source = f"{src.name}:{topic}"
     if len(buf.pairs) > 1:
         pairs = ", ".join(f"{p or '?'}->{c or '?'}" for p, c in list(buf.pairs)[:8])
-        raise HandEyeError(f"topic carries poses of several frame pairs ({pairs})", source,
-                           "select one pair with frames=(PARENT, CHILD) / --frames-a PARENT CHILD")
+        raise DataError(f"topic carries poses of several frame pairs ({pairs})", source,
+                        "select one pair with frames=(PARENT, CHILD) / --frames-a PARENT CHILD")
     frame, child = next(iter(buf.pairs), ("", ""))
     stamps, xyz, quat = buf.arrays()
-    return make_stream(stamps, xyz, quat, source=source, frame_id=frame, child_frame_id=child or topic,
-                       time_source=time_source, where=lambda i: f"message {i}")
+    truncated = getattr(src, "truncated", False)
+    return make_stream(stamps, xyz, quat, source=source, frame_id=frame, child_frame_id=child or valid_frame_id(topic),
+                       time_source=time_source, where=lambda i: f"message {i}", warnings=_truncation(src, len(buf)),
+                       recovered_truncated=len(buf) if truncated else 0)
 
 
 def read_requests(src: LogSource, requests: Sequence[Request], *, time_source: str = "header",
                   quiet: bool = True) -> list[PoseStream]:
     """Several pose streams of one log in a single pass over it, one per request: ``(topic, None)``
     reads the poses ``T_frame_child`` on a pose topic (child = child_frame_id, else the topic
-    name); ``(None, (parent, child))`` resolves ``T_parent_child(t)`` through the TF topics
-    (TFMessage, Foxglove FrameTransform(s))."""
+    name as a valid frame id); ``(None, (parent, child))`` resolves ``T_parent_child(t)`` through
+    the TF topics (TFMessage, Foxglove FrameTransform(s)). Topics the source's fast path decodes
+    (``read_fast``, MCAP) come as arrays; the rest message by message."""
     infos = src.topics()
     wanted = {topic for topic, _ in requests if topic is not None}
     for topic in wanted:
@@ -93,39 +108,71 @@ def read_requests(src: LogSource, requests: Sequence[Request], *, time_source: s
     if any(frames is not None for _, frames in requests):
         tf_topics = {t.topic for t in infos if t.msgtype in TF_TYPES}
         if not tf_topics:
-            raise HandEyeError("no TF topics (/tf, /tf_static) in this file", src.name,
-                               f"read a pose topic instead; pose topics: {_pose_topics(infos)}")
-    buffers = {topic: PoseBuffer() for topic in wanted}
-    tree = TfTree(src.name)
+            raise DataError("no TF topics (/tf, /tf_static) in this file", src.name,
+                            f"read a pose topic instead; pose topics: {_pose_topics(infos)}")
     label = "reading " + ", ".join(sorted(wanted) + (["TF"] if tf_topics else []))
-    for topic, recs in _records(src, [t for t in infos if t.topic in wanted | tf_topics], label, time_source, quiet):
+    fast: dict[str, FastPoses] = {}
+    if hasattr(src, "read_fast"):
+        todo = [t for t in infos if t.topic in wanted | tf_topics]
+        with progress(sum(t.count for t in todo), label, quiet=quiet) as bar:
+            fast = src.read_fast(sorted(wanted | tf_topics), time_source)
+            bar.update(sum(t.count for t in todo if t.topic in fast))
+    buffers = {topic: PoseBuffer() for topic in wanted - fast.keys()}
+    tree = TfTree(src.name)
+    tf_messages = 0
+    for topic in tf_topics & fast.keys():
+        for k, (parent, child) in enumerate(fast[topic].pair_names):
+            tree.add_arrays(parent, child, *fast[topic].of_pair(k), static=is_static_topic(topic))
+    slow = [t for t in infos if t.topic in (wanted | tf_topics) - fast.keys()]
+    for topic, recs in _records(src, slow, label, time_source, quiet):
         if topic in buffers:
             buffers[topic].add(recs)
         if topic in tf_topics:
+            tf_messages += 1
             tree.add(recs, static=is_static_topic(topic))
-    return [_topic_stream(src, topic, buffers[topic], time_source) if topic is not None
-            else tree.lookup(*frames, time_source=time_source) for topic, frames in requests]
+    streams = []
+    for name, frames in requests:
+        if name is not None:
+            streams.append(_topic_stream(src, name, fast.get(name) or buffers[name], time_source))
+            continue
+        assert frames is not None
+        s = tree.lookup(*frames, time_source=time_source)
+        n = tf_messages + sum(len(fast[t]) for t in tf_topics & fast.keys())
+        streams.append(replace(s, warnings=(*_truncation(src, n), *s.warnings),
+                               recovered_truncated=n if getattr(src, "truncated", False) else 0))
+    return streams
 
 
-def _tf_tree(src: LogSource, infos: list[TopicInfo], time_source: str,
-             quiet: bool) -> tuple[TfTree, dict[str, set[tuple[str, str]]]]:
-    """The TF tree of every TF topic, and the (parent, child) pairs each TF topic carries."""
+TF_SAMPLE = 2000
+"""Messages of the TF topics ``inspect`` reads (from the start of the file) unless asked for all."""
+
+
+def _tf_tree(src: LogSource, infos: list[TopicInfo], quiet: bool,
+             limit: int | None) -> tuple[TfTree, dict[str, set[tuple[str, str]]], int]:
+    """The TF tree of the first ``limit`` (None: all) TF messages, the (parent, child) pairs each TF
+    topic carries in them, and how many messages were read."""
     tree = TfTree(src.name)
     pairs: dict[str, set[tuple[str, str]]] = {t.topic: set() for t in infos if t.msgtype in TF_TYPES}
-    for topic, recs in _records(src, [t for t in infos if t.topic in pairs], "reading TF", time_source, quiet):
+    n = 0
+    for topic, recs in _records(src, [t for t in infos if t.topic in pairs], "reading TF", "header", quiet):
         tree.add(recs, static=is_static_topic(topic))
         pairs[topic].update((r[1], r[2]) for r in recs)
-    return tree, pairs
+        n += 1
+        if limit is not None and n >= limit:
+            break
+    return tree, pairs, n
 
 
-def inspect_source(src: LogSource, quiet: bool = True) -> dict:
-    """Topics (type, encoding, count, mean rate over the log's span, ``pose``: readable as one
-    pose stream with ``read_requests`` — a TF topic only when it carries a single frame pair) and
-    the TF edges."""
+def inspect_source(src: LogSource, quiet: bool = True, *, all_tf: bool = False) -> dict[str, Any]:
+    """Topics (type, encoding, count, mean rate over the log's span — from the summary/index, no
+    message read —, ``pose``: readable as one pose stream with ``read_requests``, for a TF topic
+    only when it carries a single frame pair) and the TF edges, from the first
+    :data:`TF_SAMPLE` TF messages unless ``all_tf`` (then every TF message, exact counts).
+    ``tf_messages_read``: how many TF messages the edges come from; ``tf_complete``: all were read."""
     infos = src.topics()
     span = src.span()
     duration = span[1] - span[0] if span else 0
-    tree, tf_pairs = _tf_tree(src, infos, "header", quiet)
+    tree, tf_pairs, n_tf = _tf_tree(src, infos, quiet, None if all_tf else TF_SAMPLE)
 
     def one_stream(t: TopicInfo) -> bool:
         return t.msgtype in POSE_TYPES and (t.topic not in tf_pairs or len(tf_pairs[t.topic]) == 1)
@@ -133,5 +180,7 @@ def inspect_source(src: LogSource, quiet: bool = True) -> dict:
     topics = [{"topic": t.topic, "type": t.msgtype, "encoding": t.encoding, "count": t.count,
                "rate_hz": round(t.count / duration * 1e9, 3) if duration else 0.0,
                "pose": one_stream(t)} for t in sorted(infos, key=lambda t: t.topic)]
+    total_tf = sum(t.count for t in infos if t.topic in tf_pairs)
     return {"start_ns": span[0] if span else None, "end_ns": span[1] if span else None,
-            "duration_ns": duration, "topics": topics, "tf_frames": tree.edges()}
+            "duration_ns": duration, "topics": topics, "tf_frames": tree.edges(),
+            "tf_messages_read": n_tf, "tf_complete": n_tf >= total_tf}

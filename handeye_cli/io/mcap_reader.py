@@ -1,26 +1,37 @@
-"""MCAP files. ``mcap`` reads the summary (topics, types, counts) of every file.
+"""MCAP files. ``mcap`` reads the summary (topics, types, counts) of every complete file.
 
-Messages of a pure ROS 2 file (profile ``ros2``, CDR channels, ``ros2msg``/``ros2idl`` schemas —
-a bare rosbag2 ``.mcap``) are read through rosbags' AnyReader, whose MCAP parser is ~2x faster
-than ``mcap``'s pure-Python record parsing (measured by ``benchmarks/readers.py``). Anything else
-(Foxglove JSON channels, ROS 1 profile, mixed encodings), or a ROS 2 file AnyReader refuses, is
-read with ``mcap``, decoding CDR / ROS 1 with a rosbags typestore built from the file's schemas
-and JSON with ``json``. Either way only the chunks holding the selected topics are read, in
-file order (stamps are sorted afterwards).
+Pose topics of an indexed file are read by the fast path (:mod:`.mcap_fast`: chunk-level
+decompression, message indexes, CDR decoded with numpy). Otherwise messages of a pure ROS 2 file
+(profile ``ros2``, CDR channels, ``ros2msg``/``ros2idl`` schemas) are read through rosbags'
+AnyReader, and anything else (Foxglove JSON channels, ROS 1 profile, mixed encodings) with
+``mcap``, decoding CDR / ROS 1 with a rosbags typestore built from the file's schemas and JSON
+with ``json``. Either way only the chunks holding the selected topics are read, in file order
+(stamps are sorted afterwards).
+
+A file without a usable summary — written without one, with no Statistics record, or cut off by
+a crash (no footer, cut mid-chunk) — is scanned linearly with ``mcap``'s StreamReader: every
+intact message is read, and a cut-off file sets ``truncated`` (the readers then warn how many
+messages were recovered). Only a file with nothing readable is an error.
 """
 from __future__ import annotations
 
+import io
 import json
-from collections import defaultdict
+from collections import Counter
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any
 
-from mcap.reader import SeekingReader, make_reader
+import lz4.frame  # type: ignore[import-untyped]
+import zstandard
+from mcap.reader import make_reader
+from mcap.records import Channel, Footer, Message, Schema
+from mcap.stream_reader import StreamReader
 from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
 
-from ..errors import HandEyeError
-from .common import unreadable
+from ..errors import ReadError
+from .common import DECODE_ERRORS, unreadable
+from .mcap_fast import FastTopics, read_fast
 from .messages import normalize_type, pose_decoder
 from .rosbag_reader import BagSource
 from .source import Decoder, TopicInfo
@@ -33,28 +44,79 @@ _ROS2_SCHEMAS = ("ros2msg", "ros2idl", "omgidl")
 
 
 class McapSource:
-    """An open MCAP file (use as a context manager). Message types are normalised to ``pkg/msg/T``."""
+    """An open MCAP file (use as a context manager). Message types are normalised to ``pkg/msg/T``.
 
-    def __init__(self, path: Path) -> None:
+    ``truncated``: the file ends before its footer (a crashed recording); ``fast=False`` disables
+    the numpy fast path (tests compare both paths).
+    """
+
+    _schemas: dict[int, Schema]
+    _channels: dict[int, Channel]
+    _counts: dict[int, int]
+    _span: tuple[int, int] | None
+
+    def __init__(self, path: Path, *, fast: bool = True) -> None:
         self.name = str(path)
-        self._file: BinaryIO = open(path, "rb")
-        try:
-            with unreadable(self.name, _RECOVER):
-                self._reader = make_reader(self._file)
-                summary = self._reader.get_summary() if isinstance(self._reader, SeekingReader) else None
-                profile = self._reader.get_header().profile
-            if summary is None or summary.statistics is None:
-                raise HandEyeError("MCAP file has no summary section (unfinished or truncated recording?)",
-                                   self.name, _RECOVER)
-        except BaseException:
-            self._file.close()
-            raise
-        self._summary = summary
         self._path = path
+        self._fast = fast
+        self.truncated = False
         self._bag: BagSource | None = None      # AnyReader on this file, opened by the first read()
-        self._ros2 = (profile == "ros2"
-                      and all(ch.message_encoding == "cdr" for ch in summary.channels.values())
-                      and all(sc.encoding in _ROS2_SCHEMAS for sc in summary.schemas.values()))
+        summary, profile = None, ""
+        try:
+            with open(path, "rb") as f:
+                reader = make_reader(f)
+                profile = reader.get_header().profile
+                summary = reader.get_summary()
+        except DECODE_ERRORS:
+            summary = None
+        if summary is not None and summary.statistics is not None:
+            self._schemas, self._channels = summary.schemas, summary.channels
+            self._counts = dict(summary.statistics.channel_message_counts)
+            st = summary.statistics
+            self._span = (st.message_start_time, st.message_end_time) if st.message_count else None
+            self._chunks = list(summary.chunk_indexes)
+            self._indexed = True
+        else:
+            self._scan_index()
+        self._ros2 = (self._indexed and profile == "ros2"
+                      and all(ch.message_encoding == "cdr" for ch in self._channels.values())
+                      and all(sc.encoding in _ROS2_SCHEMAS for sc in self._schemas.values()))
+
+    def _records(self) -> Iterator[Any]:
+        """Every record of a linear scan; at the first damaged or cut-off one, the intact records of
+        a chunk cut in the middle are salvaged and the scan stops (``truncated`` set)."""
+        with open(self._path, "rb") as f:
+            end_of_last = f.tell()
+            try:
+                for record in StreamReader(f).records:
+                    yield record
+                    if isinstance(record, Footer):
+                        return
+                    end_of_last = f.tell()
+            except DECODE_ERRORS:
+                self.truncated = True
+                f.seek(end_of_last)
+                yield from _salvage_chunk(f.read())
+
+
+    def _scan_index(self) -> None:
+        """Schemas, channels, counts and span by a linear scan (no usable summary section)."""
+        self._schemas, self._channels = {}, {}
+        counts: Counter[int] = Counter()
+        lo, hi = 2**64, -1
+        with unreadable(self.name, _RECOVER):
+            for record in self._records():
+                if isinstance(record, Message):
+                    counts[record.channel_id] += 1
+                    lo, hi = min(lo, record.log_time), max(hi, record.log_time)
+                elif isinstance(record, Schema):
+                    self._schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    self._channels[record.id] = record
+        if self.truncated and not counts:
+            raise ReadError("cannot read file: the MCAP is cut off before its first complete message",
+                            self.name, _RECOVER)
+        self._counts, self._span, self._chunks, self._indexed = dict(counts), (lo, hi) if counts else None, [], False
 
     def __enter__(self) -> McapSource:
         return self
@@ -62,33 +124,43 @@ class McapSource:
     def __exit__(self, *exc: object) -> None:
         if self._bag is not None:
             self._bag.__exit__(*exc)
-        self._file.close()
 
     def _schema_name(self, channel: Any) -> str:
-        schema = self._summary.schemas.get(channel.schema_id)
+        schema = self._schemas.get(channel.schema_id)
         return normalize_type(schema.name) if schema is not None else ""
 
     def topics(self) -> list[TopicInfo]:
-        counts = self._summary.statistics.channel_message_counts
-        by_topic: dict[str, list] = defaultdict(list)
-        for cid, ch in self._summary.channels.items():
-            by_topic[ch.topic].append((self._schema_name(ch), ch.message_encoding, counts.get(cid, 0)))
-        return [TopicInfo(topic, rows[0][0], rows[0][1], sum(r[2] for r in rows))
-                for topic, rows in by_topic.items()]
+        rows: dict[str, TopicInfo] = {}
+        for cid, ch in self._channels.items():
+            n = self._counts.get(cid, 0)
+            old = rows.get(ch.topic)
+            rows[ch.topic] = (TopicInfo(ch.topic, self._schema_name(ch), ch.message_encoding, n) if old is None
+                              else TopicInfo(ch.topic, old.msgtype, old.encoding, old.count + n))
+        return list(rows.values())
 
     def span(self) -> tuple[int, int] | None:
-        st = self._summary.statistics
-        return (st.message_start_time, st.message_end_time) if st.message_count else None
+        return self._span
+
+    def read_fast(self, topics: Sequence[str], time_source: str) -> FastTopics:
+        """Pose arrays of the ``topics`` the numpy fast path can decode (little-endian CDR of the
+        fixed-layout ROS 2 pose types in an indexed file), stamped by ``time_source`` (``header``
+        or ``log``); the rest is left to :meth:`read`."""
+        if not (self._fast and self._indexed):
+            return {}
+        wanted = {cid: (ch.topic, self._schema_name(ch)) for cid, ch in self._channels.items()
+                  if ch.topic in topics and ch.message_encoding == "cdr"}
+        with unreadable(self.name):
+            return read_fast(self._path, self._chunks, wanted, log_time=time_source == "log")
 
     def _decoder(self, channel: Any) -> Decoder:
-        schema = self._summary.schemas.get(channel.schema_id)
+        schema = self._schemas.get(channel.schema_id)
         name = self._schema_name(channel)
         enc = channel.message_encoding
         if enc == "json":
             return pose_decoder(name, json.loads)
         if enc not in ("cdr", "ros1") or schema is None:
-            raise HandEyeError(f"unsupported message encoding {enc!r}", f"{self.name}:{channel.topic}",
-                               "handeye reads CDR, ROS 1 and JSON channels")
+            raise ReadError(f"unsupported message encoding {enc!r}", f"{self.name}:{channel.topic}",
+                            "handeye reads CDR, ROS 1 and JSON channels")
         store = get_typestore(Stores.EMPTY)
         text = schema.data.decode()
         if schema.encoding == "ros2idl":
@@ -105,17 +177,38 @@ class McapSource:
         if self._ros2 and self._bag is None:
             try:
                 self._bag = BagSource([self._path], "mcap")
-            except HandEyeError:        # e.g. a schema rosbags cannot parse: use mcap below
+            except ReadError:        # e.g. a schema rosbags cannot parse: use mcap below
                 self._ros2 = False
         if self._bag is not None:
             yield from self._bag.read(topics)
             return
-        decoders: dict[int, Decoder] = {}
         with unreadable(self.name):
-            for cid, ch in self._summary.channels.items():
-                if ch.topic in topics:
-                    decoders[cid] = self._decoder(ch)
-            self._file.seek(0)
-            for _, channel, message in self._reader.iter_messages(topics=list(topics),
-                                                                  log_time_order=False):
+            decoders = {cid: self._decoder(ch) for cid, ch in self._channels.items() if ch.topic in topics}
+        if not self._indexed:
+            for record in self._records():
+                if isinstance(record, Message) and record.channel_id in decoders:
+                    yield (self._channels[record.channel_id].topic, record.log_time, record.data,
+                           decoders[record.channel_id])
+            return
+        with unreadable(self.name), open(self._path, "rb") as f:
+            for _, channel, message in make_reader(f).iter_messages(topics=list(topics), log_time_order=False):
                 yield channel.topic, message.log_time, message.data, decoders[channel.id]
+
+
+def _salvage_chunk(tail: bytes) -> Iterator[Any]:
+    """The complete records inside a Chunk record cut off in ``tail`` (zstd, lz4 or uncompressed:
+    decompressed as far as the bytes go); nothing if ``tail`` does not start with a chunk."""
+    if len(tail) < 41 or tail[0] != 0x06:
+        return
+    n = int.from_bytes(tail[37:41], "little")
+    compression, data = tail[41:41 + n].decode(errors="replace"), tail[41 + n + 8:]
+    try:
+        if compression == "zstd":
+            data = zstandard.ZstdDecompressor().decompressobj().decompress(data)
+        elif compression == "lz4":
+            data = lz4.frame.LZ4FrameDecompressor().decompress(data)
+        elif compression:
+            return
+        yield from StreamReader(io.BytesIO(data), skip_magic=True).records
+    except DECODE_ERRORS:
+        return

@@ -16,7 +16,7 @@ from typing import Any
 __all__ = ["Spec", "SPECS", "LISTS", "POSE_TYPES", "TF_TYPES", "normalize_type", "get_field",
            "extract", "pose_decoder", "PoseRecord", "UnsupportedContent"]
 
-PoseRecord = tuple  # (stamp_ns, frame_id, child_frame_id, x, y, z, qx, qy, qz, qw)
+PoseRecord = tuple[Any, ...]  # (stamp_ns, frame_id, child_frame_id, x, y, z, qx, qy, qz, qw)
 
 
 class UnsupportedContent(ValueError):

@@ -6,29 +6,34 @@
   **w first**, with or without the (17-column) ``#timestamp, p_RS_R_x [m], …`` header.
 * CSV: a header row naming the columns; ``columns`` maps the keys ``t, x, y, z, qx, qy, qz, qw``
   to column names and ``t_unit`` (``s``, ``ms``, ``us``, ``ns``) gives the time unit; without
-  it the unit comes from the time column's name (``t_ns``, ``stamp [us]``…), else seconds.
+  it the unit comes from the time column's name (``t_ns``, ``stamp [us]``…), else it is detected.
   Common names (``timestamp``, ``tx``, ``pos_x``, ``qw``…) are found without a mapping.
 
 Stamps are parsed exactly into int64 nanoseconds (no float round trip); positions in metres.
-Every line is one pose ``T_world_sensor``; the file name becomes the child frame.
+Every line is one pose ``T_world_sensor``; the file stem (``stdin`` for ``-``) becomes the child frame.
+Numbers are parsed by :mod:`.table` (a vectorised parser, with a line loop for odd input).
 """
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Iterator
-from decimal import Decimal, InvalidOperation
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
-from ..errors import HandEyeError
+from ..errors import ConfigError, ReadError
 from ..streams import PoseStream
 from .common import make_stream
+from .inputs import open_binary, stem_of, valid_frame_id
+from .table import Table, fast_table, slow_table
 
-__all__ = ["read_text", "CSV_KEYS"]
+__all__ = ["read_text", "CSV_KEYS", "TIME_UNITS", "QUATERNION_ORDERS"]
 
 CSV_KEYS = ("t", "x", "y", "z", "qx", "qy", "qz", "qw")
-_UNITS = {"s": 9, "ms": 6, "us": 3, "ns": 0}
+TIME_UNITS = ("auto", "s", "ms", "us", "ns")
+QUATERNION_ORDERS = ("xyzw", "wxyz")
+_DIGITS = {"s": 9, "ms": 6, "us": 3, "ns": 0}
 _ALIASES = {
     "t": ("t", "time", "timestamp", "stamp", "timestamp_ns", "time_ns", "t_ns", "sec", "seconds"),
     "x": ("x", "tx", "px", "pos_x", "position_x", "position.x", "p_rs_r_x"),
@@ -39,98 +44,135 @@ _ALIASES = {
     "qz": ("qz", "q_z", "rot_z", "orientation_z", "orientation.z", "q_rs_z"),
     "qw": ("qw", "q_w", "rot_w", "orientation_w", "orientation.w", "q_rs_w"),
 }
-_SPLIT = re.compile(r"[,\s]+")
-_COMMA = re.compile(",")
 _UNIT_SUFFIX = re.compile(r"\s*\[.*?\]\s*$")
 _UNIT_IN_NAME = re.compile(r"(?:\[|_)(ns|us|ms|s)\]?$", re.IGNORECASE)
+_TEXT_STAMPS_FIX = "the time column holds no stamps; fix the export"
 
 
-def _stamp_ns(text: str, digits: int) -> int:
-    """Exact int ns from a decimal string in a unit of 10**-digits s ("1.5", "1.7e9", "17")."""
-    ns = int(text) if digits == 0 and text.isdigit() else int(Decimal(text).scaleb(digits).to_integral_value())
-    if not -2**63 <= ns < 2**63:
-        raise ValueError(f"timestamp {text} is out of the int64 nanosecond range (wrong time unit?)")
-    return ns
-
-
-def _rows(path: Path, split: re.Pattern = _SPLIT, skip: int = 0) -> Iterator[tuple[int, list[str]]]:
-    """(line number, fields) of the data lines; blank lines, ``#`` comments and line ``skip`` skipped."""
-    with open(path, encoding="utf-8") as f:
-        for n, line in enumerate(f, 1):
-            s = line.strip()
-            if s and not s.startswith("#") and n != skip:
-                yield n, [x.strip() for x in split.split(s)]
-
-
-def _parse(path: Path, rows: Iterator[tuple[int, list[str]]], need: int, expected: str,
-           convert: Callable[[list[str]], tuple[int, list[float]]]) -> PoseStream:
-    lines, stamps, values = [], [], []
-    for n, fields in rows:
-        try:
-            if len(fields) < need:
-                raise ValueError(f"{len(fields)} values")
-            stamp, vals = convert(fields)
-        except (ValueError, InvalidOperation) as exc:
-            reason = str(exc) or type(exc).__name__
-            got = " ".join(fields)
-            got = got if len(got) <= 80 else got[:77] + "..."
-            raise HandEyeError(f"malformed line ({reason}): expected {expected}, got {got!r}",
-                               f"{path}, line {n}", "fix or delete the line") from exc
-        lines.append(n)
-        stamps.append(stamp)
-        values.append(vals)
-    v = np.array(values, dtype=np.float64).reshape(-1, 7)
-    return make_stream(np.array(stamps, dtype=np.int64), v[:, :3], v[:, 3:], source=str(path),
-                       frame_id="world", child_frame_id=path.stem, time_source="header",
-                       where=lambda i: f"line {lines[i]}")
-
-
-def _tum(fields: list[str]) -> tuple[int, list[float]]:
-    if len(fields) != 8:
-        raise ValueError(f"{len(fields)} values")
-    return _stamp_ns(fields[0], 9), [float(x) for x in fields[1:]]
-
-
-def _euroc(fields: list[str]) -> tuple[int, list[float]]:
-    v = [float(x) for x in fields[1:8]]
-    return _stamp_ns(fields[0], 0), v[:3] + v[4:7] + v[3:4]
-
-
-def _csv(path: Path, columns: dict | None) -> PoseStream:
-    with open(path, encoding="utf-8") as f:
-        header_no, header_line = next(((n, ln) for n, ln in enumerate(f, 1) if ln.strip()), (0, ""))
+def _csv_layout(path: Path | str, columns: Mapping[str, str] | None) -> tuple[int, list[int], str | None, str]:
+    """(header line number, column indices of t, x, y, z, qx, qy, qz, qw, unit or None, description)."""
+    name = str(path)
+    with open_binary(path) as f:
+        header_no, header_line = next(((n, ln.decode("utf-8", "replace")) for n, ln in enumerate(f, 1)
+                                       if ln.strip()), (0, ""))
     raw = [h.strip() for h in header_line.strip().lstrip("#").split(",")]
     header = [_UNIT_SUFFIX.sub("", h).strip() for h in raw]
     lower = {h.lower(): i for i, h in enumerate(header)}
     mapping = dict(columns or {})
     unit = mapping.pop("t_unit", None)
-    if unit is not None and unit not in _UNITS:
-        raise HandEyeError(f"unknown time unit {unit!r}", f"{path}: columns.t_unit", f"use one of {list(_UNITS)}")
+    if unit is not None and unit not in _DIGITS:
+        raise ConfigError(f"unknown time unit {unit!r}", f"{name}: csv_columns.t_unit", f"use one of {list(_DIGITS)}")
     index = []
     for key in CSV_KEYS:
         names = (mapping[key],) if key in mapping else _ALIASES[key]
         found = next((lower[n.lower()] for n in names if n.lower() in lower), None)
         if found is None:
-            raise HandEyeError(f"CSV column for {key!r} not found (looked for {', '.join(names)})",
-                               f"{path}, line {header_no}", f"map it with columns={{'{key}': NAME}}; header has: "
-                               f"{', '.join(header)}")
+            raise ReadError(f"CSV column for {key!r} not found (looked for {', '.join(names)})",
+                            f"{name}, line {header_no}", f"map it with --csv-columns {key}=COLUMN; header has: "
+                            f"{', '.join(header)}")
         index.append(found)
-    if unit is None:        # "timestamp [ns]", "t_ns", "stamp_us" … name their unit; else seconds
+    if unit is None:        # "timestamp [ns]", "t_ns", "stamp_us" … name their unit
         m = _UNIT_IN_NAME.search(raw[index[0]])
-        unit = m.group(1).lower() if m else "s"
-    digits = _UNITS[unit]
-
-    def convert(fields: list[str]) -> tuple[int, list[float]]:
-        return _stamp_ns(fields[index[0]], digits), [float(fields[i]) for i in index[1:]]
-
-    return _parse(path, _rows(path, _COMMA, header_no), max(index) + 1, f"{len(header)} columns ({', '.join(header)})", convert)
+        unit = m.group(1).lower() if m else None
+    return header_no, index, unit, f"{len(header)} columns ({', '.join(header)})"
 
 
-def read_text(path: Path, fmt: str, columns: dict | None = None) -> PoseStream:
-    """Read one text trajectory (``fmt`` = ``tum``, ``euroc`` or ``csv``) as ``T_world_<stem>``."""
+def _table(path: Path | str, *, need: int, expected: str, skip: int = 0, t_col: int = 0,
+           comma_only: bool = False, exact: bool = False) -> Table:
+    """The fast parse when it applies (and has the right width), else the line loop."""
+    with open_binary(path) as f:
+        table = fast_table(f, skip=skip, t_col=t_col)
+    width = table.values.shape[1] if table is not None else 0
+    if table is not None and (width == need or (width > need and not exact)):
+        return table
+    with open_binary(path) as f:
+        return slow_table(f, str(path), need=need, expected=expected, skip=skip, t_col=t_col,
+                          comma_only=comma_only, exact=exact)
+
+
+def _auto_unit(t: NDArray[np.float64], name: str, notes: list[str]) -> str:
+    """The time unit of stamps meant as seconds: epoch-sized values name their unit by magnitude
+    (silently); small values (time since start) by their median step, with a warning."""
+    magnitude = float(np.median(np.abs(t)))
+    for limit, unit in ((1e17, "ns"), (1e14, "us"), (1e11, "ms"), (1e8, "s")):
+        if magnitude >= limit:
+            return unit
+    steps = np.diff(t)
+    step = float(np.median(steps[steps > 0])) if (steps > 0).any() else 0.0
+    if step <= 1.0:
+        return "s"
+    unit = "ms" if step <= 1e3 else "us" if step <= 1e6 else "ns"
+    notes.append(f"the stamps of {name} are small (median {magnitude:g}) and step by a median {step:g}: read as "
+                 f"{unit} since start ({10 ** (9 - _DIGITS[unit]) / step:.4g} Hz); if that is "
+                 "wrong, pass the unit with --time-unit s|ms|us|ns")
+    return unit
+
+
+def _looks_wxyz(q: NDArray[np.float64]) -> bool:
+    """Quaternions read as x-y-z-w whose first component behaves like the scalar part: near ±1 with
+    one sign throughout, while the last component is not."""
+    q = q[np.isfinite(q).all(axis=1)]
+    if len(q) < 3:
+        return False
+    first, last = np.abs(q[:, 0]), np.abs(q[:, 3])
+    one_sign = bool((q[:, 0] > 0).all() or (q[:, 0] < 0).all())
+    return one_sign and float(np.median(first)) > 0.7 > float(np.median(last))
+
+
+def _columns(values: NDArray[np.float64], cols: NDArray[np.intp]) -> NDArray[np.float64]:
+    """``values[:, cols]``, as a view when the columns are adjacent and in order (no copy of a large table)."""
+    if (np.diff(cols) == 1).all():
+        return values[:, cols[0]:cols[-1] + 1]
+    return values[:, cols]
+
+
+def _check_args(quaternion_order: str, time_unit: str) -> None:
+    if quaternion_order not in QUATERNION_ORDERS:
+        raise ConfigError(f"unknown quaternion order {quaternion_order!r}", "quaternion_order",
+                          "use xyzw (TUM, ROS) or wxyz (--wxyz-a / --wxyz-b)")
+    if time_unit not in TIME_UNITS:
+        raise ConfigError(f"unknown time unit {time_unit!r}", "time_unit", "use --time-unit auto|s|ms|us|ns")
+
+
+def read_text(path: Path | str, fmt: str, columns: Mapping[str, str] | None = None, *, quaternion_order: str = "xyzw",
+              time_unit: str = "auto") -> PoseStream:
+    """Read one text trajectory (``fmt`` = ``tum``, ``euroc`` or ``csv``; ``-`` = stdin) as
+    ``T_world_<stem>``: int64 ns stamps, positions [m], quaternions x-y-z-w.
+
+    ``quaternion_order``: the order of the four quaternion columns of a TUM file or of the
+    columns mapped to qx, qy, qz, qw in a CSV (``"wxyz"``: scalar first); EuRoC is always w first.
+    Reading ``"xyzw"`` data that looks scalar-first gives a warning naming ``--wxyz-a``/``--wxyz-b``.
+    ``time_unit``: ``"auto"`` (EuRoC ns; CSV: the time column's name, e.g. ``t_ns``; otherwise
+    seconds, or ms/us/ns by magnitude, or by the median step for time since start — with a
+    warning naming ``--time-unit``) or one of ``s``, ``ms``, ``us``, ``ns`` for every format.
+    """
+    _check_args(quaternion_order, time_unit)
+    name, notes = str(path), list[str]()
     if columns is not None or fmt == "csv":
-        return _csv(path, columns)
-    if fmt == "tum":
-        return _parse(path, _rows(path), 8, "8 numbers 'timestamp tx ty tz qx qy qz qw'", _tum)
-    return _parse(path, _rows(path), 8, "at least 8 comma-separated numbers "
-                                        "'timestamp_ns, px, py, pz, qw, qx, qy, qz'", _euroc)
+        skip, index, unit, expected = _csv_layout(path, columns)
+        table = _table(path, need=max(index) + 1, expected=f"at least {max(index) + 1} fields of {expected}",
+                       skip=skip, t_col=index[0], comma_only=True)
+        order = quaternion_order
+    elif fmt == "tum":
+        index, unit, order = list(range(8)), None, quaternion_order
+        table = _table(path, need=8, expected="8 numbers 'timestamp tx ty tz qx qy qz qw'", exact=True)
+    else:
+        index, unit, order = list(range(8)), "ns", "wxyz"
+        table = _table(path, need=8, expected="at least 8 comma-separated numbers "
+                                              "'timestamp_ns, px, py, pz, qw, qx, qy, qz'")
+    if not len(table.lines):
+        raise ReadError("empty file: no data lines", name, "check the file")
+    if time_unit != "auto":
+        unit = time_unit
+    elif unit is None:
+        unit = _auto_unit(table.time_float(), name, notes)
+    cols = np.asarray(index[1:])
+    xyz = _columns(table.values, cols[:3])
+    quat = _columns(table.values, cols[[4, 5, 6, 3]] if order == "wxyz" else cols[3:])
+    if fmt != "euroc" and order == "xyzw" and _looks_wxyz(quat):
+        notes.append(f"the quaternions of {name} look like w-x-y-z order (the first quaternion column is near "
+                     "±1 with one sign, the last is not); if so, pass --wxyz-a (first stream) or --wxyz-b (second)")
+    lines = table.lines
+    return make_stream(table.stamps_ns(_DIGITS[unit], name), xyz, quat, source=name, frame_id="world",
+                       child_frame_id=valid_frame_id(stem_of(path)), time_source="header",
+                       where=lambda i: f"line {lines[i]}", warnings=notes, zero_stamps_fix=_TEXT_STAMPS_FIX)

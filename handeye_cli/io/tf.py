@@ -8,14 +8,16 @@ from frame ids.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from .. import se3
-from ..errors import HandEyeError
+from ..errors import ConfigError, DataError
 from ..streams import PoseStream
-from .common import PoseBuffer, make_stream
+from .common import LOG_STAMPS_FIX, PoseBuffer, make_stream
 from .messages import PoseRecord
 
 __all__ = ["TfTree"]
@@ -40,7 +42,14 @@ class TfTree:
             key = (rec[1].lstrip("/"), rec[2].lstrip("/"))
             edges.setdefault(key, PoseBuffer()).add([(rec[0], *key, *rec[3:])])
 
-    def edges(self) -> list[dict]:
+    def add_arrays(self, parent: str, child: str, stamps: np.ndarray, values: np.ndarray, *, static: bool) -> None:
+        """Add the transforms ``T_parent_child`` of one edge: int64 stamps [ns], values (N, 7) =
+        x, y, z [m], qx, qy, qz, qw."""
+        edges = self._static if static else self._dynamic
+        key = (parent.lstrip("/"), child.lstrip("/"))
+        edges.setdefault(key, PoseBuffer()).add_arrays(key, stamps, values)
+
+    def edges(self) -> list[dict[str, Any]]:
         """Tree edges ``[{parent, child, static, count}]``, sorted by parent then child."""
         rows = {k: {"parent": k[0], "child": k[1], "static": True, "count": len(b)}
                 for k, b in self._static.items()}
@@ -52,17 +61,17 @@ class TfTree:
         parent_of: dict[str, str] = {}
         for parent, child in [*self._static, *self._dynamic]:
             if parent_of.setdefault(child, parent) != parent:
-                raise HandEyeError(f"TF frame {child!r} has two parents ({parent_of[child]!r} and "
+                raise DataError(f"TF frame {child!r} has two parents ({parent_of[child]!r} and "
                                    f"{parent!r})", self.name, "the TF tree is inconsistent; use a topic instead")
         return parent_of
 
     def _edge_stream(self, key: tuple[str, str]) -> PoseStream:
         """The validated samples of an edge (dynamic if it has any, else static), sorted by stamp."""
-        buf = self._dynamic.get(key) or self._static[key]
-        stamps, xyz, quat = buf.arrays()
+        dynamic = self._dynamic.get(key)
+        stamps, xyz, quat = (dynamic or self._static[key]).arrays()
         return make_stream(stamps, xyz, quat, source=f"{self.name}: TF {key[0]}->{key[1]}",
                            frame_id=key[0], child_frame_id=key[1], time_source="",
-                           where=lambda i: f"transform {i}")
+                           where=lambda i: f"transform {i}", zero_stamps_fix=LOG_STAMPS_FIX if dynamic else None)
 
     @staticmethod
     def _edge_at(edge: PoseStream, static: bool, t: np.ndarray) -> np.ndarray:
@@ -87,7 +96,7 @@ class TfTree:
         known = sorted(set(parent_of) | set(parent_of.values()))
         for frame in (parent, child):
             if frame not in known:
-                raise HandEyeError(f"unknown TF frame {frame!r}", self.name,
+                raise ConfigError(f"unknown TF frame {frame!r}", self.name,
                                    f"known frames: {', '.join(known) or '(none: no /tf or /tf_static data)'}")
 
         def up(frame: str) -> list[str]:
@@ -99,7 +108,7 @@ class TfTree:
         up_p, up_c = up(parent), up(child)
         common = next((f for f in up_c if f in up_p), None)
         if common is None:
-            raise HandEyeError(f"TF frames {parent!r} and {child!r} are not connected "
+            raise DataError(f"TF frames {parent!r} and {child!r} are not connected "
                                f"(roots {up_p[-1]!r} and {up_c[-1]!r})", self.name,
                                "pick two frames of the same TF tree (handeye inspect FILE)")
         return ([(parent_of[f], f) for f in up_p[:up_p.index(common)]],
@@ -120,15 +129,21 @@ class TfTree:
         dynamic = [e for k, e in edges.items() if k in self._dynamic]
         source = f"{self.name}:{parent}->{child}"
         if not dynamic:
-            raise HandEyeError("empty stream: the frames are linked by static transforms only, "
+            raise DataError("empty stream: the frames are linked by static transforms only, "
                                "so they never move", source, "pick a frame pair with a moving (/tf) edge")
         ref = max(dynamic, key=len)     # first of the most frequent: ties keep chain order
         lo = max(e.stamps_ns[0] for e in dynamic)
         hi = min(e.stamps_ns[-1] for e in dynamic)
         t = ref.stamps_ns[(ref.stamps_ns >= lo) & (ref.stamps_ns <= hi)]
         if len(t) == 0:
-            raise HandEyeError("empty stream: the moving TF edges on the chain do not overlap in time",
+            raise DataError("empty stream: the moving TF edges on the chain do not overlap in time",
                                source, "check the recording of /tf")
+
+        notes = tuple(w for e in edges.values() for w in e.warnings)
+        if len(edges) == 1:         # one moving edge, sampled at its own stamps: no interpolation, no products
+            edge = ref if keys_c else ref.inverted()
+            return replace(edge, frame_id=parent, child_frame_id=child, source=source, time_source=time_source,
+                           warnings=notes)
 
         def compose(keys: list[tuple[str, str]]) -> np.ndarray:   # T_common_frame
             T = np.broadcast_to(np.eye(4), (len(t), 4, 4))
@@ -139,4 +154,4 @@ class TfTree:
         T = se3.inverse(compose(keys_p)) @ compose(keys_c)
         xyz, quat = se3.to_xyz_quat(T)
         return PoseStream(t, xyz, quat, frame_id=parent, child_frame_id=child, source=source,
-                          time_source=time_source, duplicates_dropped=ref.duplicates_dropped)
+                          time_source=time_source, duplicates_dropped=ref.duplicates_dropped, warnings=notes)

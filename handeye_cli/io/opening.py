@@ -1,0 +1,81 @@
+"""Open a log as a :class:`~.source.LogSource`, falling back on the damaged cases rosbags refuses.
+
+* MCAP → :class:`.mcap_reader.McapSource` (which itself scans files without a usable summary);
+* ROS 1 bags → rosbags' AnyReader; a single bag it refuses (never indexed, cut off) is scanned
+  linearly (:class:`.rosbag1_scan.Bag1Scan`) with a warning;
+* ROS 2 bag directories → AnyReader when ``metadata.yaml`` is there and parses; a corrupt one is
+  a one-line error; without one the single storage file is read directly (``.mcap`` through
+  McapSource, ``.db3`` through AnyReader) with a warning. A directory with one ``.mcap`` storage
+  file is read through McapSource too (fast path, crash recovery).
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import yaml
+
+from ..errors import ReadError
+from .mcap_reader import McapSource
+from .rosbag1_scan import Bag1Scan
+from .rosbag_reader import BagSource
+from .source import LogSource
+
+__all__ = ["open_log"]
+
+
+def _bag2_storage(directory: Path) -> tuple[Path | None, str]:
+    """(the storage file to read directly or None for AnyReader, the warning to give or "")."""
+    meta = directory / "metadata.yaml"
+    storage = sorted(directory.glob("*.mcap")) + sorted(directory.glob("*.db3"))
+    if meta.is_file():
+        try:
+            doc = yaml.safe_load(meta.read_text(encoding="utf-8", errors="replace"))
+        except yaml.YAMLError as exc:
+            mark = getattr(exc, "problem_mark", None)
+            at = f", line {mark.line + 1}" if mark is not None else ""
+            raise ReadError(f"corrupt metadata.yaml: {getattr(exc, 'problem', None) or type(exc).__name__}",
+                            f"{meta}{at}", "restore metadata.yaml, or delete it to read the storage file "
+                                           "directly") from exc
+        if not isinstance(doc, dict) or "rosbag2_bagfile_information" not in doc:
+            raise ReadError("corrupt metadata.yaml: no rosbag2_bagfile_information", str(meta),
+                            "restore metadata.yaml, or delete it to read the storage file directly")
+        if len(storage) == 1 and storage[0].suffix == ".mcap":
+            return storage[0], ""
+        return None, ""
+    if len(storage) != 1:
+        raise ReadError(f"ROS 2 bag without metadata.yaml and with {len(storage)} storage files", str(directory),
+                        "pass one .db3 or .mcap storage file")
+    return storage[0], f"{directory} has no metadata.yaml; read its storage file {storage[0].name} directly"
+
+
+def _with_note(src: LogSource, note: str) -> LogSource:
+    if note:
+        src.notes = (*getattr(src, "notes", ()), note)    # type: ignore[attr-defined]
+    return src
+
+
+@contextmanager
+def open_log(paths: list[Path], fmts: list[str]) -> Iterator[LogSource]:
+    """The open log of ``paths`` (several only for split ROS 1 bags)."""
+    if len(paths) > 1 and (len(set(fmts)) > 1 or fmts[0] != "rosbag1"):
+        raise ReadError("several files are read as one log only when all are ROS 1 .bag files",
+                        ", ".join(map(str, paths)), "pass one file, or the split .bag files of one recording")
+    path, fmt, note = paths[0], fmts[0], ""
+    if fmt == "rosbag2" and path.is_dir():
+        storage, note = _bag2_storage(path)
+        if storage is not None:
+            path, fmt = storage, "mcap" if storage.suffix == ".mcap" else "rosbag2"
+    src: LogSource
+    if fmt == "mcap":
+        src = McapSource(path)
+    elif fmt == "rosbag1" and len(paths) == 1:
+        try:
+            src = BagSource(paths, fmt)
+        except ReadError as exc:
+            src = Bag1Scan(path, exc.what.removeprefix("cannot read file: "))
+    else:
+        src = BagSource([path] if fmt == "rosbag2" else paths, fmt)
+    with src:
+        yield _with_note(src, note)
