@@ -212,6 +212,12 @@ class ReadOptions:
                                    "a camera observing a fixed target). Unset: not inverted, and a stream that "
                                    "clearly fits only inverted refuses the result.")
     invert_b: bool | None = option(None, optional_flag, "Invert stream b first.")
+    wxyz_a: bool = option(False, flag, "Stream a's text file (TUM/CSV) stores quaternions w first: w x y z "
+                          "(EuRoC always does).")
+    wxyz_b: bool = option(False, flag, "Stream b's text file stores quaternions w first.")
+    time_unit: str = option("auto", choice("auto", "s", "ms", "us", "ns"), "Unit of the stamps in TUM/CSV files: "
+                            "auto picks epoch stamps by magnitude and time since start by the median step, with "
+                            "a warning.", choices=("auto", "s", "ms", "us", "ns"))
     csv_columns: Mapping[str, str] | None = option(None, columns, "Generic CSV columns: t=COL,x=COL,…,qw=COL "
                                                    "(keys t, t_unit, x, y, z, qx, qy, qz, qw).", "KEY=COL,…")
 

@@ -164,18 +164,19 @@ def read_streams(spec_a: StreamSpec | PoseStream, spec_b: StreamSpec | PoseStrea
         a, b = read_log_streams(spec_a.path, [(spec_a.topic, spec_a.frames), (spec_b.topic, spec_b.frames)],
                                 time_source=read.time_source, quiet=quiet)
     else:
-        a, b = _read_one(spec_a, read, quiet), _read_one(spec_b, read, quiet)
+        a, b = _read_one(spec_a, read, quiet, read.wxyz_a), _read_one(spec_b, read, quiet, read.wxyz_b)
     return (a.inverted() if read.invert_a else a), (b.inverted() if read.invert_b else b)
 
 
-def _read_one(spec: StreamSpec | PoseStream, read: ReadOptions, quiet: bool) -> PoseStream:
+def _read_one(spec: StreamSpec | PoseStream, read: ReadOptions, quiet: bool, wxyz: bool) -> PoseStream:
     if isinstance(spec, PoseStream):
         return spec
     from .io import read_stream
 
     columns = dict(read.csv_columns) if read.csv_columns else None
     return read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=read.time_source,
-                       columns=columns, quiet=quiet)
+                       columns=columns, quiet=quiet, quaternion_order="wxyz" if wxyz else "xyzw",
+                       time_unit=read.time_unit)
 
 
 def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, dict[str, Any], list[str]]:
@@ -227,7 +228,9 @@ def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options,
                                         seed=p.seed)
     samples = SampleCounts.of(*stage_counts, pair_counts, synced_kept=len(kept),
                               duplicates_dropped_a=stream_a.duplicates_dropped,
-                              duplicates_dropped_b=stream_b.duplicates_dropped)
+                              duplicates_dropped_b=stream_b.duplicates_dropped,
+                              recovered_truncated_a=stream_a.recovered_truncated,
+                              recovered_truncated_b=stream_b.recovered_truncated)
     if len(pairs) < options.solver.min_pairs:
         raise too_few_pairs(len(pairs), samples, options)
     return kept, pairs, samples, stations, selection
@@ -295,7 +298,8 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     opts = Options.from_flat(options, **overrides) if overrides else (options or Options())
     if opts.solver.scale not in (1.0, "auto"):
         stream_b = replace(stream_b, xyz=stream_b.xyz * float(opts.solver.scale))
-    offset_ns, offset_report, warnings = _time_offset(stream_a, stream_b, opts)
+    offset_ns, offset_report, offset_warnings = _time_offset(stream_a, stream_b, opts)
+    warnings = [*stream_a.warnings, *stream_b.warnings, *offset_warnings]       # readers' warnings name their file
     kept, pairs, samples, stations, selection = pairs_of(stream_a, stream_b, opts, offset_ns)
     prior = _prior(opts)
     diagnostics: dict[str, Any] = {"time_offset": offset_report}

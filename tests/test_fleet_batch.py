@@ -19,7 +19,6 @@ from test_report import _images, _run_chromium
 
 from handeye_cli import se3
 from handeye_cli.fleet import engine
-from handeye_cli.streams import PoseStream
 
 TOLERANCE = ["--max-rotation-deg", "0.5", "--max-translation-m", "0.005"]
 
@@ -46,9 +45,7 @@ def _urdf(path: Path) -> Path:
 def fleet(tmp_path_factory):
     root = tmp_path_factory.mktemp("fleet")
     expected = make_fleet(root / "logs")
-    # Crashed recordings are salvaged by the readers of the io branch (PoseStream.recovered_truncated);
-    # until it is merged they are error records. TODO(lead): drop the condition after merging io.
-    expected.update(crashed(root / "logs", recovered=hasattr(PoseStream, "recovered_truncated")))
+    expected.update(crashed(root / "logs"))          # salvaged by the readers, with a 'truncated' warning
     return root, expected, _urdf(root / "robot42.urdf")
 
 

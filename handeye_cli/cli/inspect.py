@@ -33,8 +33,9 @@ def _inspect_text(info: dict[str, Any]) -> str:
 @click.argument("input_file", type=click.Path())
 @click.option("--format", "fmt", type=click.Choice(["text", "yaml", "json"]), default="text", show_default=True,
               help="Human-readable text, or machine-readable YAML/JSON.")
+@click.option("--all-tf", is_flag=True, help="Read every TF message for the TF edges [default: the first 2000].")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
-def inspect(input_file: str, fmt: str, quiet: bool) -> None:
+def inspect(input_file: str, fmt: str, all_tf: bool, quiet: bool) -> None:
     """List the topics, message types, counts, rates and time span of a log, which topics carry
     poses, and its TF frame tree.
 
@@ -45,5 +46,5 @@ def inspect(input_file: str, fmt: str, quiet: bool) -> None:
     """
     from ..io import inspect_log
 
-    info = plain(inspect_log(input_file, quiet=quiet))
+    info = plain(inspect_log(input_file, quiet=quiet, all_tf=all_tf))
     click.echo(_inspect_text(info) if fmt == "text" else render(info, fmt), nl=False)

@@ -12,7 +12,8 @@ class SampleCounts:
     """Sample counts of one calibration, stage by stage (read → sync → gates → pairs).
 
     read_a, read_b: samples read per stream; duplicates_dropped_a/_b: exact duplicate stamps the
-    reader removed; synced: samples associated in time; dropped_outside_span: samples of the
+    reader removed; recovered_truncated_a/_b: messages salvaged from a log cut short by a crash;
+    synced: samples associated in time; dropped_outside_span: samples of the
     reference stream outside the other's time span; dropped_timestamp_gate: samples whose
     neighbours were farther than ``max_dt``; dropped_pose_jump: samples the pose-jump gate removed
     (jumps_a/_b per stream, accepted_jumps: jumps that persisted and were accepted as the new
@@ -24,6 +25,8 @@ class SampleCounts:
     read_b: int = 0
     duplicates_dropped_a: int = 0
     duplicates_dropped_b: int = 0
+    recovered_truncated_a: int = 0
+    recovered_truncated_b: int = 0
     synced: int = 0
     dropped_outside_span: int = 0
     dropped_timestamp_gate: int = 0
