@@ -1,75 +1,114 @@
-"""Configuration of ``handeye calibrate``: defaults, YAML files and command-line overrides.
+"""Where option values come from: defaults < ``--preset`` < ``--config FILE`` < flags/keywords.
 
-``DEFAULTS`` is the single source of the defaults; ``configs/default.yaml`` documents every key
-(a test keeps the two identical). Precedence: defaults < ``--config FILE`` < command-line options.
+The options themselves (names, defaults, checks) live in :mod:`handeye_cli.options`; this module
+reads configuration files — flat YAML mappings whose keys are the option names — and presets,
+which are such files shipped inside the package (``handeye_cli/presets/*.yaml``).
+``configs/default.yaml`` is generated from the options by :func:`default_yaml`.
 """
 from __future__ import annotations
 
-import copy
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from .errors import HandEyeError
+from .errors import ConfigError
+from .options import FIELDS, SECTIONS, Options
 
-__all__ = ["DEFAULTS", "load_config", "merge"]
+__all__ = ["load_options", "read_config", "presets", "default_yaml"]
 
-DEFAULTS: dict[str, Any] = {
-    "time_source": "header",
-    "invert_a": False,
-    "invert_b": False,
-    "name_a": None,
-    "name_b": None,
-    "csv_columns": None,
-    "sync": {"method": "interpolate", "max_dt": 0.1, "time_offset": 0.0, "max_time_offset": None},
-    "gates": {"max_translation": 0.10, "max_rotation_deg": 11.5},
-    "pairs": {"strategy": "keyframes", "keyframe_rotation_deg": 5.0, "keyframe_translation": 0.02,
-              "min_rotation_deg": 10.0, "max_pairs": 2000, "seed": 0},
-    "solver": {"method": "dqopt", "alpha": 1.0, "prior": None, "prior_weights": [1.0, 1.0], "min_pairs": 3},
-    "analysis": {"robust": False, "bootstrap": 0, "strict": False},
-}
+_MAX_CONFIG_BYTES = 1 << 20
 
 
-def merge(base: dict, override: dict, where: str) -> dict:
-    """``base`` updated by ``override`` (nested); unknown keys raise a HandEyeError naming them."""
-    out = copy.deepcopy(base)
-    for key, value in override.items():
-        if key not in base:
-            raise HandEyeError(f"unknown configuration key {key!r}", where,
-                               f"valid keys here: {', '.join(base)} (see configs/default.yaml)")
-        if isinstance(base[key], dict) and base[key] and key != "csv_columns":
-            if not isinstance(value, dict):
-                raise HandEyeError(f"configuration key {key!r} must be a mapping", where,
-                                   "see configs/default.yaml")
-            out[key] = merge(base[key], value, f"{where}: {key}")
-        else:
-            out[key] = value
-    return out
+class _SafeLoader(yaml.SafeLoader):
+    """PyYAML's safe loader without aliases: a config never needs them, and a nest of aliases
+    ("billion laughs") would expand to gigabytes."""
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.composer.ComposerError(None, None, "aliases (*name) are not allowed", event.start_mark)
+        return super().compose_node(parent, index)
 
 
-def load_config(path: str | Path | None = None, overrides: dict | None = None) -> dict:
-    """Defaults, updated by the YAML file ``path`` (optional), then by ``overrides`` (nested dict
-    of the values given on the command line; ``None`` values are ignored)."""
-    cfg = copy.deepcopy(DEFAULTS)
-    if path is not None:
-        p = Path(path)
-        if not p.is_file():
-            raise HandEyeError("configuration file not found", str(p), "check the --config path")
-        try:
-            doc = yaml.safe_load(p.read_text(encoding="utf-8")) or {}
-        except yaml.YAMLError as e:
-            mark = getattr(e, "problem_mark", None)
-            where = f"{p}:{mark.line + 1}" if mark else str(p)
-            raise HandEyeError("invalid YAML", where, "fix the syntax (see configs/default.yaml)") from None
-        if not isinstance(doc, dict):
-            raise HandEyeError("a configuration file must hold a mapping", str(p), "see configs/default.yaml")
-        cfg = merge(cfg, doc, str(p))
-    if overrides:
-        cfg = merge(cfg, _drop_none(overrides), "command line")
-    return cfg
+def presets() -> list[str]:
+    """Names of the presets shipped with the package (``--preset NAME``)."""
+    folder = resources.files("handeye_cli") / "presets"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
 
 
-def _drop_none(d: dict) -> dict:
-    return {k: (_drop_none(v) if isinstance(v, dict) else v) for k, v in d.items()
-            if v is not None and not (isinstance(v, dict) and not _drop_none(v))}
+def _parse_yaml(text: str, where: str) -> dict[str, Any]:
+    try:
+        doc = yaml.load(text, Loader=_SafeLoader) or {}
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        problem = getattr(e, "problem", None) or "invalid YAML"
+        raise ConfigError(problem, f"{where}:{mark.line + 1}" if mark else where,
+                          "fix the file (see configs/default.yaml)") from None
+    if not isinstance(doc, dict):
+        raise ConfigError("a configuration file must hold a mapping of option: value", where,
+                          "see configs/default.yaml")
+    for key, value in doc.items():
+        if key in SECTIONS and isinstance(value, dict):
+            raise ConfigError(f"grouped key {key!r}: options are flat now", where,
+                              f"write the options of {key!r} at the top level, e.g. max_jump: off "
+                              "(see configs/default.yaml)")
+    return doc
+
+
+def read_config(path: str | Path) -> dict[str, Any]:
+    """The option values of a configuration file, by flat name (not yet checked)."""
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError("configuration file not found", str(p), "check the --config path")
+    if p.stat().st_size > _MAX_CONFIG_BYTES:
+        raise ConfigError("configuration file larger than 1 MiB", str(p), "pass a configuration, not data")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError(f"cannot read the configuration ({e.__class__.__name__})", str(p), "check the file") from None
+    return _parse_yaml(text, str(p))
+
+
+def _preset(name: str) -> dict[str, Any]:
+    if name not in presets():
+        raise ConfigError(f"unknown preset {name!r}", "--preset", f"choose one of {', '.join(presets())}")
+    text = (resources.files("handeye_cli") / "presets" / f"{name}.yaml").read_text(encoding="utf-8")
+    return _parse_yaml(text, f"preset {name}")
+
+
+def load_options(config_file: str | Path | None = None, preset: str | None = None, *,
+                 base: Options | None = None, **overrides: Any) -> Options:
+    """The options: defaults (or ``base``) < ``preset`` < ``config_file`` < ``overrides``.
+
+    ``overrides`` are flat option names with values as a user writes them (``max_jump="off"``,
+    ``alpha="auto"``, ``time_offset=0.02``); ``None`` means "not given". Every value is checked:
+    a bad one raises :class:`~handeye_cli.errors.ConfigError` naming where it came from."""
+    opts = base or Options()
+    if preset is not None:
+        opts = Options.from_flat(opts, f"preset {preset}", **_preset(preset))
+    if config_file is not None:
+        opts = Options.from_flat(opts, str(config_file), **read_config(config_file))
+    given = {k: v for k, v in overrides.items() if v is not None}
+    return Options.from_flat(opts, "", **given)
+
+
+def _yaml_value(value: Any) -> str:
+    if value is None:
+        return "null"
+    return yaml.safe_dump(value, default_flow_style=True).strip().removesuffix("\n...").strip()
+
+
+def default_yaml() -> str:
+    """The text of ``configs/default.yaml``: every option with its default and help, by stage."""
+    lines = ["# handeye calibrate: every option with its default (generated from handeye_cli/options.py).",
+             "# Pass a file with any subset of these keys as --config FILE; each key is the command-line",
+             "# flag without its dashes, and flags given on the command line override the file.",
+             "# Gates that can be switched off take 'off'. Units: seconds, metres, degrees."]
+    for section, cls in SECTIONS.items():
+        lines += ["", f"# {section}: {cls.__doc__.splitlines()[0]}"]
+        for name, (sec, info, default) in FIELDS.items():
+            if sec == section:
+                lines.append(f"{name}: {_yaml_value(default)}".ljust(30) + f"# {info.help}")
+    return "\n".join(lines) + "\n"

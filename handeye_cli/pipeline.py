@@ -1,30 +1,34 @@
-"""The calibration pipeline: two pose streams → sync → gates → pairs → solver → result.
+"""The calibration pipeline: two pose streams → time offset → sync → gates → pairs → solve → analysis.
 
-``calibrate(stream_a, stream_b, config)`` is the library entry point; ``read_streams`` reads the
-two streams from logs or text files. The extrinsic is ``T_a_b``: the pose of sensor b's frame in
-sensor a's frame (maps points from b to a), where each stream holds ``T_world_sensor(t)``.
+:func:`calibrate_files` reads two streams from logs or text files and calibrates; :func:`calibrate`
+does the same on streams already in memory. The extrinsic is ``T_a_b``: the pose of sensor b's
+frame in sensor a's frame (maps points from b to a), where each stream holds ``T_world_sensor(t)``.
+Options are the typed :class:`~handeye_cli.options.Options`; keyword arguments use the same flat
+names as the command line.
+
+>>> import handeye_cli
+>>> cal = handeye_cli.calibrate_files("sample_data/rig_a.tum", "sample_data/rig_b.tum", method="dqopt")
+>>> cal.matrix.shape, cal.options.solver.method
+((4, 4), 'dqopt')
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from .analysis import (
-    BootstrapResult,
-    Residuals,
-    RobustResult,
-    assess_observability,
-    auto_alpha,
-    bootstrap,
-    pair_residuals,
-    robust_solve,
-)
-from .config import load_config
-from .errors import HandEyeError
+from .analysis import (BootstrapResult, Residuals, RobustResult, assess_observability, auto_alpha, bootstrap,
+                       pair_residuals, robust_solve)
+from .analysis.diagnosis import data_warning, too_few_pairs
+from .config import load_options
+from .errors import ConfigError
 from .io.pairfile import read_extrinsic
+from .options import Options
 from .output.document import result_document
 from .solvers import Prior, Solution, solve
+from .stages.counts import SampleCounts
 from .stages.gates import pose_jump_gate
 from .stages.pairs import Pairs, make_pairs
 from .stages.sync import Synced, associate
@@ -35,14 +39,15 @@ __all__ = ["Calibration", "StreamSpec", "calibrate", "calibrate_files", "read_st
 
 @dataclass(frozen=True)
 class StreamSpec:
-    """Where one stream comes from: a file (log or text) and a topic or a (parent, child) frame pair."""
+    """Where one stream comes from: a file (log or text; ``-`` is stdin) and, in a log, a topic
+    or a (parent, child) TF frame pair."""
 
     path: str
     topic: str | None = None
     frames: tuple[str, str] | None = None
 
-    def describe(self) -> dict:
-        out: dict = {"file": self.path}
+    def describe(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"file": self.path}
         if self.topic:
             out["topic"] = self.topic
         if self.frames:
@@ -57,10 +62,10 @@ class Calibration:
     solution: the solver's result (``solution.matrix`` is ``T_a_b``).
     stream_a, stream_b: the streams as used (after inversion, before the time offset).
     synced: the samples that passed sync and gates; pairs: the motions solved.
-    samples: what each stage read, kept and dropped; warnings: human-readable warnings.
-    diagnostics: extra result keys (time offset, residuals, …); inputs: what was read.
-    residuals: per-pair residuals at the solution; weights: per-pair weights used (inlier mask
-    with ``robust``, else None); robust, bootstrap: those analyses' results when asked for.
+    samples: what each stage read, kept and dropped; options: the options used.
+    warnings: human-readable warnings; diagnostics: extra result keys (time offset, residuals…);
+    inputs: what was read; residuals: per-pair residuals at the solution; weights: per-pair
+    weights used (inlier mask with ``robust``, else None); robust, bootstrap: those analyses.
     """
 
     solution: Solution
@@ -68,15 +73,17 @@ class Calibration:
     stream_b: PoseStream
     synced: Synced
     pairs: Pairs
-    samples: dict
-    config: dict
+    samples: SampleCounts
+    options: Options
     residuals: Residuals
     warnings: list[str] = field(default_factory=list)
-    diagnostics: dict = field(default_factory=dict)
-    inputs: dict = field(default_factory=dict)
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+    inputs: dict[str, Any] = field(default_factory=dict)
     weights: np.ndarray | None = None
     robust: RobustResult | None = None
     bootstrap: BootstrapResult | None = None
+    config_file: str | None = None
+    preset: str | None = None
 
     @property
     def matrix(self) -> np.ndarray:
@@ -84,10 +91,11 @@ class Calibration:
         return self.solution.matrix
 
     @property
-    def frames(self) -> dict:
-        """Names of frames a and b: ``name_a``/``name_b`` from the config, else the streams' child frames."""
-        return {"a": self.config["name_a"] or self.stream_a.child_frame_id or "a",
-                "b": self.config["name_b"] or self.stream_b.child_frame_id or "b"}
+    def frames(self) -> dict[str, str]:
+        """Names of frames a and b: ``name_a``/``name_b`` if given, else the streams' child frames."""
+        out = self.options.output
+        return {"a": out.name_a or self.stream_a.child_frame_id or "a",
+                "b": out.name_b or self.stream_b.child_frame_id or "b"}
 
     def bootstrap_deviations(self) -> np.ndarray | None:
         """(K, 6) bootstrap deviations of X: rotation vector [deg] (3), translation [m] (3)."""
@@ -95,192 +103,185 @@ class Calibration:
             return None
         return np.c_[self.bootstrap.rotation_deltas_deg, self.bootstrap.translations_m - self.matrix[:3, 3]]
 
-    def document(self) -> dict:
-        """The result in the schema of DESIGN.md (what ``handeye calibrate`` prints)."""
-        return result_document(self.solution, frames=self.frames, inputs=self.inputs, samples=self.samples,
-                               warnings=self.warnings, diagnostics=self.diagnostics)
+    def with_origin(self, config_file: str | Path | None, preset: str | None) -> Calibration:
+        """The same calibration, recording the config file and preset its options came from."""
+        return replace(self, config_file=None if config_file is None else str(config_file), preset=preset)
+
+    def settings(self) -> dict[str, Any]:
+        """The settings that produced this result: every option after preset, file and flag
+        merging, and where the non-default ones came from."""
+        return {"config_file": self.config_file, "preset": self.preset, "options": self.options.flat()}
+
+    def document(self) -> dict[str, Any]:
+        """The result as printed by ``handeye calibrate`` (schema in docs/design.md)."""
+        return result_document(self.solution, frames=self.frames, inputs=self.inputs,
+                               samples=self.samples.as_dict(), warnings=self.warnings,
+                               diagnostics={**self.diagnostics, "settings": self.settings()})
 
 
-def read_streams(spec_a: StreamSpec, spec_b: StreamSpec, config: dict | None = None, *,
+Source = str | Path | StreamSpec | PoseStream
+
+
+def _spec(source: Source, topic: str | None, frames: tuple[str, str] | None) -> StreamSpec | PoseStream:
+    if isinstance(source, PoseStream | StreamSpec):
+        if topic or frames:
+            raise ConfigError("a topic or frame pair was given for a stream that is not a file", "topic/frames",
+                              "give topic_a/topic_b/frames_a/frames_b only with file paths")
+        return source
+    if isinstance(source, str | Path):
+        return StreamSpec(str(source), topic, tuple(frames) if frames else None)   # type: ignore[arg-type]
+    raise ConfigError(f"cannot read a stream from {type(source).__name__}", "calibrate_files",
+                      "give a file path, a StreamSpec or a PoseStream")
+
+
+def read_streams(spec_a: StreamSpec, spec_b: StreamSpec, options: Options | None = None, *,
                  quiet: bool = True) -> tuple[PoseStream, PoseStream]:
-    """Read streams a and b (``T_world_sensor``), inverted where the config says so."""
-    from .io import detect_format, read_log_streams, read_stream  # mcap/rosbags: import only when reading
+    """Read streams a and b (``T_world_sensor``), inverted where the options say so."""
+    from .io import detect_format, read_log_streams, read_stream   # mcap/rosbags: import only when reading
     from .io.detect import LOG_FORMATS
 
-    cfg = config or load_config()
-    if spec_a.path == spec_b.path and detect_format(spec_a.path) in LOG_FORMATS:     # one pass over the log
+    read = (options or Options()).read
+    if spec_a.path == spec_b.path and spec_a.path != "-" and detect_format(spec_a.path) in LOG_FORMATS:
         a, b = read_log_streams(spec_a.path, [(spec_a.topic, spec_a.frames), (spec_b.topic, spec_b.frames)],
-                                time_source=cfg["time_source"], quiet=quiet)
+                                time_source=read.time_source, quiet=quiet)
     else:
-        a, b = (read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=cfg["time_source"],
-                            columns=cfg["csv_columns"], quiet=quiet) for spec in (spec_a, spec_b))
-    return (a.inverted() if cfg["invert_a"] else a), (b.inverted() if cfg["invert_b"] else b)
+        columns = dict(read.csv_columns) if read.csv_columns else None
+        a, b = (read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=read.time_source,
+                            columns=columns, quiet=quiet) for spec in (spec_a, spec_b))
+    return (a.inverted() if read.invert_a else a), (b.inverted() if read.invert_b else b)
 
 
-def _time_offset(a: PoseStream, b: PoseStream, sync: dict) -> tuple[int, dict, list[str]]:
+def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, dict[str, Any], list[str]]:
     """The offset [ns] b's clock is ahead of a's, its report, and warnings about it."""
-    value = sync["time_offset"]
-    if isinstance(value, str) and value.strip().lower() == "auto":
-        from .stages.timeoffset import estimate_time_offset  # scipy.signal: import only when used
+    value = options.sync.time_offset
+    if value == "auto":
+        from .stages.timeoffset import estimate_time_offset    # scipy.signal: import only when used
 
-        est = estimate_time_offset(a, b, max_offset_s=sync["max_time_offset"])
+        est = estimate_time_offset(a, b, max_offset_s=options.sync.max_time_offset)
         return est.offset_ns, {"seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,
                                "coarse_seconds": est.coarse_ns / 1e9, "correlation": est.correlation,
                                "method": est.method}, list(est.warnings)
-    try:
-        seconds = float(value)
-    except (TypeError, ValueError):
-        raise HandEyeError(f"bad time offset {value!r}", "sync.time_offset",
-                           "give seconds (b's clock ahead of a's) or 'auto'") from None
-    return int(round(seconds * 1e9)), {"seconds": seconds, "method": "fixed"}, []
+    return int(round(float(value) * 1e9)), {"seconds": float(value), "method": "fixed"}, []
 
 
-def _too_few(pairs: Pairs, samples: dict, cfg: dict) -> HandEyeError:
-    """Say which stage left too few pairs, and what to relax."""
-    p = cfg["pairs"]
-    story = (f"a read {samples['read_a']}, b read {samples['read_b']}; timestamp gate dropped "
-             f"{samples['dropped_timestamp_gate']} and {samples['dropped_outside_span']} were outside b's span; "
-             f"pose-jump gate dropped {samples['dropped_pose_jump']}; {samples['keyframes']} samples/keyframes "
-             f"gave {samples['candidate_pairs']} candidate pairs with strategy {p['strategy']}")
-    stage = max((("the timestamp gate", samples["dropped_timestamp_gate"] + samples["dropped_outside_span"]),
-                 ("the pose-jump gate", samples["dropped_pose_jump"])), key=lambda x: x[1])
-    if samples["candidate_pairs"] >= cfg["solver"]["min_pairs"]:
-        fix = f"the cap of {p['max_pairs']} pairs keeps too few: raise pairs.max_pairs (--max-pairs)"
-    elif samples["synced_kept"] >= 2 * cfg["solver"]["min_pairs"]:
-        fix = (f"the motion rotates too little between samples: lower pairs.min_rotation_deg "
-               f"(now {p['min_rotation_deg']}) or try --pairs all / consecutive")
-    else:
-        fix = f"most samples were dropped by {stage[0]}: relax it (sync.max_dt, gates.*) or fix the time offset"
-    return HandEyeError(f"only {len(pairs)} motion pair(s) left, {cfg['solver']['min_pairs']} needed", story, fix)
+def _prior(options: Options) -> Prior | None:
+    s = options.solver
+    return None if s.prior is None else Prior(read_extrinsic(s.prior), *s.prior_weights)
 
 
-def _prior(solver: dict) -> Prior | None:
-    if solver["prior"] is None:
-        return None
-    w = solver["prior_weights"]
-    if not (isinstance(w, (list, tuple)) and len(w) == 2 and all(isinstance(v, (int, float)) for v in w)):
-        raise HandEyeError(f"bad prior weights {w!r}", "solver.prior_weights", "give two numbers [a, b]")
-    return Prior(read_extrinsic(solver["prior"]), float(w[0]), float(w[1]))
-
-
-# A result whose median residuals exceed these is almost certainly wrong data, not noise; a
-# pose-jump gate that drops more than this fraction of the samples is fighting the data.
-_SUSPECT_ROTATION_DEG = 5.0
-_SUSPECT_TRANSLATION_M = 0.2
-_SUSPECT_GATE_FRACTION = 0.25
-
-
-def _pairs(stream_a: PoseStream, stream_b: PoseStream, cfg: dict, offset_ns: int) -> tuple[Synced, Pairs, dict]:
+def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options,
+             offset_ns: int) -> tuple[Synced, Pairs, SampleCounts]:
     """Sync, gates and pair formation: (kept samples, pairs, counts of every stage)."""
-    sync, gates, pc = cfg["sync"], cfg["gates"], cfg["pairs"]
-    synced, counts = associate(stream_a, stream_b, method=sync["method"],
-                               max_dt_ns=int(round(float(sync["max_dt"]) * 1e9)), time_offset_ns=offset_ns)
-    max_rot = gates["max_rotation_deg"]
-    kept, jump_counts = pose_jump_gate(synced, max_translation_m=gates["max_translation"],
-                                       max_rotation_rad=None if max_rot is None else np.deg2rad(max_rot))
-    pairs, pair_counts = make_pairs(kept, pc["strategy"], keyframe_rotation_rad=np.deg2rad(pc["keyframe_rotation_deg"]),
-                                    keyframe_translation_m=pc["keyframe_translation"],
-                                    min_rotation_rad=np.deg2rad(pc["min_rotation_deg"]),
-                                    max_pairs=int(pc["max_pairs"]), seed=int(pc["seed"]))
-    samples = {**counts, "duplicates_dropped_a": stream_a.duplicates_dropped,
-               "duplicates_dropped_b": stream_b.duplicates_dropped, **jump_counts,
-               "synced_kept": len(kept), **pair_counts}
-    if len(pairs) < max(int(cfg["solver"]["min_pairs"]), 2):
-        raise _too_few(pairs, samples, cfg)
+    sync, gates, p = options.sync, options.gates, options.pairs
+    synced, sync_counts = associate(stream_a, stream_b, method=sync.sync, max_dt_ns=int(round(sync.max_dt * 1e9)),
+                                    time_offset_ns=offset_ns)
+    max_rot = None if gates.max_jump_deg is None else np.deg2rad(gates.max_jump_deg)
+    kept, jump_counts = pose_jump_gate(synced, max_translation_m=gates.max_jump, max_rotation_rad=max_rot)
+    pairs, pair_counts = make_pairs(kept, p.pairs, keyframe_rotation_rad=np.deg2rad(p.keyframe_rotation),
+                                    keyframe_translation_m=p.keyframe_translation,
+                                    min_rotation_rad=np.deg2rad(p.min_rotation), max_pairs=p.max_pairs, seed=p.seed)
+    samples = SampleCounts.of(sync_counts, jump_counts, pair_counts, synced_kept=len(kept),
+                              duplicates_dropped_a=stream_a.duplicates_dropped,
+                              duplicates_dropped_b=stream_b.duplicates_dropped)
+    if len(pairs) < options.solver.min_pairs:
+        raise too_few_pairs(len(pairs), samples, options)
     return kept, pairs, samples
 
 
-def _data_warning(stream_a: PoseStream, stream_b: PoseStream, cfg: dict, offset_ns: int,
-                  res: Residuals, weights: np.ndarray | None, samples: dict) -> str | None:
-    """A warning when the data look wrong, not just noisy: implausibly large residuals, or a
-    pose-jump gate that drops much of the log. A stream of ``T_sensor_world`` given as
-    ``T_world_sensor`` (the most common set-up mistake) causes both, so each stream is tried
-    inverted and named when that fits far better."""
-    base = res.summary(None if weights is None else weights > 0)
-    dropped = samples["dropped_pose_jump"] / max(samples["synced"], 1)
-    large = base.rotation_median_deg > _SUSPECT_ROTATION_DEG or base.translation_median_m > _SUSPECT_TRANSLATION_M
-    if not (large or dropped > _SUSPECT_GATE_FRACTION):
-        return None
-    for name, a, b in (("b", stream_a, stream_b.inverted()), ("a", stream_a.inverted(), stream_b)):
-        try:
-            _, pairs, alt_samples = _pairs(a, b, cfg, offset_ns)
-            alt = pair_residuals(pairs.A, pairs.B, solve(pairs.A, pairs.B).matrix).summary()
-        except HandEyeError:
-            continue
-        better_fit = alt.rotation_median_deg < base.rotation_median_deg / 3
-        more_kept = alt_samples["synced_kept"] > 1.5 * samples["synced_kept"]
-        if (better_fit and alt_samples["synced_kept"] >= samples["synced_kept"]) or (
-                more_kept and alt.rotation_median_deg <= base.rotation_median_deg):
-            return (f"stream {name} looks inverted (T_sensor_world instead of T_world_sensor): inverted, the "
-                    f"median residuals go from {base.rotation_median_deg:.2f}° / {base.translation_median_m:.3f} m to "
-                    f"{alt.rotation_median_deg:.2f}° / {alt.translation_median_m:.3f} m and the pose-jump gate keeps "
-                    f"{alt_samples['synced_kept']} samples instead of {samples['synced_kept']}; rerun with "
-                    f"--invert-{name} (or --no-invert-{name} if it was inverted)")
-    if large:
-        return (f"large residuals (median {base.rotation_median_deg:.2f}° / {base.translation_median_m:.3f} m): the "
-                "streams may not be rigidly attached, be mis-synchronised (try --time-offset auto) or come from "
-                "the wrong topics")
-    return (f"the pose-jump gate dropped {samples['dropped_pose_jump']} of {samples['synced']} samples "
-            f"({100 * dropped:.0f} %): the sensors move faster than its limits allow at this rate; raise "
-            "--max-jump / --max-jump-deg, or check the tracking")
-
-
-def calibrate(stream_a: PoseStream, stream_b: PoseStream, config: dict | None = None, *,
-              inputs: dict | None = None) -> Calibration:
-    """Calibrate ``T_a_b`` from two pose streams ``T_wa_a(t)``, ``T_wb_b(t)`` (int64 ns stamps,
-    positions [m], quaternions x-y-z-w); ``config`` as :func:`handeye_cli.config.load_config`
-    returns (default: the defaults). Raises HandEyeError on data that cannot be calibrated.
-
-    Order: time offset → sync → gates → pairs → [robust: RANSAC inliers] → [α auto] → weighted
-    solve → observability warnings, residuals → [bootstrap].
-    """
-    cfg = config or load_config()
-    solver, analysis, seed = cfg["solver"], cfg["analysis"], int(cfg["pairs"]["seed"])
-    offset_ns, offset_report, warnings = _time_offset(stream_a, stream_b, cfg["sync"])
-    kept, pairs, samples = _pairs(stream_a, stream_b, cfg, offset_ns)
-    A, B, prior = pairs.A, pairs.B, _prior(solver)
-    diagnostics: dict = {"time_offset": offset_report}
-    auto = isinstance(solver["alpha"], str) and solver["alpha"].strip().lower() == "auto"
-    alpha = 1.0 if auto else float(solver["alpha"])
-
+def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None,
+                       diagnostics: dict[str, Any]) -> tuple[Solution, float, np.ndarray | None, RobustResult | None]:
+    """[robust: RANSAC inliers] → [α auto] → the weighted solve; diagnostics filled in place."""
+    A, B, solver = pairs.A, pairs.B, options.solver
+    alpha = 1.0 if solver.alpha == "auto" else float(solver.alpha)
     weights = robust = None
-    if analysis["robust"]:
-        robust = robust_solve(A, B, method=solver["method"], alpha=alpha, prior=prior, seed=seed)
+    if options.analysis.robust:
+        robust = robust_solve(A, B, method=solver.method, alpha=alpha, prior=prior, seed=options.pairs.seed)
         weights = robust.inliers.astype(float)
-        diagnostics["robust"] = {**robust.as_dict(), "rejected_times_s": [
-            [pairs.t_i_ns[k] / 1e9, pairs.t_j_ns[k] / 1e9] for k in robust.rejected]}
-    if auto:
+        t0 = min(pairs.t_i_ns.min(), pairs.t_j_ns.min())    # readable: seconds since the first paired sample
+        diagnostics["robust"] = {**robust.as_dict(), "rejected_spans_since_start_s": [
+            [round((pairs.t_i_ns[k] - t0) / 1e9, 6), round((pairs.t_j_ns[k] - t0) / 1e9, 6)] for k in robust.rejected]}
+    if solver.alpha == "auto":
         choice = auto_alpha(A, B, prior=prior, weights=weights)
         alpha = choice.alpha
         diagnostics["alpha_auto"] = choice.as_dict()
-    solution = solve(A, B, method=solver["method"], alpha=alpha, prior=prior, weights=weights)
+    return solve(A, B, method=solver.method, alpha=alpha, prior=prior, weights=weights), alpha, weights, robust
 
-    ij = (pairs.i, pairs.j)
+
+def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | None = None, *,
+              inputs: dict[str, Any] | None = None, **overrides: Any) -> Calibration:
+    """Calibrate ``T_a_b`` from two pose streams ``T_wa_a(t)``, ``T_wb_b(t)`` (int64 ns stamps,
+    positions [m], quaternions x-y-z-w). ``options`` (default: the defaults), updated by
+    ``overrides`` given by flat option name (``method="dqopt"``, ``max_jump="off"``…). Raises a
+    :class:`~handeye_cli.errors.HandEyeError` subclass on data that cannot be calibrated.
+
+    Order: time offset → sync → gates → pairs → [robust] → [α auto] → weighted solve →
+    observability warnings, residuals, inversion check → [bootstrap].
+    """
+    opts = Options.from_flat(options, **overrides) if overrides else (options or Options())
+    offset_ns, offset_report, warnings = _time_offset(stream_a, stream_b, opts)
+    kept, pairs, samples = pairs_of(stream_a, stream_b, opts, offset_ns)
+    prior = _prior(opts)
+    diagnostics: dict[str, Any] = {"time_offset": offset_report}
+    solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, diagnostics)
+
+    A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
     obs = assess_observability(A, B, solution.matrix, alpha=alpha, prior=prior, weights=weights, samples=ij)
     warnings += [str(w) for w in obs.warnings]
     diagnostics["observability"] = obs.as_dict()
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    data_warning = _data_warning(stream_a, stream_b, cfg, offset_ns, res, weights, samples)
-    if data_warning:
-        warnings.append(data_warning)
+    suspect = data_warning(stream_a, stream_b, res, weights, samples,
+                           lambda a, b: pairs_of(a, b, opts, offset_ns))
+    if suspect:
+        warnings.insert(0, suspect)
     boot = None
-    if int(analysis["bootstrap"]) > 0:
-        boot = bootstrap(A, B, int(analysis["bootstrap"]), alpha=alpha, prior=prior, weights=weights,
-                         samples=ij, seed=seed)
+    if opts.analysis.bootstrap > 0:
+        boot = bootstrap(A, B, opts.analysis.bootstrap, alpha=alpha, prior=prior, weights=weights,
+                         samples=ij, seed=opts.pairs.seed)
         diagnostics["uncertainty"] = {"method": "bootstrap over pose samples", **boot.as_dict()}
-    return Calibration(solution, stream_a, stream_b, kept, pairs, samples, cfg, res, warnings=warnings,
+    return Calibration(solution, stream_a, stream_b, kept, pairs, samples, opts, res, warnings=warnings,
                        diagnostics=diagnostics, inputs=dict(inputs or {}), weights=weights, robust=robust,
                        bootstrap=boot)
 
 
-def calibrate_files(spec_a: StreamSpec, spec_b: StreamSpec, config: dict | None = None, *,
-                    quiet: bool = True) -> Calibration:
-    """Read both streams (see :func:`read_streams`) and :func:`calibrate`."""
-    cfg = config or load_config()
-    a, b = read_streams(spec_a, spec_b, cfg, quiet=quiet)
-    inputs = {"a": spec_a.describe(), "b": spec_b.describe(), "time_source": cfg["time_source"]}
+def calibrate_files(a: Source, b: Source | None = None, *, topic_a: str | None = None, topic_b: str | None = None,
+                    frames_a: tuple[str, str] | None = None, frames_b: tuple[str, str] | None = None,
+                    options: Options | None = None, config_file: str | Path | None = None,
+                    preset: str | None = None, quiet: bool = True, **overrides: Any) -> Calibration:
+    """Read two streams and :func:`calibrate` ``T_a_b``.
+
+    ``a``, ``b``: file paths (str or Path; a log, or one text pose file per stream; ``-`` is
+    stdin), :class:`StreamSpec` or in-memory :class:`~handeye_cli.streams.PoseStream`. With one
+    log, ``b`` may be omitted and the streams are chosen with ``topic_a``/``topic_b`` or
+    ``frames_a``/``frames_b`` = (parent, child). Options: ``options`` < ``preset`` <
+    ``config_file`` < ``overrides`` by flat name (e.g. ``method="dqopt", alpha="auto"``).
+    """
+    opts = load_options(config_file, preset, base=options, **overrides)
+    spec_a, spec_b = _spec(a, topic_a, frames_a), _spec(a if b is None else b, topic_b, frames_b)
+    files = [s for s in (spec_a, spec_b) if isinstance(s, StreamSpec)]
+    if len(files) == 2:
+        stream_a, stream_b = read_streams(files[0], files[1], opts, quiet=quiet)    # type: ignore[arg-type]
+    else:
+        stream_a, stream_b = (_read_one(s, opts, quiet) for s in (spec_a, spec_b))
+        stream_a = stream_a.inverted() if opts.read.invert_a else stream_a
+        stream_b = stream_b.inverted() if opts.read.invert_b else stream_b
+    inputs: dict[str, Any] = {"a": _describe(spec_a), "b": _describe(spec_b), "time_source": opts.read.time_source}
     for key in ("invert_a", "invert_b"):
-        if cfg[key]:
+        if getattr(opts.read, key):
             inputs[key] = True
-    return calibrate(a, b, cfg, inputs=inputs)
+    return calibrate(stream_a, stream_b, opts, inputs=inputs).with_origin(config_file, preset)
+
+
+def _read_one(spec: StreamSpec | PoseStream, opts: Options, quiet: bool) -> PoseStream:
+    if isinstance(spec, PoseStream):
+        return spec
+    from .io import read_stream
+
+    columns = dict(opts.read.csv_columns) if opts.read.csv_columns else None
+    return read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=opts.read.time_source,
+                       columns=columns, quiet=quiet)
+
+
+def _describe(spec: StreamSpec | PoseStream) -> dict[str, Any]:
+    return spec.describe() if isinstance(spec, StreamSpec) else {"stream": spec.source or "in memory"}
+

@@ -11,7 +11,6 @@ import yaml
 
 from handeye_cli import se3
 from handeye_cli.cli import main
-from handeye_cli.config import load_config
 from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import Rig, simulate_rig
 
@@ -95,17 +94,17 @@ def test_robust_rejects_outlier_pairs(tmp_path):
     xyz[bad] += rng.normal(0, 0.03, (len(bad), 3))
     from dataclasses import replace
     b_bad = replace(b, xyz=xyz)
-    cfg = load_config(overrides={"gates": {"max_translation": None, "max_rotation_deg": None}})
-    plain = calibrate(a, b_bad, cfg)
-    cfg["analysis"]["robust"] = True
-    robust = calibrate(a, b_bad, cfg)
-    clean = calibrate(a, b, cfg)
+    plain = calibrate(a, b_bad, max_jump="off", max_jump_deg="off")
+    robust = calibrate(a, b_bad, max_jump="off", max_jump_deg="off", robust=True)
+    clean = calibrate(a, b, max_jump="off", max_jump_deg="off", robust=True)
     err = lambda c: float(np.linalg.norm(c.matrix[:3, 3] - X[:3, 3]))   # noqa: E731
     assert robust.robust is not None and len(robust.robust.rejected) > 0
     assert err(robust) < err(plain)
     assert err(robust) < 1.5 * err(clean) + 1e-4
     doc = robust.document()
-    assert len(doc["robust"]["rejected_times_s"]) == len(robust.robust.rejected)
+    spans = doc["robust"]["rejected_spans_since_start_s"]
+    assert len(spans) == len(robust.robust.rejected)
+    assert all(0 <= t0 <= t1 <= 40 for t0, t1 in spans)              # readable: seconds since the start
 
 
 def test_alpha_auto_and_bootstrap_from_the_cli(capsys, tmp_path):

@@ -1,8 +1,10 @@
 """The HTML report: self-contained structure, the alignment it plots, and rendering in a real
-headless browser (Debian's chromium; CI installs it, so a missing browser fails, never skips)."""
+headless browser (Debian's chromium). .ci/run installs it and sets CI=1, where a missing browser fails;
+elsewhere (a fresh machine running the README's test command) the browser test is skipped, saying why."""
 from __future__ import annotations
 
 import base64
+import os
 import re
 import shutil
 import subprocess
@@ -12,7 +14,7 @@ import numpy as np
 import pytest
 
 from handeye_cli.errors import HandEyeError
-from handeye_cli.output.report import world_alignment, write_report
+from handeye_cli.output.report import render_report, world_alignment, write_report
 from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
 
@@ -50,7 +52,7 @@ def deviations():
 @pytest.fixture(scope="module")
 def report(rig, full_doc, deviations, tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("report") / "out.html"
-    write_report(path, rig[2], full_doc, deviations)
+    path.write_text(render_report(rig[2], full_doc, deviations), encoding="utf-8")
     return path
 
 
@@ -83,7 +85,7 @@ def test_report_is_self_contained_and_states_the_result(report, full_doc):
 def test_optional_keys_may_be_missing(rig, tmp_path):
     _, _, cal = rig
     document = {"robust": {"rejected": "not a list"}}                 # no matrix: falls back to the calibration
-    write_report(tmp_path / "bare.html", cal, document, np.full((4, 6), np.nan))
+    (tmp_path / "bare.html").write_text(render_report(cal, document, np.full((4, 6), np.nan)), encoding="utf-8")
     text = (tmp_path / "bare.html").read_text(encoding="utf-8")
     for v in cal.matrix[:3, 3]:
         assert f"{v:.6f}" in text
@@ -94,9 +96,9 @@ def test_optional_keys_may_be_missing(rig, tmp_path):
 def test_bad_arguments_fail_without_a_file(rig, tmp_path):
     _, _, cal = rig
     with pytest.raises(ValueError, match=r"\(K, 6\)"):
-        write_report(tmp_path / "r.html", cal, {}, np.zeros((5, 3)))
+        render_report(cal, {}, np.zeros((5, 3)))
     with pytest.raises(HandEyeError):
-        write_report(tmp_path / "missing" / "r.html", cal, {})
+        write_report(tmp_path / "missing" / "r.html", cal)
     assert list(tmp_path.iterdir()) == []
 
 
@@ -114,8 +116,11 @@ def test_world_alignment_recovers_the_world_to_world_transform(rig):
 def _chromium() -> str:
     exe = shutil.which("chromium") or shutil.which("chromium-browser")
     if exe is None:
-        pytest.fail("chromium is not installed: the report test opens the report in a real headless browser; "
-                    "install it with `apt-get install -y chromium` (.ci/run does)")
+        message = ("chromium is not installed: the report test opens the report in a real headless browser; "
+                   "install it with `apt-get install -y chromium` (.ci/run does)")
+        if os.environ.get("CI"):
+            pytest.fail(message)
+        pytest.skip(message)
     return exe
 
 

@@ -8,7 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from handeye_cli import PoseStream, se3
-from handeye_cli.config import load_config
+from handeye_cli.config import load_options
 from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import perturb
 
@@ -28,11 +28,10 @@ def _stream(T: np.ndarray) -> PoseStream:
 
 
 def _calibrate(a: np.ndarray, b: np.ndarray, **flags) -> np.ndarray:
-    cfg = load_config(ROOT / "configs" / "robot_arm.yaml")
     a_s, b_s = _stream(a), _stream(b)
     a_s = a_s.inverted() if flags.get("invert_a") else a_s
     b_s = b_s.inverted() if flags.get("invert_b") else b_s
-    return calibrate(a_s, b_s, cfg).matrix
+    return calibrate(a_s, b_s, load_options(preset="robot-arm")).matrix
 
 
 @pytest.mark.parametrize("noise", [0.0, 1.0])

@@ -1,4 +1,4 @@
-"""The result document (schema of DESIGN.md), its YAML/JSON text, and atomic file writes.
+"""The result document (schema in docs/design.md) and its YAML/JSON text.
 
 Keys, in order: ``matrix`` (4x4 ``T_a_b`` row-major: pose of frame b in frame a, maps points
 from b to a), ``translation`` [m], ``quaternion_xyzw`` (Hamilton, x-y-z-w, w ≥ 0), ``frames``
@@ -11,9 +11,6 @@ YAML and JSON carry the same content.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -23,7 +20,7 @@ from .. import __version__
 from ..errors import HandEyeError
 from ..solvers import Solution
 
-__all__ = ["FORMATS", "result_document", "render", "write_atomic", "format_for_path", "plain"]
+__all__ = ["FORMATS", "result_document", "render", "plain"]
 
 FORMATS = ("yaml", "json")
 
@@ -100,33 +97,3 @@ def render(doc: dict, fmt: str = "yaml") -> str:
     if fmt == "yaml":
         return yaml.dump(doc, Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=10_000)
     raise HandEyeError(f"unknown output format {fmt!r}", "--format", f"use one of {', '.join(FORMATS)}")
-
-
-def format_for_path(path: str | Path | None, fmt: str | None) -> str:
-    """The explicit ``fmt``, else the one the suffix names (``.json`` → json), else YAML."""
-    if fmt:
-        return fmt
-    return "json" if path is not None and Path(path).suffix.lower() == ".json" else "yaml"
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def write_atomic(path: str | Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and a rename, so a
-    reader never sees a half-written file and a failure leaves no file behind."""
-    path = Path(path)
-    if not path.parent.exists():
-        raise HandEyeError("the output folder does not exist", str(path.parent), "create it or choose another -o path")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.chmod(tmp, 0o666 & ~_umask())          # mkstemp creates 0600; give the usual file mode
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

@@ -32,7 +32,7 @@ from scipy.spatial.transform import Rotation
 from .. import __version__, se3
 from ..analysis.residuals import pair_residuals
 from ..errors import HandEyeError
-from .document import write_atomic
+from .writers import check_writable, write_output
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -418,8 +418,7 @@ def render_report(calibration: Calibration, document: dict,
     body = [_header(calibration, document, X),
             "<h2>1. Trajectories after applying the extrinsic</h2>", _trajectory_section(calibration, X),
             "<h2>2. Residuals over time</h2>", _residual_section(calibration, document, X),
-            "<h2>3. Samples kept and dropped per stage</h2>", _samples_section(document.get("samples",
-                                                                                           calibration.samples))]
+            "<h2>3. Samples kept and dropped per stage</h2>", _samples_section(calibration.samples.as_dict())]
     if bootstrap_deviations is not None:
         body += ["<h2>4. Bootstrap spread</h2>", _bootstrap_section(bootstrap_deviations)]
     tables = _tables(document)
@@ -432,28 +431,15 @@ def render_report(calibration: Calibration, document: dict,
             f"<body><main>{''.join(body)}</main><script>{_SCRIPT}</script></body></html>\n")
 
 
-def write_report(path: str | Path, calibration: Calibration, document: dict,
-                 bootstrap_deviations: np.ndarray | None = None) -> None:
-    """Write a self-contained HTML report of ``calibration`` to ``path`` (atomically).
+def write_report(path: str | Path, calibration: Calibration) -> None:
+    """Write a self-contained HTML report of ``calibration`` to ``path`` (``-``: stdout).
 
-    Parameters
-    ----------
-    path:
-        The .html file to write (temp file in the same folder, then a rename).
-    calibration:
-        The :class:`~handeye_cli.pipeline.Calibration` (streams, synced samples, pairs).
-    document:
-        The result dict (``calibration.document()`` plus diagnostics); every key is optional,
-        ``matrix`` (``T_a_b``) is preferred over ``calibration.matrix`` when present.
-    bootstrap_deviations:
-        Optional (K, 6): per bootstrap replicate the rotation deviation of ``X`` as a rotation
-        vector [deg] (3) and the translation deviation [m] (3); plotted per axis.
-
-    Raises :class:`~handeye_cli.errors.HandEyeError` when matplotlib is missing or the folder does
-    not exist; no file is created on failure.
+    The report shows the result (``calibration.document()``), the trajectories after applying
+    ``T_a_b``, the per-pair residuals over time, the samples each stage kept and dropped and, when
+    the bootstrap ran, its spread. Raises :class:`~handeye_cli.errors.HandEyeError` when matplotlib
+    is missing or the file cannot be written; a regular file is replaced atomically, so a
+    failure leaves no half-written report.
     """
-    folder = Path(path).parent
-    if not folder.is_dir():      # fail before the rendering work (write_atomic checks again)
-        raise HandEyeError("the report's folder does not exist", str(folder),
-                           "create it or choose another --report path")
-    write_atomic(path, render_report(calibration, document, bootstrap_deviations))
+    check_writable(path, "--report")           # fail before the rendering work
+    write_output(path, render_report(calibration, calibration.document(), calibration.bootstrap_deviations()),
+                 "--report")

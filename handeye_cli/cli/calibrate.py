@@ -1,0 +1,94 @@
+"""``handeye calibrate``: one extrinsic from a log or two pose files."""
+from __future__ import annotations
+
+from typing import Any
+
+import click
+
+from ..errors import ConfigError, HandEyeError
+from ..output.writers import check_writable, output_format
+from ..pipeline import Calibration, StreamSpec, calibrate_files
+from .common import CONTEXT, StrictFailure, emit
+from .params import calibrate_options, options_from_cli, output_options, stream_options
+
+
+def stream_specs(inputs: tuple[str, ...], p: dict[str, Any]) -> tuple[StreamSpec, StreamSpec]:
+    """Streams a and b from the inputs (one log, or one file per stream) and the topic/frame flags."""
+    if len(inputs) > 2:
+        raise ConfigError(f"{len(inputs)} inputs given", " ".join(inputs),
+                          "pass one log, or one file per stream (a then b)")
+    if len(inputs) == 1 and not ((p["topic_a"] or p["frames_a"]) and (p["topic_b"] or p["frames_b"])):
+        raise ConfigError("one input needs a topic or a frame pair for each stream", inputs[0],
+                          "add --topic-a/--topic-b or --frames-a/--frames-b (see 'handeye inspect "
+                          f"{inputs[0]}'), or pass two pose files")
+    if inputs.count("-") > 1:
+        raise ConfigError("stdin ('-') can feed only one stream", " ".join(inputs), "pass the other as a file")
+    return (StreamSpec(inputs[0], p["topic_a"], p["frames_a"] or None),
+            StreamSpec(inputs[-1], p["topic_b"], p["frames_b"] or None))
+
+
+def _summary(doc: dict[str, Any]) -> str:
+    from scipy.spatial.transform import Rotation
+
+    rotvec = Rotation.from_quat(doc["quaternion_xyzw"]).as_rotvec(degrees=True)
+    t = doc["translation"]
+    angle = float((rotvec @ rotvec) ** 0.5)
+    return (f"T_{doc['frames']['a']}_{doc['frames']['b']}: translation [{t[0]:.4f}, {t[1]:.4f}, {t[2]:.4f}] m, "
+            f"rotation {angle:.3f}° (rotvec [{rotvec[0]:.3f}, {rotvec[1]:.3f}, {rotvec[2]:.3f}]°); "
+            f"{doc['method']} on {doc['pairs_used']} pairs")
+
+
+def _report(path: str, result: Calibration) -> HandEyeError | None:
+    """Write the HTML report; a failure is returned, not raised, so the result is still written."""
+    from ..output.report import write_report
+
+    try:
+        write_report(path, result)
+    except HandEyeError as e:
+        return e
+    return None
+
+
+@click.command("calibrate", context_settings=CONTEXT)
+@click.argument("inputs", nargs=-1, required=True)
+@stream_options
+@calibrate_options
+@click.option("--report", "report_file", metavar="FILE", help="Write a self-contained HTML report (trajectories, "
+              "residuals, gates, uncertainty, warnings).")
+@output_options
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
+def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
+    """Calibrate T_a_b from a log (MCAP, ROS 1 bag, ROS 2 bag) or two pose files (TUM, EuRoC, CSV).
+
+    Stream a is the first topic/frame pair/file, stream b the second; T_a_b is the pose of b's
+    frame in a's frame. The result goes to stdout (YAML) unless -o is given. A text stream may
+    come from stdin as '-'.
+
+    \b
+    Examples:
+      handeye calibrate sample_data/rig.mcap --topic-a /cam0/pose --topic-b /cam1/pose
+      handeye calibrate log.bag --frames-a world cam0 --frames-b odom imu --time-offset auto
+      handeye calibrate a.tum b.tum --method dqopt -o extrinsic.json
+      cat a.tum | handeye calibrate - b.tum --robust --alpha auto --bootstrap 1000 --report report.html
+    """
+    config_file, preset = p.get("config_file"), p.get("preset")
+    options = options_from_cli(p)
+    spec_a, spec_b = stream_specs(inputs, p)
+    fmt = output_format(p["output"], p["fmt"])
+    check_writable(p["output"], "-o")
+    if p["report_file"]:
+        check_writable(p["report_file"], "--report")
+    result = calibrate_files(spec_a, spec_b, options=options, quiet=p["quiet"])
+    result = result.with_origin(config_file, preset)
+    doc = result.document()
+    report_error = _report(p["report_file"], result) if p["report_file"] else None
+    emit(doc, p["output"], fmt)
+    if not p["quiet"]:
+        click.echo(_summary(doc), err=True)
+    for w in doc["warnings"]:
+        click.echo(f"warning: {w}", err=True)
+    if report_error is not None:
+        raise HandEyeError(f"the result was written, but not the report: {report_error.what}", report_error.where,
+                           report_error.fix)
+    if doc["warnings"] and options.analysis.strict:
+        raise StrictFailure(f"{len(doc['warnings'])} warning(s) under --strict (the result was still written)")

@@ -1,0 +1,20 @@
+"""What the commands share: click settings, the --strict failure and printing a result."""
+from __future__ import annotations
+
+from typing import Any
+
+from ..output.document import render
+from ..output.writers import output_format, write_output
+
+__all__ = ["CONTEXT", "StrictFailure", "emit"]
+
+CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
+
+
+class StrictFailure(Exception):
+    """Warnings were raised under ``--strict`` (exit code 3)."""
+
+
+def emit(doc: dict[str, Any], output: str | None, fmt: str | None) -> None:
+    """Print the result to stdout (no ``-o`` or ``-o -``) or write it to ``output``."""
+    write_output(output, render(doc, output_format(output, fmt)))

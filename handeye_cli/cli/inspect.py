@@ -1,0 +1,49 @@
+"""``handeye inspect``: what a log holds — topics, pose streams, rates, TF tree."""
+from __future__ import annotations
+
+from typing import Any
+
+import click
+
+from ..output.document import plain, render
+from .common import CONTEXT
+
+
+def _inspect_text(info: dict[str, Any]) -> str:
+    lines = [f"{info['path']}: {info['format']}"]
+    if "duration_ns" in info:
+        lines.append(f"  span {info['duration_ns'] / 1e9:.3f} s"
+                     + (f", {info['rows']} rows at {info['rate_hz']} Hz" if "rows" in info else ""))
+    topics = info.get("topics", [])
+    if topics:
+        width = max(len(t["topic"]) for t in topics)
+        lines.append("  topics (* = a pose stream calibrate can use with --topic-a/--topic-b):")
+        for t in topics:
+            lines.append(f"  {'*' if t['pose'] else ' '} {t['topic']:<{width}}  {t['type']}  {t['count']} msgs"
+                         f"  {t['rate_hz']} Hz")
+    frames = info.get("tf_frames", [])
+    if frames:
+        lines.append("  TF edges (use with --frames-a/--frames-b PARENT CHILD):")
+        for f in frames:
+            lines.append(f"    {f['parent']} -> {f['child']}  {'static' if f['static'] else str(f['count']) + ' msgs'}")
+    return "\n".join(lines) + "\n"
+
+
+@click.command("inspect", context_settings=CONTEXT)
+@click.argument("input_file", type=click.Path())
+@click.option("--format", "fmt", type=click.Choice(["text", "yaml", "json"]), default="text", show_default=True,
+              help="Human-readable text, or machine-readable YAML/JSON.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+def inspect(input_file: str, fmt: str, quiet: bool) -> None:
+    """List the topics, message types, counts, rates and time span of a log, which topics carry
+    poses, and its TF frame tree.
+
+    \b
+    Examples:
+      handeye inspect sample_data/rig.mcap
+      handeye inspect sample_data/rig_ros2 --format json
+    """
+    from ..io import inspect_log
+
+    info = plain(inspect_log(input_file, quiet=quiet))
+    click.echo(_inspect_text(info) if fmt == "text" else render(info, fmt), nl=False)

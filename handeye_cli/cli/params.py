@@ -1,0 +1,90 @@
+"""Click options generated from :mod:`handeye_cli.options`: one flag per option, same name, same help.
+
+Every generated flag defaults to ``None`` ("not given"), so a value from ``--config`` or
+``--preset`` is overridden only by a flag the user actually typed; the value is checked by the
+option's own parser when the options are loaded, so a file, a flag and a Python keyword are
+checked alike.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import click
+
+from ..config import load_options, presets
+from ..options import FIELDS, Options
+
+__all__ = ["apply", "flags", "calibrate_options", "options_from_cli", "OPTION_NAMES", "stream_options", "output_options"]
+
+F = Callable[..., Any]
+
+
+def _default_text(default: Any) -> str:
+    if default is None:
+        return "off"
+    if isinstance(default, bool):
+        return "on" if default else "off"
+    if isinstance(default, tuple):
+        return ",".join(f"{v:g}" for v in default)
+    return f"{default:g}" if isinstance(default, float) else str(default)
+
+
+def _flag(name: str) -> Callable[[F], F]:
+    _, info, default = FIELDS[name]
+    dashed = "--" + name.replace("_", "-")
+    help_text = f"{info.help} [default: {_default_text(default)}]"
+    if isinstance(default, bool):
+        return click.option(f"{dashed}/--no-{dashed[2:]}", name, default=None, help=help_text)
+    kind = click.Choice(info.choices, case_sensitive=False) if info.choices else click.STRING
+    return click.option(dashed, name, type=kind, default=None, metavar=info.metavar, help=help_text)
+
+
+OPTION_NAMES = tuple(FIELDS)
+
+
+def apply(*decorators: Callable[[F], F]) -> Callable[[F], F]:
+    """One decorator applying ``decorators`` so that the options show in the order given."""
+    def decorate(f: F) -> F:
+        for option in reversed(decorators):
+            f = option(f)
+        return f
+    return decorate
+
+
+def flags(*names: str) -> Callable[[F], F]:
+    """The flags of the named options only (e.g. for ``handeye solve``)."""
+    return apply(*(_flag(name) for name in names))
+
+
+calibrate_options = apply(
+    flags(*OPTION_NAMES),
+    click.option("--config", "config_file", type=click.Path(), help="YAML file of options (see "
+                 "configs/default.yaml); flags given here override it."),
+    click.option("--preset", type=click.Choice(presets()), help="Options for a kind of capture, shipped with "
+                 "handeye (robot-arm: stations, gate off, all pairs); --config and flags override it."),
+)
+
+
+def options_from_cli(params: dict[str, Any]) -> Options:
+    """The options a command line gives: defaults < --preset < --config < flags.
+    Removes the option keys from ``params``, leaving the command's own."""
+    given = {name: params.pop(name) for name in OPTION_NAMES if name in params}
+    return load_options(params.pop("config_file", None), params.pop("preset", None), **given)
+
+
+stream_options = apply(
+    click.option("--topic-a", help="Topic of stream a (PoseStamped, PoseWithCovarianceStamped, TransformStamped, "
+                 "Odometry, TFMessage, Foxglove pose types)."),
+    click.option("--topic-b", help="Topic of stream b."),
+    click.option("--frames-a", nargs=2, metavar="PARENT CHILD", help="Stream a as the TF chain PARENT→CHILD "
+                 "resolved through /tf and /tf_static."),
+    click.option("--frames-b", nargs=2, metavar="PARENT CHILD", help="Stream b as a TF chain."),
+)
+
+output_options = apply(
+    click.option("-o", "--output", metavar="FILE", help="Write the result here instead of stdout ('-': stdout); "
+                 "a regular file is replaced atomically; .json selects JSON, .yaml/.yml YAML."),
+    click.option("--format", "fmt", type=click.Choice(["yaml", "json"]), help="Output format [default: from the "
+                 "-o suffix, else yaml]."),
+)

@@ -1,0 +1,352 @@
+"""Every option of ``handeye calibrate``: its name, default, unit, check and help — in one place.
+
+The options are frozen dataclasses, one per pipeline stage (:class:`ReadOptions`,
+:class:`SyncOptions`, :class:`GateOptions`, :class:`PairOptions`, :class:`SolverOptions`,
+:class:`AnalysisOptions`, :class:`OutputOptions`), gathered in :class:`Options`. A field has one
+name everywhere: the command-line flag without its dashes (``--max-jump`` is ``max_jump``), the
+key of a configuration file, and the keyword argument of :func:`handeye_cli.calibrate_files`.
+
+Units: seconds, metres, degrees, as each field's help says. Gates that can be switched off take
+``None``, which files and flags spell ``off`` (YAML's ``off``/``false``/``null`` all mean off).
+
+>>> opts = Options.from_flat(max_jump="off", alpha="auto", pairs="stride:30")
+>>> opts.gates.max_jump is None, opts.solver.alpha, opts.pairs.pairs
+(True, 'auto', 'stride:30')
+>>> Options.from_flat(max_dt="fast")
+Traceback (most recent call last):
+...
+handeye_cli.errors.ConfigError: bad value 'fast' (max_dt): give a number of seconds > 0
+"""
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
+
+from .errors import ConfigError
+from .solvers import METHODS
+
+__all__ = ["Options", "ReadOptions", "SyncOptions", "GateOptions", "PairOptions", "SolverOptions",
+           "AnalysisOptions", "OutputOptions", "SECTIONS", "FIELDS", "OptionInfo"]
+
+Parser = Callable[[Any, str], Any]
+_OFF_WORDS = ("off", "none", "null", "no", "false")
+
+
+def _words(value: Any) -> str | None:
+    return value.strip().lower() if isinstance(value, str) else None
+
+
+def number(*, unit: str, low: float = 0.0, strict: bool = True, word: str | None = None) -> Parser:
+    """Parser of a real number ≥/> ``low``; ``word`` ('off' or 'auto') is also accepted.
+
+    'off' (and YAML's false/null) becomes None; 'auto' stays the string 'auto'."""
+    def parse(value: Any, where: str) -> float | str | None:
+        if word == "off" and (value is None or value is False or _words(value) in _OFF_WORDS):
+            return None
+        if word == "auto" and _words(value) == "auto":
+            return "auto"
+        if not isinstance(value, bool):
+            try:
+                x = float(value)
+            except (TypeError, ValueError):
+                x = math.nan
+            if math.isfinite(x) and (x > low if strict else x >= low):
+                return x
+        rel = ">" if strict else "≥"
+        alt = f", or '{word}'" if word else ""
+        raise ConfigError(f"bad value {value!r}", where, f"give a number of {unit} {rel} {low:g}{alt}")
+    return parse
+
+
+def real(*, unit: str, word: str | None = None) -> Parser:
+    """Parser of any finite real number (e.g. a signed time offset), or ``word``."""
+    def parse(value: Any, where: str) -> float | str:
+        if word and _words(value) == word:
+            return word
+        try:
+            x = float(value)
+        except (TypeError, ValueError):
+            x = math.nan
+        if isinstance(value, bool) or not math.isfinite(x):
+            alt = f", or '{word}'" if word else ""
+            raise ConfigError(f"bad value {value!r}", where, f"give a finite number of {unit}{alt}")
+        return x
+    return parse
+
+
+def integer(*, low: int = 0) -> Parser:
+    def parse(value: Any, where: str) -> int:
+        if isinstance(value, bool):
+            value = "bool"
+        try:
+            x = int(str(value).strip())
+        except ValueError:
+            x = low - 1
+        if x < low:
+            raise ConfigError(f"bad value {value!r}", where, f"give a whole number ≥ {low}")
+        return x
+    return parse
+
+
+def choice(*names: str) -> Parser:
+    def parse(value: Any, where: str) -> str:
+        word = _words(value)
+        if word not in names:
+            raise ConfigError(f"bad value {value!r}", where, f"choose one of {', '.join(names)}")
+        return word
+    return parse
+
+
+def flag(value: Any, where: str) -> bool:
+    """A yes/no option (YAML true/false)."""
+    if isinstance(value, bool):
+        return value
+    word = _words(value)
+    if word in ("true", "yes", "on", "1"):
+        return True
+    if word in ("false", "no", "off", "0"):
+        return False
+    raise ConfigError(f"bad value {value!r}", where, "give true or false")
+
+
+_FRAME_ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_./-]*$")
+
+
+def frame_name(value: Any, where: str) -> str | None:
+    """A tf2 frame id (a leading '/' of ROS 1 style is dropped: tf2 ids cannot start with one)."""
+    if value is None:
+        return None
+    name = str(value).strip().lstrip("/")
+    if not _FRAME_ID.match(name) or len(name) > 256:
+        raise ConfigError(f"bad frame name {value!r}", where,
+                          "use letters, digits, '_', '.', '/' or '-', e.g. camera_link")
+    return name
+
+
+def path(value: Any, where: str) -> str | None:
+    if value is None:
+        return None
+    if not isinstance(value, str) or not value.strip():
+        raise ConfigError(f"bad path {value!r}", where, "give a file name")
+    return value
+
+
+def weight_pair(value: Any, where: str) -> tuple[float, float]:
+    """Two non-negative numbers: a list ``[a, b]`` or the text ``a,b``."""
+    items = value.split(",") if isinstance(value, str) else value
+    try:
+        a, b = (float(v) for v in items)
+        ok = all(math.isfinite(v) and v >= 0 for v in (a, b)) and not any(isinstance(v, bool) for v in items)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ConfigError(f"bad weights {value!r}", where, "give two non-negative numbers a,b, e.g. 1,1")
+    return a, b
+
+
+_STRATEGY = re.compile(r"^(keyframes|consecutive|all|stride:[1-9][0-9]*|random:[1-9][0-9]*)$")
+
+
+def strategy(value: Any, where: str) -> str:
+    word = _words(value) or ""
+    if not _STRATEGY.match(word):
+        raise ConfigError(f"bad pair strategy {value!r}", where,
+                          "choose keyframes, consecutive, all, stride:K or random:N (K, N whole numbers ≥ 1)")
+    return word
+
+
+_CSV_KEYS = ("t", "t_unit", "x", "y", "z", "qx", "qy", "qz", "qw")
+
+
+def columns(value: Any, where: str) -> Mapping[str, str] | None:
+    """Generic CSV column names: a mapping, or the text ``t=time,x=px,…`` (keys t, t_unit, x…qw)."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        try:
+            value = dict(item.split("=", 1) for item in value.split(",") if item.strip())
+        except ValueError:
+            raise ConfigError(f"bad column mapping {value!r}", where, "write KEY=COLUMN,… e.g. t=time,x=px") from None
+    if not isinstance(value, Mapping) or not value:
+        raise ConfigError(f"bad column mapping {value!r}", where, f"map keys of {', '.join(_CSV_KEYS)} to columns")
+    unknown = sorted(set(map(str, value)) - set(_CSV_KEYS))
+    if unknown:
+        raise ConfigError(f"unknown CSV key(s) {', '.join(unknown)}", where, f"use {', '.join(_CSV_KEYS)}")
+    return {str(k).strip(): str(v).strip() for k, v in value.items()}
+
+
+@dataclass(frozen=True)
+class OptionInfo:
+    """How an option is parsed and shown: its parser, help text and command-line metavar."""
+
+    parse: Parser
+    help: str
+    metavar: str | None = None
+    choices: tuple[str, ...] = ()
+
+
+def option(default: Any, parse: Parser, help: str, metavar: str | None = None,
+           choices: tuple[str, ...] = ()) -> Any:
+    """A dataclass field carrying its :class:`OptionInfo`."""
+    return field(default=default, metadata={"info": OptionInfo(parse, help, metavar, choices)})
+
+
+@dataclass(frozen=True)
+class ReadOptions:
+    """How the streams are read: time stamps, and streams recorded as ``T_sensor_world``."""
+
+    time_source: str = option("header", choice("header", "log"),
+                              "Stamps: header (header.stamp) or log (the recorder's log time).",
+                              choices=("header", "log"))
+    invert_a: bool = option(False, flag, "Invert stream a first: it records T_sensor_world (e.g. a camera "
+                            "observing a fixed target).")
+    invert_b: bool = option(False, flag, "Invert stream b first.")
+    csv_columns: Mapping[str, str] | None = option(None, columns, "Generic CSV columns: t=COL,x=COL,…,qw=COL "
+                                                   "(keys t, t_unit, x, y, z, qx, qy, qz, qw).", "KEY=COL,…")
+
+
+@dataclass(frozen=True)
+class SyncOptions:
+    """Association of the two streams in time (paper §5: timestamp gate)."""
+
+    sync: str = option("interpolate", choice("interpolate", "nearest"),
+                       "Association of b to a's stamps: interpolate (linear + SLERP) or nearest.",
+                       choices=("interpolate", "nearest"))
+    max_dt: float = option(0.1, number(unit="seconds"), "Timestamp gate [s]: a sample is kept only if the "
+                           "samples of b it uses are this close.", "SECONDS")
+    time_offset: float | str = option(0.0, real(unit="seconds", word="auto"),
+                                      "How far b's clock is ahead of a's [s], or auto to estimate it.",
+                                      "SECONDS|auto")
+    max_time_offset: float | None = option(None, number(unit="seconds", word="off"),
+                                           "With --time-offset auto, search only ±this [s] (off: any).",
+                                           "SECONDS|off")
+
+
+@dataclass(frozen=True)
+class GateOptions:
+    """The paper's pose-jump gate on consecutive samples (off: keep every sample)."""
+
+    max_jump: float | None = option(0.10, number(unit="metres", word="off"), "Pose-jump gate, translation [m] "
+                                    "since the last kept sample, or off.", "METRES|off")
+    max_jump_deg: float | None = option(11.5, number(unit="degrees", word="off"),
+                                        "Pose-jump gate, rotation [deg], or off.", "DEGREES|off")
+
+
+@dataclass(frozen=True)
+class PairOptions:
+    """Which relative motions (pairs of samples) are solved."""
+
+    pairs: str = option("keyframes", strategy, "Pair strategy: keyframes | consecutive | stride:K | all | "
+                        "random:N.", "STRATEGY")
+    min_rotation: float = option(10.0, number(unit="degrees", strict=False),
+                                 "Least rotation of a pair [deg] (keyframes, all, random).", "DEGREES")
+    keyframe_rotation: float = option(5.0, number(unit="degrees"),
+                                      "A new keyframe once either sensor rotated this much [deg].", "DEGREES")
+    keyframe_translation: float = option(0.02, number(unit="metres"),
+                                         "... or moved this far [m].", "METRES")
+    max_pairs: int = option(2000, integer(low=1), "Cap on the number of pairs, spread over the recording.", "N")
+    seed: int = option(0, integer(), "Seed of random:N and of the bootstrap.", "N")
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """The solver and its cost (paper eqs 8, 26)."""
+
+    method: str = option("dqopt", choice(*METHODS), "Solver: dqopt is the global optimum (paper §4); the others "
+                         "are the paper's approximations and Daniilidis' method.", choices=tuple(METHODS))
+    alpha: float | str = option(1.0, number(unit="1/m", word="auto"),
+                                "Weight of translational residuals [1/m] (eq 8), or auto.", "NUMBER|auto")
+    prior: str | None = option(None, path, "Prior T_a_b file (a handeye result, or YAML with translation and "
+                               "quaternion_xyzw): fixes directions the motion cannot observe (eq 26).", "FILE")
+    prior_weights: tuple[float, float] = option((1.0, 1.0), weight_pair,
+                                                "Weights a,b of the prior's rotation and translation terms.", "A,B")
+    min_pairs: int = option(3, integer(low=2), "Fewer motion pairs than this is an error.", "N")
+
+
+@dataclass(frozen=True)
+class AnalysisOptions:
+    """What is checked after the solve."""
+
+    robust: bool = option(False, flag, "Reject outlier pairs before the final solve.")
+    bootstrap: int = option(0, integer(), "Uncertainty from N bootstrap resamples (0: off).", "N")
+    strict: bool = option(False, flag, "Exit with code 3 when there are warnings (degenerate motion, suspect "
+                          "residuals, doubtful time offset).")
+
+
+@dataclass(frozen=True)
+class OutputOptions:
+    """How the result names the frames."""
+
+    name_a: str | None = option(None, frame_name, "Name of frame a in the result and the ROS snippet [default: "
+                                "the stream's child frame, else its topic].", "FRAME")
+    name_b: str | None = option(None, frame_name, "Name of frame b in the result.", "FRAME")
+
+
+SECTIONS: dict[str, type] = {"read": ReadOptions, "sync": SyncOptions, "gates": GateOptions,
+                             "pairs": PairOptions, "solver": SolverOptions, "analysis": AnalysisOptions,
+                             "output": OutputOptions}
+FIELDS: dict[str, tuple[str, OptionInfo, Any]] = {
+    f.name: (section, f.metadata["info"], f.default) for section, cls in SECTIONS.items() for f in fields(cls)}
+
+
+@dataclass(frozen=True)
+class Options:
+    """All options of a calibration, one frozen dataclass per stage.
+
+    Build them with :meth:`from_flat` (keyword names as on the command line) or
+    :func:`handeye_cli.config.load_options` (defaults < preset < file < overrides)."""
+
+    read: ReadOptions = field(default_factory=ReadOptions)
+    sync: SyncOptions = field(default_factory=SyncOptions)
+    gates: GateOptions = field(default_factory=GateOptions)
+    pairs: PairOptions = field(default_factory=PairOptions)
+    solver: SolverOptions = field(default_factory=SolverOptions)
+    analysis: AnalysisOptions = field(default_factory=AnalysisOptions)
+    output: OutputOptions = field(default_factory=OutputOptions)
+
+    @classmethod
+    def from_flat(cls, base: Options | None = None, where: str = "", **values: Any) -> Options:
+        """``base`` (default: the defaults) with the options given by flat name, each parsed and
+        checked; ``where`` prefixes the name in errors (e.g. a file name)."""
+        out = base or cls()
+        grouped: dict[str, dict[str, Any]] = {}
+        for name, value in values.items():
+            if name not in FIELDS:
+                raise ConfigError(f"unknown option {name!r}", where or "options", _suggest(name))
+            section, info, _ = FIELDS[name]
+            grouped.setdefault(section, {})[name] = info.parse(value, f"{where}: {name}" if where else name)
+        return replace(out, **{s: replace(getattr(out, s), **v) for s, v in grouped.items()})
+
+    def flat(self) -> dict[str, Any]:
+        """Every option by its flat name (tuples as lists, mappings as dicts: ready for YAML/JSON)."""
+        out: dict[str, Any] = {}
+        for section in SECTIONS:
+            for f in fields(getattr(self, section)):
+                value = getattr(getattr(self, section), f.name)
+                out[f.name] = list(value) if isinstance(value, tuple) else (
+                    dict(value) if isinstance(value, Mapping) else value)
+        return out
+
+    def changed(self) -> dict[str, Any]:
+        """The options that differ from their defaults, by flat name."""
+        default = Options().flat()
+        return {k: v for k, v in self.flat().items() if v != default[k]}
+
+
+# Names of the grouped configuration layout before 0.2, with the one name each has now.
+RENAMED = {"max_translation": "max_jump", "max_rotation_deg": "max_jump_deg",
+           "strategy": "pairs", "min_rotation_deg": "min_rotation", "keyframe_rotation_deg": "keyframe_rotation",
+           "max_translation_m": "max_jump", "gates": "max_jump, max_jump_deg", "solver": "method, alpha, …",
+           "analysis": "robust, bootstrap, strict"}
+
+
+def _suggest(name: str) -> str:
+    if name in RENAMED:
+        return f"it is now {RENAMED[name]} (options are flat: one name per option, as the flag without '--')"
+    import difflib
+
+    close = difflib.get_close_matches(name, FIELDS, n=1)
+    return f"did you mean {close[0]}?" if close else "see configs/default.yaml for every option"

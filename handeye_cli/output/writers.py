@@ -1,0 +1,97 @@
+"""Where results go: stdout, a regular file (replaced atomically), or anything else written through.
+
+``-`` (or no path) is stdout. A regular file is written to a temporary file in its folder and
+renamed over the target, so a reader never sees half a result and a failure leaves the old file
+as it was. A FIFO, a character device (``/dev/null``, ``/dev/stdout``) or any other non-regular
+file is opened and written through: replacing it would destroy it. Every failure is a
+:class:`~handeye_cli.errors.WriteError` naming the path and the flag that chose it.
+"""
+from __future__ import annotations
+
+import os
+import stat
+import sys
+import tempfile
+from pathlib import Path
+
+from ..errors import ConfigError, WriteError
+
+__all__ = ["SUFFIXES", "output_format", "check_writable", "write_output"]
+
+SUFFIXES = {".yaml": "yaml", ".yml": "yaml", ".json": "json"}
+
+
+def _is_stdout(path: str | Path | None) -> bool:
+    return path is None or str(path) == "-"
+
+
+def output_format(path: str | Path | None, fmt: str | None, flag: str = "-o") -> str:
+    """The output format: ``fmt`` if given, else the one the file's suffix names, else YAML.
+    An unknown suffix is refused rather than silently written as YAML."""
+    if fmt:
+        return fmt
+    if _is_stdout(path):
+        return "yaml"
+    suffix = Path(str(path)).suffix.lower()
+    if suffix in SUFFIXES:
+        return SUFFIXES[suffix]
+    if not suffix or not Path(str(path)).exists() or Path(str(path)).is_file():
+        raise ConfigError(f"cannot tell the output format from {str(path)!r}", flag,
+                          f"name the file {'/'.join(SUFFIXES)} or pass --format")
+    return "yaml"    # a FIFO or device without a suffix: the default format
+
+
+def check_writable(path: str | Path | None, flag: str) -> None:
+    """Fail early — before any computation — when ``path`` cannot be written."""
+    if _is_stdout(path):
+        return
+    p = Path(str(path))
+    if p.exists() and not p.is_file():
+        if p.is_dir():
+            raise WriteError("the output path is a folder", str(p), f"give a file name to {flag}")
+        return                                        # FIFO / device: written through
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.is_dir():
+        what = "is not a folder" if folder.exists() else "does not exist"
+        raise WriteError(f"the output folder {what}", str(folder), f"create it or choose another {flag} path")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise WriteError("the output folder is not writable", str(folder), f"choose another {flag} path")
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _replace_atomically(p: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.chmod(tmp, 0o666 & ~_umask())          # mkstemp creates 0600; give the usual file mode
+        os.replace(tmp, p)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_output(path: str | Path | None, text: str, flag: str = "-o") -> None:
+    """Write ``text`` to stdout (``None`` or ``-``), through to a non-regular file, or atomically
+    to a regular file. Raises WriteError (one line, naming ``flag``) on failure."""
+    if _is_stdout(path):
+        sys.stdout.write(text)
+        sys.stdout.flush()
+        return
+    p = Path(str(path))
+    check_writable(p, flag)
+    try:
+        mode = os.stat(p).st_mode if p.exists() else None
+        if mode is not None and not stat.S_ISREG(mode):
+            with open(p, "w", encoding="utf-8") as f:       # FIFO, device, /dev/stdout: write through
+                f.write(text)
+        else:
+            _replace_atomically(p, text)
+    except OSError as e:
+        raise WriteError(f"cannot write ({e.strerror or e.__class__.__name__})", str(p),
+                         f"choose another {flag} path") from None
