@@ -29,9 +29,9 @@ from .options import Options
 from .output.document import result_document
 from .solvers import Prior, Solution, solve
 from .stages.counts import SampleCounts
-from .stages.gates import pose_jump_gate
+from .stages.gates import sync_and_gate
 from .stages.pairs import Pairs, make_pairs
-from .stages.sync import Synced, associate
+from .stages.sync import Synced
 from .streams import PoseStream
 
 __all__ = ["Calibration", "StreamSpec", "calibrate", "calibrate_files", "read_streams"]
@@ -173,15 +173,14 @@ def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options,
              offset_ns: int) -> tuple[Synced, Pairs, SampleCounts]:
     """Sync, gates and pair formation: (kept samples, pairs, counts of every stage)."""
     sync, gates, p = options.sync, options.gates, options.pairs
-    synced, sync_counts = associate(stream_a, stream_b, method=sync.sync, max_dt_ns=int(round(sync.max_dt * 1e9)),
-                                    time_offset_ns=offset_ns)
-    max_rot = None if gates.max_jump_deg is None else np.deg2rad(gates.max_jump_deg)
-    kept, jump_counts = pose_jump_gate(synced, max_translation_m=gates.max_jump, max_rotation_rad=max_rot)
+    kept, gate_counts = sync_and_gate(stream_a, stream_b, sync=sync.sync, max_dt_ns=sync.max_dt_ns,
+                                      time_offset_ns=offset_ns, gate=gates.effective_gate,
+                                      max_translation_m=gates.max_jump, max_rotation_rad=gates.max_jump_rad,
+                                      min_samples=options.solver.min_pairs + 1)
     pairs, pair_counts = make_pairs(kept, p.pairs, keyframe_rotation_rad=np.deg2rad(p.keyframe_rotation),
                                     keyframe_translation_m=p.keyframe_translation,
                                     min_rotation_rad=np.deg2rad(p.min_rotation), max_pairs=p.max_pairs, seed=p.seed)
-    samples = SampleCounts.of(sync_counts, jump_counts, pair_counts, synced_kept=len(kept),
-                              duplicates_dropped_a=stream_a.duplicates_dropped,
+    samples = SampleCounts.of(gate_counts, pair_counts, duplicates_dropped_a=stream_a.duplicates_dropped,
                               duplicates_dropped_b=stream_b.duplicates_dropped)
     if len(pairs) < options.solver.min_pairs:
         raise too_few_pairs(len(pairs), samples, options)
@@ -221,7 +220,7 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     offset_ns, offset_report, warnings = _time_offset(stream_a, stream_b, opts)
     kept, pairs, samples = pairs_of(stream_a, stream_b, opts, offset_ns)
     prior = _prior(opts)
-    diagnostics: dict[str, Any] = {"time_offset": offset_report}
+    diagnostics: dict[str, Any] = {"time_offset": offset_report, "sync": kept.describe()}
     solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, diagnostics)
 
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
