@@ -42,7 +42,7 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import ConfigError, DataError
 from ..streams import PoseStream
-from .sync import Synced, associate, rates_text
+from .sync import Synced, associate, median_step_ns, rates_text
 
 __all__ = ["GATES", "motion_gate", "paper_gate", "sync_and_gate", "THRESHOLD", "WINDOW"]
 
@@ -156,14 +156,16 @@ def paper_gate(stream: PoseStream, *, max_translation_m: float | None = 0.10,
     return _resolve(breaks(steps, steps + 1), accept_after, breaks)
 
 
-def _too_few(synced: int, kept: int, need: int, counts: dict[str, int], gate: str, gate_ns: str,
+def _too_few(kept: int, need: int, counts: dict[str, int], gate: str, max_dt_ns: int | None,
              steps: tuple[int, int]) -> DataError:
-    """The error when the gates leave fewer than ``need`` samples: what dropped them and which flags relax it."""
-    by_time = counts["dropped_timestamp_gate"] + counts["dropped_outside_span"]
+    """The error when the gates leave fewer than ``need`` samples: what dropped them, each stream's rate,
+    and which flags relax the gates."""
+    by_time = counts.get("dropped_timestamp_gate", 0) + counts.get("dropped_outside_span", 0)
     by_jump = counts["dropped_pose_jump"]
-    story = (f"{rates_text(steps)}; the timestamp gate ({gate_ns}) dropped {counts['dropped_timestamp_gate']} "
-             f"and {counts['dropped_outside_span']} lay outside the other stream's span; the pose-jump gate "
-             f"(--gate {gate}) dropped {by_jump} of {synced}")
+    dt = "the default max_dt" if max_dt_ns is None else f"max_dt {max_dt_ns / 1e9:g} s"
+    story = (f"{rates_text(steps)}; the timestamp gate ({dt}) dropped {counts.get('dropped_timestamp_gate', 0)} "
+             f"and {counts.get('dropped_outside_span', 0)} lay outside the other stream's span; the pose-jump gate "
+             f"(--gate {gate}) dropped {by_jump}")
     if by_jump > by_time:
         fix = ("the pose-jump gate dropped most: try --gate auto (it follows the sampling rate), --gate paper with "
                "--max-jump off --max-jump-deg off, or --gate off; if the streams are not aligned in time, "
@@ -192,6 +194,7 @@ def sync_and_gate(a: PoseStream, b: PoseStream, *, sync: str = "auto", max_dt_ns
     """
     if gate not in GATES:
         raise ConfigError(f"unknown pose-jump gate {gate!r}", "--gate", f"use one of {', '.join(GATES)}")
+    steps = (median_step_ns(a), median_step_ns(b))
     jumps: dict[str, int] = {"dropped_pose_jump": 0, "accepted_jumps": 0, "jumps_a": 0, "jumps_b": 0}
     seg: dict[str, Ints | None] = {"segment_a": None, "segment_b": None}
     if gate == "paper":
@@ -200,6 +203,8 @@ def sync_and_gate(a: PoseStream, b: PoseStream, *, sync: str = "auto", max_dt_ns
         a, b, seg = a.select(keep_a), b.select(keep_b), {"segment_a": seg_a[keep_a], "segment_b": seg_b[keep_b]}
         jumps.update(jumps_a=int((~keep_a).sum()), jumps_b=int((~keep_b).sum()), accepted_jumps=new_a + new_b)
         jumps["dropped_pose_jump"] = jumps["jumps_a"] + jumps["jumps_b"]
+        if min(len(a), len(b)) < min_samples:
+            raise _too_few(min(len(a), len(b)), min_samples, jumps, gate, max_dt_ns, steps)
     synced, counts = associate(a, b, method=sync, max_dt_ns=max_dt_ns, time_offset_ns=time_offset_ns, **seg)
     kept = synced
     if gate == "auto":
@@ -208,6 +213,5 @@ def sync_and_gate(a: PoseStream, b: PoseStream, *, sync: str = "auto", max_dt_ns
     counts = {**counts, **jumps, "read_a": counts["read_a"] + jumps["jumps_a"],
               "read_b": counts["read_b"] + jumps["jumps_b"], "synced_kept": len(kept)}
     if len(kept) < min_samples:
-        gate_ns = "default max_dt" if max_dt_ns is None else f"max_dt {max_dt_ns / 1e9:g} s"
-        raise _too_few(len(synced), len(kept), min_samples, counts, gate, gate_ns, synced.step_ns)
+        raise _too_few(len(kept), min_samples, counts, gate, max_dt_ns, steps)
     return kept, counts

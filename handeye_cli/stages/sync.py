@@ -128,8 +128,11 @@ def default_max_dt_ns(step_ns: int) -> int:
 
 def rates_text(step_ns: tuple[int, int]) -> str:
     """``"a 100 Hz, b 1 Hz"`` from the median steps [ns] of a and b."""
-    return ", ".join(f"{n} {1e9 / s:.3g} Hz" if s > 0 else f"{n} a single sample" for n, s in zip("ab", step_ns,
-                                                                                                strict=True))
+    def rate(step: int) -> str:
+        hz = 1e9 / step if step > 0 else 0.0
+        return "a single sample" if step <= 0 else f"{hz:.0f} Hz" if hz >= 10 else f"{hz:.2g} Hz"
+
+    return ", ".join(f"{name} {rate(step)}" for name, step in zip("ab", step_ns, strict=True))
 
 
 def _slerp(q_lo: Floats, q_hi: Floats, frac: Floats) -> Floats:
