@@ -44,8 +44,11 @@ _GRID_NS = 5_000_000          # grid step of the ω signals [ns]
 _MIN_WINDOW_NS = 100_000_000  # smallest differentiation window [ns]
 _BRACKET_NS = 50_000_000      # refinement bracket around the coarse estimate [ns]
 _MIN_OVERLAP = 1 / 3          # least overlap, as a fraction of the shorter signal, for a coarse lag
-_MAX_GAP_NS = 500_000_000     # data gaps longer than this invalidate the grid points across them
+_MAX_GAP_NS = 500_000_000     # data gaps longer than this and than _GAP_STEPS median steps invalidate the grid
+_GAP_STEPS = 2.5              # points across them (a slow stream's every step is not a gap)
 _MIN_SPAN_NS = 2_000_000_000  # shortest stream [ns] whose rotation can be correlated
+_STEP_REFINE_NS = 100_000_000  # a slower stream than 10 Hz is refined on its own steps too (_StepRefiner)
+_STEP_OUTLIER = 10.0          # steps whose residual exceeds this many medians are left out of it
 _TRUNCATE = 3.0               # the smoothing kernel reaches this many σ
 MIN_CORRELATION = 0.5         # a lower peak correlation of the angular speeds is an error
 _WEAK_CORRELATION = 0.8       # a lower one is a warning
@@ -87,12 +90,13 @@ class _Signal:
 
 
 def _bad_steps(stream: PoseStream) -> np.ndarray:
-    """bool[N-1]: steps i→i+1 that are data gaps or tracking jumps (rate > 5× local median + 1 rad/s)."""
+    """bool[N-1]: steps i→i+1 that are data gaps (longer than 0.5 s and 2.5 median steps) or tracking
+    jumps (rate > 5× local median + 1 rad/s)."""
     dt = np.diff(stream.stamps_ns)
     rot = Rotation.from_quat(stream.quat_xyzw)
     rate = (rot[:-1].inv() * rot[1:]).magnitude() / np.maximum(dt, 1) * 1e9
     local = ndimage.median_filter(rate, size=11, mode="nearest")
-    return (dt > _MAX_GAP_NS) | (rate > 5 * local + 1.0)
+    return (dt > max(_MAX_GAP_NS, _GAP_STEPS * np.median(dt))) | (rate > 5 * local + 1.0)
 
 
 def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float) -> _Signal:
@@ -224,6 +228,78 @@ class _Refiner:
         return float(np.sqrt(np.sum(per_block ** 2)) / max(np.sum(grad ** 2), 1e-300))
 
 
+class _StepRefiner:
+    """The cost ``J(τ) = min_R mean |r_fast,k(τ) − R r_slow,k|²`` over the slower stream's own steps.
+
+    ``r_slow,k`` is the rotation vector of the slower stream's motion between its samples k and
+    k+1, ``r_fast,k(τ)`` that of the faster stream between the same instants given the offset τ
+    (interpolated, accurate because its samples are close). For a rigid rig ``r_a = R_a_b r_b``.
+    Unlike ω sampled on a grid, nothing of the slower stream is interpolated, so the estimate
+    stays accurate when its samples are seconds apart. Steps across gaps or tracking jumps, and
+    steps whose residual at the starting τ exceeds ``_STEP_OUTLIER`` × the median, are left out.
+    """
+
+    def __init__(self, a: PoseStream, b: PoseStream, offset0_ns: float) -> None:
+        self.slow_is_b = _median_step(b) > _median_step(a)
+        slow, self.fast = (b, a) if self.slow_is_b else (a, b)
+        rot = Rotation.from_quat(slow.quat_xyzw)
+        good = ~_bad_steps(slow)
+        self.stamps = slow.stamps_ns
+        self.r_slow = (rot[:-1].inv() * rot[1:]).as_rotvec()
+        self.keep = good
+        found = self._residuals(offset0_ns)
+        if found is None:
+            raise HandEyeError("too little overlap to refine the time offset", "time offset",
+                               "give a fixed --time-offset")
+        steps, resid = found
+        norm = np.linalg.norm(resid, axis=1)
+        self.keep[steps[norm > _STEP_OUTLIER * np.median(norm)]] = False
+
+    def _residuals(self, offset_ns: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """(kept steps k inside the faster stream's span, residuals ``r_fast − R r_slow``) at ``offset_ns``."""
+        shift = -offset_ns if self.slow_is_b else offset_ns       # slow stamps in the fast stream's clock
+        t = self.stamps + int(round(shift))
+        inside, _, quat, _ = interpolate(self.fast, t)
+        both = inside[:-1] & inside[1:] & self.keep
+        if both.sum() < 10:
+            return None
+        q = np.full((len(t), 4), np.nan)
+        q[inside] = quat
+        k = np.flatnonzero(both)
+        r_fast = (Rotation.from_quat(q[k]).inv() * Rotation.from_quat(q[k + 1])).as_rotvec()
+        r_slow = self.r_slow[k]
+        u, _, vt = np.linalg.svd(r_fast.T @ r_slow)
+        d = 1.0 if np.linalg.det(u @ vt) >= 0 else -1.0
+        return k, r_fast - r_slow @ (u @ np.diag([1.0, 1.0, d]) @ vt).T
+
+    def cost(self, offset_ns: float) -> float:
+        found = self._residuals(offset_ns)
+        return np.inf if found is None else float(np.mean(found[1] ** 2))
+
+    def std_ns(self, offset_ns: float) -> float:
+        """1-σ [ns] by Gauss–Newton: residual variance over the squared sensitivity to the offset."""
+        h = 1e6                                                    # 1 ms finite difference
+        f0, f1 = self._residuals(offset_ns), self._residuals(offset_ns + h)
+        if f0 is None or f1 is None or f0[1].shape != f1[1].shape:
+            return float("nan")
+        r0, grad = f0[1], (f1[1] - f0[1]) / h
+        dof = max(r0.size - 4, 1)
+        return float(np.sqrt(np.sum(r0 ** 2) / dof / max(np.sum(grad ** 2), 1e-300)))
+
+
+def _median_step(stream: PoseStream) -> float:
+    return float(np.median(np.diff(stream.stamps_ns)))
+
+
+def _refine_on_steps(a: PoseStream, b: PoseStream, offset_ns: int) -> tuple[int, float]:
+    """(offset [ns], 1-σ [ns]) refined on the slower stream's steps within ±a quarter of its step."""
+    ref = _StepRefiner(a, b, offset_ns)
+    span = max(_BRACKET_NS, 0.25 * max(_median_step(a), _median_step(b)))
+    res = optimize.minimize_scalar(ref.cost, bounds=(offset_ns - span, offset_ns + span), method="bounded",
+                                   options={"xatol": 1e3})
+    return int(round(res.x)), ref.std_ns(float(res.x))
+
+
 def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | None = None) -> TimeOffset:
     """Estimate how far b's clock is ahead of a's (see the module docstring for the method).
 
@@ -257,8 +333,10 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
     res = optimize.minimize_scalar(ref.cost, bounds=(tau0 - span, tau0 + span), method="bounded",
                                    options={"xatol": 1e-6})
     tau = float(res.x)
-
-    return TimeOffset(offset_ns=int(ref.base_ns + round(tau * 1e9)), std_ns=ref.std_s(tau) * 1e9,
-                      coarse_ns=int(round(coarse_ns)), correlation=corr,
-                      method="angular-speed FFT cross-correlation + angular-velocity refinement",
-                      warnings=warnings)
+    offset_ns, std_ns = int(ref.base_ns + round(tau * 1e9)), ref.std_s(tau) * 1e9
+    method = "angular-speed FFT cross-correlation + angular-velocity refinement"
+    if max(intervals) > _STEP_REFINE_NS:
+        offset_ns, std_ns = _refine_on_steps(a, b, offset_ns)
+        method += " + refinement on the slower stream's steps"
+    return TimeOffset(offset_ns=offset_ns, std_ns=std_ns, coarse_ns=int(round(coarse_ns)), correlation=corr,
+                      method=method, warnings=warnings)
