@@ -13,7 +13,7 @@ from handeye_cli.errors import ConfigError, DataError
 from handeye_cli.simulation import Rig, random_transform
 from handeye_cli.simulation.rates import Jumps, simulate_rates
 from handeye_cli.stages import gates
-from handeye_cli.stages.gates import motion_gate, paper_gate, sync_and_gate
+from handeye_cli.stages.gates import pose_jump_gate, paper_gate, sync_and_gate
 from handeye_cli.stages.pairs import make_pairs
 from handeye_cli.stages.sync import associate
 from handeye_cli.streams import PoseStream
@@ -35,7 +35,7 @@ def test_auto_drops_the_slow_streams_jumps_and_only_them(slow: str, slow_hz: flo
     rec = simulate_rates(Rig(X), *rates, duration_s=120, seed=2, **{f"jumps_{slow}": Jumps(4)})
     synced, _ = associate(rec.a, rec.b)
     assert synced.reference == slow
-    kept, counts = motion_gate(synced)
+    kept, counts = pose_jump_gate(synced)
     jumped = getattr(rec, f"jumped_{slow}")
     slow_stamps = getattr(rec, slow).stamps_ns
     np.testing.assert_array_equal(np.sort(np.setdiff1d(synced.stamps_ns, kept.stamps_ns)),
@@ -46,7 +46,7 @@ def test_auto_drops_the_slow_streams_jumps_and_only_them(slow: str, slow_hz: flo
 @pytest.mark.parametrize("slow_hz", [5, 1, 0.5])
 def test_ordinary_motion_of_a_slow_stream_passes_auto_but_not_the_paper_gate(slow_hz: float) -> None:
     rec = simulate_rates(Rig(X), 100, slow_hz, duration_s=120, seed=3)
-    kept, counts = motion_gate(associate(rec.a, rec.b)[0])
+    kept, counts = pose_jump_gate(associate(rec.a, rec.b)[0])
     assert counts["dropped_pose_jump"] == 0
     keep, _, _ = paper_gate(rec.b)
     assert (~keep).mean() > (0.3 if slow_hz < 5 else 0.01)     # the paper's 10 cm / 11.5° are for ~5 Hz
@@ -59,7 +59,7 @@ def test_a_jump_in_the_fast_stream_is_caught_where_it_is_interpolated() -> None:
     xyz = a.xyz.copy()
     xyz[k] += [0.3, 0.0, 0.0]
     synced, _ = associate(PoseStream(a.stamps_ns, xyz, a.quat_xyzw), b)
-    kept, counts = motion_gate(synced)
+    kept, counts = pose_jump_gate(synced)
     assert counts["dropped_pose_jump"] == 1 and b.stamps_ns[40] not in kept.stamps_ns
 
 

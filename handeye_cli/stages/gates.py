@@ -44,7 +44,7 @@ from ..errors import ConfigError, DataError
 from ..streams import PoseStream
 from .sync import Synced, associate, median_step_ns, rates_text
 
-__all__ = ["GATES", "motion_gate", "paper_gate", "sync_and_gate", "THRESHOLD", "WINDOW"]
+__all__ = ["GATES", "pose_jump_gate", "paper_gate", "sync_and_gate", "robust_scores", "THRESHOLD", "WINDOW"]
 
 GATES = ("auto", "paper", "off")
 THRESHOLD = 16.0     # a step breaks the tracking beyond this many robust scales of its residual
@@ -72,6 +72,22 @@ def _residuals(synced: Synced, i: Ints, j: Ints) -> Floats:
     return np.abs(np.array(inv_a) - np.array(inv_b))
 
 
+def _scale(synced: Synced, window: int) -> Floats:
+    """(3, N-1) robust scale of each consecutive step's residuals: their running median over
+    ``window`` steps (mirrored at the ends), at least the floors."""
+    steps = np.arange(len(synced) - 1)
+    residual = _residuals(synced, steps, steps + 1)
+    return np.maximum(ndimage.median_filter(residual, size=(1, min(window, len(steps))), mode="mirror"),
+                      np.array(_FLOORS)[:, None])
+
+
+def robust_scores(synced: Synced, window: int = WINDOW) -> Floats:
+    """Per consecutive step, the largest of its invariant residuals in robust scales (what the
+    ``auto`` gate compares with ``THRESHOLD``); for benchmarks and diagnostics."""
+    steps = np.arange(len(synced) - 1)
+    return (_residuals(synced, steps, steps + 1) / _scale(synced, window)).max(axis=0)
+
+
 def _resolve(broken: Mask, accept_after: int, bridge_breaks: Callable[[Ints, Ints], Mask]
              ) -> tuple[Mask, Ints, int]:
     """Keep mask, non-decreasing segments and new segments from the broken steps (module docstring).
@@ -94,7 +110,7 @@ def _resolve(broken: Mask, accept_after: int, bridge_breaks: Callable[[Ints, Int
     return keep, np.maximum.accumulate(segment), int(new.sum())
 
 
-def motion_gate(synced: Synced, *, threshold: float = THRESHOLD, window: int = WINDOW, accept_after: int = 3
+def pose_jump_gate(synced: Synced, *, threshold: float = THRESHOLD, window: int = WINDOW, accept_after: int = 3
                 ) -> tuple[Synced, dict[str, int]]:
     """The ``auto`` gate: drop synchronised samples whose motion disagrees with the other stream's.
 
@@ -112,15 +128,13 @@ def motion_gate(synced: Synced, *, threshold: float = THRESHOLD, window: int = W
     n = len(synced)
     if n < 3:
         return synced, {"dropped_pose_jump": 0, "accepted_jumps": 0}
-    steps = np.arange(n - 1)
-    residual = _residuals(synced, steps, steps + 1)
-    scale = np.maximum(ndimage.median_filter(residual, size=(1, min(window, n - 1)), mode="mirror"),
-                       np.array(_FLOORS)[:, None])
+    scale = _scale(synced, window)
 
     def breaks(i: Ints, j: Ints) -> Mask:
         return (_residuals(synced, i, j) > threshold * scale[:, i]).any(axis=0)
 
-    keep, segment, accepted = _resolve((residual > threshold * scale).any(axis=0), accept_after, breaks)
+    steps = np.arange(n - 1)
+    keep, segment, accepted = _resolve(breaks(steps, steps + 1), accept_after, breaks)
     out = synced.select(keep)
     out = Synced(out.stamps_ns, out.xyz_a, out.quat_a, out.xyz_b, out.quat_b, out.dt_ns,
                  out.segment + segment[keep], out.reference, out.step_ns)
@@ -184,7 +198,7 @@ def sync_and_gate(a: PoseStream, b: PoseStream, *, sync: str = "auto", max_dt_ns
     association, ``"auto"`` on the synchronised samples after it, ``"off"`` not at all.
 
     Arguments as :func:`handeye_cli.stages.sync.associate`, :func:`paper_gate` (the limits, which
-    only the paper gate uses) and :func:`motion_gate`. Returns (kept samples, counts of
+    only the paper gate uses) and :func:`pose_jump_gate`. Returns (kept samples, counts of
     ``SampleCounts``: read, synced, dropped per gate, jumps per stream (paper gate), synced_kept).
 
     Raises
@@ -208,7 +222,7 @@ def sync_and_gate(a: PoseStream, b: PoseStream, *, sync: str = "auto", max_dt_ns
     synced, counts = associate(a, b, method=sync, max_dt_ns=max_dt_ns, time_offset_ns=time_offset_ns, **seg)
     kept = synced
     if gate == "auto":
-        kept, found = motion_gate(synced)
+        kept, found = pose_jump_gate(synced)
         jumps.update(found)
     counts = {**counts, **jumps, "read_a": counts["read_a"] + jumps["jumps_a"],
               "read_b": counts["read_b"] + jumps["jumps_b"], "synced_kept": len(kept)}

@@ -47,7 +47,9 @@ _MIN_OVERLAP = 1 / 3          # least overlap, as a fraction of the shorter sign
 _MAX_GAP_NS = 500_000_000     # data gaps longer than this and than _GAP_STEPS median steps invalidate the grid
 _GAP_STEPS = 2.5              # points across them (a slow stream's every step is not a gap)
 _MIN_SPAN_NS = 2_000_000_000  # shortest stream [ns] whose rotation can be correlated
-_STEP_REFINE_NS = 100_000_000  # a slower stream than 10 Hz is refined on its own steps too (_StepRefiner)
+_STEP_REFINE_NS = 100_000_000  # a stream slower than 10 Hz: ω estimate refined on its own steps (_StepRefiner)
+_STEP_SCAN_NS = 250_000_000    # slower than 4 Hz: ω is too coarse to correlate, the steps are scanned instead
+_SCAN_NS = 100_000_000         # largest grid spacing of that scan [ns]
 _STEP_OUTLIER = 10.0          # steps whose residual exceeds this many medians are left out of it
 _TRUNCATE = 3.0               # the smoothing kernel reaches this many σ
 MIN_CORRELATION = 0.5         # a lower peak correlation of the angular speeds is an error
@@ -235,46 +237,92 @@ class _StepRefiner:
     k+1, ``r_fast,k(τ)`` that of the faster stream between the same instants given the offset τ
     (interpolated, accurate because its samples are close). For a rigid rig ``r_a = R_a_b r_b``.
     Unlike ω sampled on a grid, nothing of the slower stream is interpolated, so the estimate
-    stays accurate when its samples are seconds apart. Steps across gaps or tracking jumps, and
-    steps whose residual at the starting τ exceeds ``_STEP_OUTLIER`` × the median, are left out.
+    stays accurate when its samples are seconds apart. Steps across gaps or tracking jumps are
+    left out, and so are (:meth:`drop_outliers`) steps whose residual exceeds ``_STEP_OUTLIER`` ×
+    the median at a good offset.
     """
 
-    def __init__(self, a: PoseStream, b: PoseStream, offset0_ns: float) -> None:
+    def __init__(self, a: PoseStream, b: PoseStream) -> None:
         self.slow_is_b = _median_step(b) > _median_step(a)
         slow, self.fast = (b, a) if self.slow_is_b else (a, b)
         rot = Rotation.from_quat(slow.quat_xyzw)
-        good = ~_bad_steps(slow)
         self.stamps = slow.stamps_ns
         self.r_slow = (rot[:-1].inv() * rot[1:]).as_rotvec()
-        self.keep = good
-        found = self._residuals(offset0_ns)
-        if found is None:
-            raise HandEyeError("too little overlap to refine the time offset", "time offset",
-                               "give a fixed --time-offset")
-        steps, resid = found
-        norm = np.linalg.norm(resid, axis=1)
-        self.keep[steps[norm > _STEP_OUTLIER * np.median(norm)]] = False
+        self.keep = ~_bad_steps(slow)
+        self.step_ns = _median_step(slow)
+
+    def offset_range(self, max_offset_ns: int | None) -> tuple[float, float]:
+        """Offsets [ns] at which at least a third of the shorter stream's span overlaps the other."""
+        fast = self.fast.stamps_ns
+        third = min(self.stamps[-1] - self.stamps[0], fast[-1] - fast[0]) / 3
+        lo, hi = fast[0] - self.stamps[-1] + third, fast[-1] - self.stamps[0] - third   # shift of slow stamps
+        lo, hi = (-hi, -lo) if self.slow_is_b else (lo, hi)
+        if max_offset_ns is not None:
+            lo, hi = max(lo, -max_offset_ns), min(hi, max_offset_ns)
+        return float(lo), float(hi)
 
     def _residuals(self, offset_ns: float) -> tuple[np.ndarray, np.ndarray] | None:
-        """(kept steps k inside the faster stream's span, residuals ``r_fast − R r_slow``) at ``offset_ns``."""
-        shift = -offset_ns if self.slow_is_b else offset_ns       # slow stamps in the fast stream's clock
-        t = self.stamps + int(round(shift))
+        """(kept steps k inside the faster stream's span, residuals ``r_fast − R r_slow``) at ``offset_ns``,
+        or None when fewer than a third of the kept steps (or 10) are inside."""
+        t = self.stamps + int(round(-offset_ns if self.slow_is_b else offset_ns))    # in the fast stream's clock
         inside, _, quat, _ = interpolate(self.fast, t)
         both = inside[:-1] & inside[1:] & self.keep
-        if both.sum() < 10:
+        if both.sum() < max(10, self.keep.sum() / 3):
             return None
-        q = np.full((len(t), 4), np.nan)
+        q = np.zeros((len(t), 4))
         q[inside] = quat
         k = np.flatnonzero(both)
         r_fast = (Rotation.from_quat(q[k]).inv() * Rotation.from_quat(q[k + 1])).as_rotvec()
-        r_slow = self.r_slow[k]
-        u, _, vt = np.linalg.svd(r_fast.T @ r_slow)
+        u, _, vt = np.linalg.svd(r_fast.T @ self.r_slow[k])
         d = 1.0 if np.linalg.det(u @ vt) >= 0 else -1.0
-        return k, r_fast - r_slow @ (u @ np.diag([1.0, 1.0, d]) @ vt).T
+        return k, r_fast - self.r_slow[k] @ (u @ np.diag([1.0, 1.0, d]) @ vt).T
 
     def cost(self, offset_ns: float) -> float:
+        """Mean squared residual [rad²] (``inf`` without enough overlap)."""
         found = self._residuals(offset_ns)
         return np.inf if found is None else float(np.mean(found[1] ** 2))
+
+    def robust_cost(self, offset_ns: float) -> float:
+        """Median squared residual norm [rad²]: tracking jumps do not move it (``inf`` without enough overlap)."""
+        found = self._residuals(offset_ns)
+        return np.inf if found is None else float(np.median(np.sum(found[1] ** 2, axis=1)))
+
+    def scan(self, max_offset_ns: int | None) -> float:
+        """The offset [ns] of the least median squared residual on a grid over every allowed offset."""
+        lo, hi = self.offset_range(max_offset_ns)
+        spacing = min(_SCAN_NS, self.step_ns / 4)
+        grid = np.arange(lo, hi + spacing, spacing)
+        if len(grid) == 0:
+            raise HandEyeError("the streams are too short or too gappy to correlate their rotations", "time offset",
+                               "give a fixed --time-offset, or widen --max-time-offset")
+        return float(grid[int(np.argmin([self.robust_cost(o) for o in grid]))])
+
+    def drop_outliers(self, offset_ns: float) -> None:
+        """Leave out the steps whose residual at ``offset_ns`` exceeds ``_STEP_OUTLIER`` × the median."""
+        found = self._residuals(offset_ns)
+        if found is not None:
+            norm = np.linalg.norm(found[1], axis=1)
+            self.keep[found[0][norm > _STEP_OUTLIER * np.median(norm)]] = False
+
+    def correlation(self, offset_ns: float) -> float:
+        """Pearson correlation of the two streams' step angles at ``offset_ns``."""
+        found = self._residuals(offset_ns)
+        if found is None:
+            return 0.0
+        k, resid = found
+        slow = np.linalg.norm(self.r_slow[k], axis=1)
+        fast = np.linalg.norm(resid + self.r_slow[k] @ np.eye(3), axis=1)    # |r_fast| (R preserves norms)
+        return float(np.corrcoef(fast, slow)[0, 1]) if np.std(slow) > 0 and np.std(fast) > 0 else 0.0
+
+    def refine(self, offset_ns: float, span_ns: float) -> tuple[int, float]:
+        """(offset [ns], 1-σ [ns]): Brent's method within ±``span_ns`` of ``offset_ns``, first on the
+        robust cost, then, without the outlying steps there, on the mean within a tenth of the span."""
+        kw: dict = {"method": "bounded", "options": {"xatol": 1e3}}
+        rough = float(optimize.minimize_scalar(self.robust_cost, bounds=(offset_ns - span_ns, offset_ns + span_ns),
+                                               **kw).x)
+        self.drop_outliers(rough)
+        res = optimize.minimize_scalar(self.cost, bounds=(rough - span_ns / 10, rough + span_ns / 10), **kw)
+        return int(round(res.x)), self.std_ns(float(res.x))
 
     def std_ns(self, offset_ns: float) -> float:
         """1-σ [ns] by Gauss–Newton: residual variance over the squared sensitivity to the offset."""
@@ -291,13 +339,21 @@ def _median_step(stream: PoseStream) -> float:
     return float(np.median(np.diff(stream.stamps_ns)))
 
 
-def _refine_on_steps(a: PoseStream, b: PoseStream, offset_ns: int) -> tuple[int, float]:
-    """(offset [ns], 1-σ [ns]) refined on the slower stream's steps within ±a quarter of its step."""
-    ref = _StepRefiner(a, b, offset_ns)
-    span = max(_BRACKET_NS, 0.25 * max(_median_step(a), _median_step(b)))
-    res = optimize.minimize_scalar(ref.cost, bounds=(offset_ns - span, offset_ns + span), method="bounded",
-                                   options={"xatol": 1e3})
-    return int(round(res.x)), ref.std_ns(float(res.x))
+def _on_steps(a: PoseStream, b: PoseStream, max_offset_ns: int | None) -> TimeOffset:
+    """The estimate for a slow stream (< 4 Hz): scan and refine on its own steps (:class:`_StepRefiner`)."""
+    ref = _StepRefiner(a, b)
+    coarse = ref.scan(max_offset_ns)
+    offset_ns, std_ns = ref.refine(coarse, min(_SCAN_NS, ref.step_ns / 4))
+    corr = ref.correlation(offset_ns)
+    if corr < MIN_CORRELATION:
+        raise HandEyeError(
+            f"the two streams' step rotations do not correlate (peak {corr:.2f} < {MIN_CORRELATION})",
+            "time offset", "the sensors must rotate (linear motion carries no timing information) and "
+            "record the same motion; otherwise give a fixed --time-offset")
+    warnings = (f"weak step-rotation correlation {corr:.2f}: the time offset may be wrong",) \
+        if corr < _WEAK_CORRELATION else ()
+    return TimeOffset(offset_ns=offset_ns, std_ns=std_ns, coarse_ns=int(round(coarse)), correlation=corr,
+                      method="scan + refinement on the slower stream's step rotations", warnings=warnings)
 
 
 def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | None = None) -> TimeOffset:
@@ -320,11 +376,13 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
                                "to estimate a time offset", stream.source or f"stream {name}",
                                f"record at least {_MIN_SPAN_NS / 1e9:.0f} s of rotation, or give a fixed --time-offset")
     intervals = [np.median(np.diff(s.stamps_ns)) for s in (a, b)]
+    max_ns = None if max_offset_s is None else int(round(max_offset_s * 1e9))
+    if max(intervals) > _STEP_SCAN_NS:
+        return _on_steps(a, b, max_ns)
     window = int(max(_MIN_WINDOW_NS, 3 * max(intervals)))
     window -= window % (2 * _GRID_NS)
     smooth = float(max(intervals))
     sa, sb = angular_velocity(a, window, smooth), angular_velocity(b, window, smooth)
-    max_ns = None if max_offset_s is None else int(round(max_offset_s * 1e9))
     coarse_ns, corr, warnings = _coarse(sa, sb, max_ns)
 
     ref = _Refiner(sa, sb, coarse_ns)
@@ -336,7 +394,7 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
     offset_ns, std_ns = int(ref.base_ns + round(tau * 1e9)), ref.std_s(tau) * 1e9
     method = "angular-speed FFT cross-correlation + angular-velocity refinement"
     if max(intervals) > _STEP_REFINE_NS:
-        offset_ns, std_ns = _refine_on_steps(a, b, offset_ns)
-        method += " + refinement on the slower stream's steps"
+        offset_ns, std_ns = _StepRefiner(a, b).refine(offset_ns, _BRACKET_NS)
+        method += " + refinement on the slower stream's step rotations"
     return TimeOffset(offset_ns=offset_ns, std_ns=std_ns, coarse_ns=int(round(coarse_ns)), correlation=corr,
                       method=method, warnings=warnings)
