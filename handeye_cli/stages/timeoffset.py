@@ -49,7 +49,8 @@ _GAP_STEPS = 2.5              # points across them (a slow stream's every step i
 _MIN_SPAN_NS = 2_000_000_000  # shortest stream [ns] whose rotation can be correlated
 _STEP_REFINE_NS = 100_000_000  # a stream slower than 10 Hz: ω estimate refined on its own steps (_StepRefiner)
 _STEP_SCAN_NS = 250_000_000    # slower than 4 Hz: ω is too coarse to correlate, the steps are scanned instead
-_SCAN_NS = 100_000_000         # largest grid spacing of that scan [ns]
+_SCAN_NS = 250_000_000         # grid spacing of that scan [ns]: the robust cost is unimodal within ±this
+_SCAN_STEPS = 200              # steps the scan evaluates (evenly spread)
 _STEP_OUTLIER = 10.0          # steps whose residual exceeds this many medians are left out of it
 _TRUNCATE = 3.0               # the smoothing kernel reaches this many σ
 MIN_CORRELATION = 0.5         # a lower peak correlation of the angular speeds is an error
@@ -249,7 +250,6 @@ class _StepRefiner:
         self.stamps = slow.stamps_ns
         self.r_slow = (rot[:-1].inv() * rot[1:]).as_rotvec()
         self.keep = ~_bad_steps(slow)
-        self.step_ns = _median_step(slow)
 
     def offset_range(self, max_offset_ns: int | None) -> tuple[float, float]:
         """Offsets [ns] at which at least a third of the shorter stream's span overlaps the other."""
@@ -288,14 +288,43 @@ class _StepRefiner:
         return np.inf if found is None else float(np.median(np.sum(found[1] ** 2, axis=1)))
 
     def scan(self, max_offset_ns: int | None) -> float:
-        """The offset [ns] of the least median squared residual on a grid over every allowed offset."""
+        """The offset [ns] of the least median squared residual on a grid over every allowed offset.
+
+        Vectorised over blocks of offsets, on at most ``_SCAN_STEPS`` evenly spread kept steps."""
         lo, hi = self.offset_range(max_offset_ns)
-        spacing = min(_SCAN_NS, self.step_ns / 4)
+        spacing = _SCAN_NS
         grid = np.arange(lo, hi + spacing, spacing)
-        if len(grid) == 0:
+        steps = np.flatnonzero(self.keep)
+        steps = steps[np.linspace(0, len(steps) - 1, min(len(steps), _SCAN_STEPS)).astype(np.int64)]
+        if len(grid) == 0 or len(steps) < 10:
             raise HandEyeError("the streams are too short or too gappy to correlate their rotations", "time offset",
                                "give a fixed --time-offset, or widen --max-time-offset")
-        return float(grid[int(np.argmin([self.robust_cost(o) for o in grid]))])
+        block = max(1, 50_000 // len(steps))
+        costs = np.concatenate([self._median_costs(grid[i:i + block], steps) for i in range(0, len(grid), block)])
+        return float(grid[int(np.argmin(costs))])
+
+    def _median_costs(self, offsets: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        """:meth:`robust_cost` at each of ``offsets`` [ns] on the given steps (``inf`` where fewer than a
+        third of them lie inside the faster stream's span)."""
+        sign = -1 if self.slow_is_b else 1
+        t = self.stamps[np.r_[steps, steps + 1]][None, :] + np.round(sign * offsets).astype(np.int64)[:, None]
+        inside, _, quat, _ = interpolate(self.fast, t.ravel())
+        q = np.zeros((t.size, 4))
+        q[:, 3] = 1.0
+        q[inside] = quat
+        q = q.reshape(len(offsets), 2, len(steps), 4)
+        ok = inside.reshape(len(offsets), 2, len(steps)).all(axis=1)
+        r_fast = (Rotation.from_quat(q[:, 0].reshape(-1, 4)).inv() * Rotation.from_quat(q[:, 1].reshape(-1, 4))
+                  ).as_rotvec().reshape(len(offsets), len(steps), 3)
+        r_slow = np.where(ok[..., None], self.r_slow[steps][None], 0.0)
+        u, _, vt = np.linalg.svd(np.einsum("gsi,gsj->gij", r_fast, r_slow))
+        d = np.where(np.linalg.det(u @ vt) >= 0, 1.0, -1.0)
+        R = u @ (np.eye(3)[None] * np.stack([np.ones_like(d), np.ones_like(d), d], axis=1)[:, None, :]) @ vt
+        resid = np.sum((r_fast - np.einsum("gij,gsj->gsi", R, r_slow)) ** 2, axis=2)
+        enough = ok.sum(axis=1) >= len(steps) / 3
+        cost = np.full(len(offsets), np.inf)
+        cost[enough] = np.nanmedian(np.where(ok[enough], resid[enough], np.nan), axis=1)
+        return cost
 
     def drop_outliers(self, offset_ns: float) -> None:
         """Leave out the steps whose residual at ``offset_ns`` exceeds ``_STEP_OUTLIER`` × the median."""
@@ -343,7 +372,7 @@ def _on_steps(a: PoseStream, b: PoseStream, max_offset_ns: int | None) -> TimeOf
     """The estimate for a slow stream (< 4 Hz): scan and refine on its own steps (:class:`_StepRefiner`)."""
     ref = _StepRefiner(a, b)
     coarse = ref.scan(max_offset_ns)
-    offset_ns, std_ns = ref.refine(coarse, min(_SCAN_NS, ref.step_ns / 4))
+    offset_ns, std_ns = ref.refine(coarse, _SCAN_NS)
     corr = ref.correlation(offset_ns)
     if corr < MIN_CORRELATION:
         raise HandEyeError(
