@@ -9,8 +9,8 @@ stream, for 100 Hz against 100 … 0.5 Hz in both orders, prints:
    one stream's own motion must separate a 0.3 m / 20° jump from — and, on the synchronised
    samples, the 99th percentile of the ``auto`` gate's residuals in robust scales against the
    smallest residual of a jumped sample;
-2. the gates: samples each gate (``auto``, ``paper``) dropped that were clean, and jumped samples
-   it kept;
+2. the gates: clean samples each gate (``auto``, ``paper``) dropped (FP), and jumped samples it kept
+   (FN; for ``auto`` also samples interpolated from a jumped sample at a weight ≥ 0.25);
 3. calibration error (rotation [deg] / translation [mm], mean over ``--seeds``) with the default
    flags, with the flags of before (``--sync interpolate --max-dt 0.1 --gate paper``), and with
    the best hand-tuned flags (``--sync interpolate|nearest`` with ``--max-dt`` 1.2 slow steps,
@@ -72,15 +72,21 @@ def gate_evidence(rec: RateRecording) -> tuple[float, float, int, int, int, int]
     samples dropped / jumped samples kept by the auto and by the paper gate."""
     synced, _ = associate(rec.a, rec.b)
     slow, jumped = (rec.b, rec.jumped_b) if synced.reference == "b" else (rec.a, rec.jumped_a)
-    bad = np.isin(synced.stamps_ns, slow.stamps_ns[jumped])
+    fast, fast_jumped = (rec.a, rec.jumped_a) if synced.reference == "b" else (rec.b, rec.jumped_b)
+    lo = np.clip(np.searchsorted(fast.stamps_ns, synced.stamps_ns, side="right") - 1, 0, len(fast) - 2)
+    frac = (synced.stamps_ns - fast.stamps_ns[lo]) / (fast.stamps_ns[lo + 1] - fast.stamps_ns[lo])
+    weight = np.where(fast_jumped[lo], 1 - frac, 0.0) + np.where(fast_jumped[lo + 1], frac, 0.0)
+    bad = np.isin(synced.stamps_ns, slow.stamps_ns[jumped]) | (weight >= 0.25)
+    clean = ~bad & (weight == 0)             # samples interpolated from a jump at a weight < 0.25 count as neither
     steps = np.arange(len(synced) - 1)
     z = gates.robust_scores(synced)
-    clean_step = ~(bad[steps] | bad[steps + 1])
+    clean_step = clean[steps] & clean[steps + 1]
     kept, _ = gates.pose_jump_gate(synced)
     kept_auto = np.isin(synced.stamps_ns, kept.stamps_ns)
     keep_slow = gates.paper_gate(slow)[0]
-    return (float(np.percentile(z[clean_step], 99)), float(z[~clean_step].min()) if (~clean_step).any() else np.nan,
-            int((~kept_auto & ~bad).sum()), int((kept_auto & bad).sum()),
+    jump_step = bad[steps] | bad[steps + 1]
+    return (float(np.percentile(z[clean_step], 99)), float(z[jump_step].min()) if jump_step.any() else np.nan,
+            int((~kept_auto & clean).sum()), int((kept_auto & bad).sum()),
             int((~keep_slow & ~jumped).sum()), int((keep_slow & jumped).sum()))
 
 
