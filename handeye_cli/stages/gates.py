@@ -6,10 +6,10 @@
     angle and translate equally along their rotation axis (``t_A·r_A = t_B·r_B`` with ``r`` the
     rotation vector), and without rotation ``|t_A| = |t_B|``. For each step between consecutive
     synchronised samples the gate measures how far these invariants disagree and compares the
-    disagreement with its own robust scale: the running median over ``WINDOW`` steps of the same
-    residual. A step whose residual exceeds ``THRESHOLD`` × that scale breaks the tracking. The
-    test needs neither the extrinsic nor a model of the motion, so it works at any sampling
-    interval: measured on the issue-13 simulation (hand-held motion, 0.02°/0.5 mm noise, 100 Hz
+    disagreement with its own robust scale: the median of the same residual over the block of
+    ``WINDOW`` consecutive steps around it. A step whose residual exceeds ``THRESHOLD`` × that
+    scale breaks the tracking. The test needs neither the extrinsic nor a model of the motion, so
+    it works at any sampling interval: measured on the issue-13 simulation (hand-held motion, 0.02°/0.5 mm noise, 100 Hz
     against 100…0.5 Hz), clean steps stay below ~10 scales while a 0.3 m / 20° jump lies at
     50–1400 scales, where a stream's own constant-velocity prediction already errs by 0.2–2 m and
     20–140° between samples at 2–0.5 Hz (benchmarks/rates.py prints both).
@@ -37,7 +37,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
 from ..errors import ConfigError, DataError
@@ -48,7 +47,7 @@ __all__ = ["GATES", "pose_jump_gate", "paper_gate", "sync_and_gate", "robust_sco
 
 GATES = ("auto", "paper", "off")
 THRESHOLD = 16.0     # a step breaks the tracking beyond this many robust scales of its residual
-WINDOW = 51          # steps in the running median that gives the robust scale
+WINDOW = 51          # steps per block whose median gives the robust scale
 # Smallest scales: below them residuals are rounding and interpolation error (noise-free data).
 _FLOORS = (1e-5, 1e-7, 1e-5)    # rotation angle [rad], t·r [m·rad], |t| [m]
 
@@ -72,20 +71,21 @@ def _residuals(synced: Synced, i: Ints, j: Ints) -> Floats:
     return np.abs(np.array(inv_a) - np.array(inv_b))
 
 
-def _scale(synced: Synced, window: int) -> Floats:
-    """(3, N-1) robust scale of each consecutive step's residuals: their running median over
-    ``window`` steps (mirrored at the ends), at least the floors."""
-    steps = np.arange(len(synced) - 1)
-    residual = _residuals(synced, steps, steps + 1)
-    return np.maximum(ndimage.median_filter(residual, size=(1, min(window, len(steps))), mode="mirror"),
-                      np.array(_FLOORS)[:, None])
+def _scale(residual: Floats, window: int) -> Floats:
+    """(3, M) robust scale of the residuals of M consecutive steps: the median of the block of about
+    ``window`` steps each step lies in (the last block takes the remainder), at least the floors."""
+    m = residual.shape[1]
+    blocks = max(m // window, 1)
+    med = np.median(residual[:, : blocks * (m // blocks)].reshape(3, blocks, -1), axis=2)
+    return np.maximum(med[:, np.minimum(np.arange(m) // (m // blocks), blocks - 1)], np.array(_FLOORS)[:, None])
 
 
 def robust_scores(synced: Synced, window: int = WINDOW) -> Floats:
     """Per consecutive step, the largest of its invariant residuals in robust scales (what the
     ``auto`` gate compares with ``THRESHOLD``); for benchmarks and diagnostics."""
     steps = np.arange(len(synced) - 1)
-    return (_residuals(synced, steps, steps + 1) / _scale(synced, window)).max(axis=0)
+    residual = _residuals(synced, steps, steps + 1)
+    return (residual / _scale(residual, window)).max(axis=0)
 
 
 def _resolve(broken: Mask, accept_after: int, bridge_breaks: Callable[[Ints, Ints], Mask]
@@ -118,7 +118,7 @@ def pose_jump_gate(synced: Synced, *, threshold: float = THRESHOLD, window: int 
     ----------
     synced: both streams at common stamps (see :func:`handeye_cli.stages.sync.associate`).
     threshold: a step breaks the tracking when a residual exceeds this many robust scales.
-    window: steps in the running median giving each step's robust scale.
+    window: steps per block whose median gives each step's robust scale.
     accept_after: the fewest consecutive consistent samples kept after a break (≥ 1).
 
     Returns
@@ -128,13 +128,14 @@ def pose_jump_gate(synced: Synced, *, threshold: float = THRESHOLD, window: int 
     n = len(synced)
     if n < 3:
         return synced, {"dropped_pose_jump": 0, "accepted_jumps": 0}
-    scale = _scale(synced, window)
+    steps = np.arange(n - 1)
+    residual = _residuals(synced, steps, steps + 1)
+    limit = threshold * _scale(residual, window)
 
     def breaks(i: Ints, j: Ints) -> Mask:
-        return (_residuals(synced, i, j) > threshold * scale[:, i]).any(axis=0)
+        return (_residuals(synced, i, j) > limit[:, i]).any(axis=0)
 
-    steps = np.arange(n - 1)
-    keep, segment, accepted = _resolve(breaks(steps, steps + 1), accept_after, breaks)
+    keep, segment, accepted = _resolve((residual > limit).any(axis=0), accept_after, breaks)
     out = synced.select(keep)
     out = Synced(out.stamps_ns, out.xyz_a, out.quat_a, out.xyz_b, out.quat_b, out.dt_ns,
                  out.segment + segment[keep], out.reference, out.step_ns)
