@@ -133,9 +133,9 @@ def pose_jump_gate(synced: Synced, *, threshold: float = THRESHOLD, window: int 
     limit = threshold * _scale(residual, window)
 
     def breaks(i: Ints, j: Ints) -> Mask:
-        return (_residuals(synced, i, j) > limit[:, i]).any(axis=0)
+        return np.asarray((_residuals(synced, i, j) > limit[:, i]).any(axis=0))
 
-    keep, segment, accepted = _resolve((residual > limit).any(axis=0), accept_after, breaks)
+    keep, segment, accepted = _resolve(np.asarray((residual > limit).any(axis=0)), accept_after, breaks)
     out = synced.select(keep)
     out = Synced(out.stamps_ns, out.xyz_a, out.quat_a, out.xyz_b, out.quat_b, out.dt_ns,
                  out.segment + segment[keep], out.reference, out.step_ns)
@@ -213,8 +213,8 @@ def sync_and_gate(a: PoseStream, b: PoseStream, *, sync: str = "auto", max_dt_ns
     jumps: dict[str, int] = {"dropped_pose_jump": 0, "accepted_jumps": 0, "jumps_a": 0, "jumps_b": 0}
     seg: dict[str, Ints | None] = {"segment_a": None, "segment_b": None}
     if gate == "paper":
-        limits = dict(max_translation_m=max_translation_m, max_rotation_rad=max_rotation_rad)
-        (keep_a, seg_a, new_a), (keep_b, seg_b, new_b) = paper_gate(a, **limits), paper_gate(b, **limits)
+        (keep_a, seg_a, new_a), (keep_b, seg_b, new_b) = (
+            paper_gate(s, max_translation_m=max_translation_m, max_rotation_rad=max_rotation_rad) for s in (a, b))
         a, b, seg = a.select(keep_a), b.select(keep_b), {"segment_a": seg_a[keep_a], "segment_b": seg_b[keep_b]}
         jumps.update(jumps_a=int((~keep_a).sum()), jumps_b=int((~keep_b).sum()), accepted_jumps=new_a + new_b)
         jumps["dropped_pose_jump"] = jumps["jumps_a"] + jumps["jumps_b"]

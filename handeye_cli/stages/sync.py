@@ -70,7 +70,7 @@ class Synced:
     xyz_b: Floats
     quat_b: Floats
     dt_ns: Ints
-    segment: Ints = field(default=None)  # type: ignore[assignment]
+    segment: Ints = field(default=None)  # type: ignore[arg-type]  # filled in by __post_init__
     reference: str = "a"
     step_ns: tuple[int, int] = (0, 0)
 
@@ -83,8 +83,9 @@ class Synced:
                       **kw: Any) -> Synced:
         """Build from (N, 4, 4) poses ``T_wa_a`` and ``T_wb_b``."""
         (xyz_a, quat_a), (xyz_b, quat_b) = se3.to_xyz_quat(np.asarray(T_a)), se3.to_xyz_quat(np.asarray(T_b))
-        return cls(np.asarray(stamps_ns, dtype=np.int64), xyz_a, quat_a, xyz_b, quat_b,
-                   np.asarray(dt_ns, dtype=np.int64), segment, **kw)
+        stamps = np.asarray(stamps_ns, dtype=np.int64)
+        return cls(stamps, xyz_a, quat_a, xyz_b, quat_b, np.asarray(dt_ns, dtype=np.int64),
+                   np.zeros(len(stamps), dtype=np.int64) if segment is None else segment, **kw)
 
     def __len__(self) -> int:
         return len(self.stamps_ns)

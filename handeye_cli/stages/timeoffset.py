@@ -321,9 +321,9 @@ class _StepRefiner:
         q = np.zeros((t.size, 4))
         q[:, 3] = 1.0
         q[inside] = quat
-        q = q.reshape(len(offsets), 2, len(steps), 4)
-        ok = inside.reshape(len(offsets), 2, len(steps)).all(axis=1)
-        r_fast = (Rotation.from_quat(q[:, 0].reshape(-1, 4)).inv() * Rotation.from_quat(q[:, 1].reshape(-1, 4))
+        pairs = q.reshape(len(offsets), 2, len(steps), 4)
+        ok = np.asarray(inside.reshape(len(offsets), 2, len(steps)).all(axis=1))
+        r_fast = (Rotation.from_quat(pairs[:, 0].reshape(-1, 4)).inv() * Rotation.from_quat(pairs[:, 1].reshape(-1, 4))
                   ).as_rotvec().reshape(len(offsets), len(steps), 3)
         r_slow = np.where(ok[..., None], self.r_slow[steps][None], 0.0)
         u, _, vt = np.linalg.svd(np.einsum("gsi,gsj->gij", r_fast, r_slow))
