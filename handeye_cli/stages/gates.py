@@ -47,6 +47,8 @@ __all__ = ["GATES", "pose_jump_gate", "paper_gate", "sync_and_gate", "robust_sco
 
 GATES = ("auto", "paper", "off")
 THRESHOLD = 16.0     # a step breaks the tracking beyond this many robust scales of its residual
+_LONE = 0.5         # a sample both of whose steps exceed this fraction of the threshold is a glitch if the
+                    # motion over it holds
 WINDOW = 51          # steps per block whose median gives the robust scale
 # Smallest scales: below them residuals are rounding and interpolation error (noise-free data).
 _FLOORS = (1e-5, 1e-7, 1e-5)    # rotation angle [rad], t·r [m·rad], |t| [m]
@@ -93,7 +95,9 @@ def _resolve(broken: Mask, accept_after: int, bridge_breaks: Callable[[Ints, Int
     """Keep mask, non-decreasing segments and new segments from the broken steps (module docstring).
 
     ``broken[k]``: step k → k+1 breaks the tracking; ``bridge_breaks(l, f)``: whether the motion
-    from kept sample ``l`` to kept sample ``f`` (the ends of two kept runs) breaks it too.
+    from sample ``l`` to a later sample ``f`` breaks it too. Where two kept runs meet at a single
+    broken step, the step's last or first sample is the glitch when leaving it out mends the
+    tracking (the bridge around it holds); only otherwise does the later run start a new segment.
     """
     if accept_after < 1:
         raise ConfigError(f"accept_after must be at least 1, not {accept_after}", "pose-jump gate",
@@ -102,12 +106,20 @@ def _resolve(broken: Mask, accept_after: int, bridge_breaks: Callable[[Ints, Int
     keep = np.bincount(run)[run] >= accept_after
     kept = np.flatnonzero(keep)
     boundary = np.flatnonzero(np.diff(run[kept]) != 0)       # kept[b] ends a run, kept[b + 1] starts one
-    new = np.zeros(max(len(kept) - 1, 0), dtype=np.int64)
-    if len(boundary):
-        new[boundary] = bridge_breaks(kept[boundary], kept[boundary + 1])
-    segment = np.zeros(len(run), dtype=np.int64)
-    segment[kept] = np.concatenate([[0], np.cumsum(new)])[: len(kept)]
-    return keep, np.maximum.accumulate(segment), int(new.sum())
+    last, first = kept[boundary], kept[boundary + 1]
+    new = np.ones(len(boundary), dtype=bool)
+    across = np.flatnonzero(first > last + 1)
+    new[across] = bridge_breaks(last[across], first[across])
+    if accept_after >= 2:                     # runs of ≥ 2 samples: last - 1 and first + 1 are in them
+        meet = np.flatnonzero(first == last + 1)
+        drop_last = meet[~bridge_breaks(last[meet] - 1, first[meet])]
+        rest = np.setdiff1d(meet, drop_last)
+        drop_first = rest[~bridge_breaks(last[rest], first[rest] + 1)]
+        keep[last[drop_last]] = keep[first[drop_first]] = False
+        new[drop_last] = new[drop_first] = False
+    starts = np.zeros(len(run), dtype=np.int64)
+    starts[first[new]] = 1
+    return keep, np.cumsum(starts), int(new.sum())
 
 
 def pose_jump_gate(synced: Synced, *, threshold: float = THRESHOLD, window: int = WINDOW, accept_after: int = 3
@@ -135,7 +147,13 @@ def pose_jump_gate(synced: Synced, *, threshold: float = THRESHOLD, window: int 
     def breaks(i: Ints, j: Ints) -> Mask:
         return np.asarray((_residuals(synced, i, j) > limit[:, i]).any(axis=0))
 
-    keep, segment, accepted = _resolve(np.asarray((residual > limit).any(axis=0)), accept_after, breaks)
+    score = (residual / limit).max(axis=0)                 # 1 = at the threshold
+    broken = score > 1
+    # A lone glitch just under the threshold: both its steps are elevated and the bridge over it holds.
+    lone = np.flatnonzero(np.minimum(score[:-1], score[1:]) > _LONE) + 1
+    lone = lone[~breaks(lone - 1, lone + 1)]
+    broken[lone - 1] = broken[lone] = True
+    keep, segment, accepted = _resolve(broken, accept_after, breaks)
     out = synced.select(keep)
     out = Synced(out.stamps_ns, out.xyz_a, out.quat_a, out.xyz_b, out.quat_b, out.dt_ns,
                  out.segment + segment[keep], out.reference, out.step_ns)
