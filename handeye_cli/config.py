@@ -27,8 +27,8 @@ class _SafeLoader(yaml.SafeLoader):
 
     def compose_node(self, parent: Any, index: Any) -> Any:
         if self.check_event(yaml.AliasEvent):
-            event = self.peek_event()
-            raise yaml.composer.ComposerError(None, None, "aliases (*name) are not allowed", event.start_mark)
+            mark = self.peek_event().start_mark    # type: ignore[no-untyped-call]  # PyYAML's stubs leave it untyped
+            raise yaml.composer.ComposerError(None, None, "aliases (*name) are not allowed", mark)
         return super().compose_node(parent, index)
 
 
@@ -107,7 +107,7 @@ def default_yaml() -> str:
              "# flag without its dashes, and flags given on the command line override the file.",
              "# Gates that can be switched off take 'off'. Units: seconds, metres, degrees."]
     for section, cls in SECTIONS.items():
-        lines += ["", f"# {section}: {cls.__doc__.splitlines()[0]}"]
+        lines += ["", f"# {section}: {(cls.__doc__ or '').splitlines()[0]}"]
         for name, (sec, info, default) in FIELDS.items():
             if sec == section:
                 lines.append(f"{name}: {_yaml_value(default)}".ljust(30) + f"# {info.help}")

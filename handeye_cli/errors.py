@@ -28,6 +28,15 @@ class HandEyeError(ValueError):
         The file, topic, line or argument it concerns (may be empty).
     fix:
         How the user can fix it (may be empty).
+
+    Examples
+    --------
+    >>> from handeye_cli.errors import ConfigError, HandEyeError
+    >>> e = ConfigError("bad value 'fast'", "max_dt", "give a number of seconds > 0")
+    >>> str(e)                                   # what the CLI prints after "error: "
+    "bad value 'fast' (max_dt): give a number of seconds > 0"
+    >>> isinstance(e, HandEyeError), isinstance(e, ValueError), e.where
+    (True, True, 'max_dt')
     """
 
     def __init__(self, what: str, where: str = "", fix: str = "") -> None:

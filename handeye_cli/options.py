@@ -9,6 +9,8 @@ key of a configuration file, and the keyword argument of :func:`handeye_cli.cali
 Units: seconds, metres, degrees, as each field's help says. Gates that can be switched off take
 ``None``, which files and flags spell ``off`` (YAML's ``off``/``false``/``null`` all mean off).
 
+Examples
+--------
 >>> opts = Options.from_flat(max_jump="off", alpha="auto", pairs="stride:30")
 >>> opts.gates.max_jump is None, opts.solver.alpha, opts.pairs.pairs
 (True, 'auto', 'stride:30')
@@ -112,6 +114,11 @@ def flag(value: Any, where: str) -> bool:
     raise ConfigError(f"bad value {value!r}", where, "give true or false")
 
 
+def optional_flag(value: Any, where: str) -> bool | None:
+    """A yes/no option that may be left unset (None: the user did not choose)."""
+    return None if value is None else flag(value, where)
+
+
 _FRAME_ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_./-]*$")
 
 
@@ -147,14 +154,14 @@ def weight_pair(value: Any, where: str) -> tuple[float, float]:
     return a, b
 
 
-_STRATEGY = re.compile(r"^(keyframes|consecutive|all|stride:[1-9][0-9]*|random:[1-9][0-9]*)$")
+_STRATEGY = re.compile(r"^(auto|keyframes|consecutive|all|stride:[1-9][0-9]*|random:[1-9][0-9]*)$")
 
 
 def strategy(value: Any, where: str) -> str:
     word = _words(value) or ""
     if not _STRATEGY.match(word):
         raise ConfigError(f"bad pair strategy {value!r}", where,
-                          "choose keyframes, consecutive, all, stride:K or random:N (K, N whole numbers ≥ 1)")
+                          "choose auto, keyframes, consecutive, all, stride:K or random:N (K, N whole numbers ≥ 1)")
     return word
 
 
@@ -201,9 +208,10 @@ class ReadOptions:
     time_source: str = option("header", choice("header", "log"),
                               "Stamps: header (header.stamp) or log (the recorder's log time).",
                               choices=("header", "log"))
-    invert_a: bool = option(False, flag, "Invert stream a first: it records T_sensor_world (e.g. a camera "
-                            "observing a fixed target).")
-    invert_b: bool = option(False, flag, "Invert stream b first.")
+    invert_a: bool | None = option(None, optional_flag, "Invert stream a first: it records T_sensor_world (e.g. "
+                                   "a camera observing a fixed target). Unset: not inverted, and a stream that "
+                                   "clearly fits only inverted refuses the result.")
+    invert_b: bool | None = option(None, optional_flag, "Invert stream b first.")
     csv_columns: Mapping[str, str] | None = option(None, columns, "Generic CSV columns: t=COL,x=COL,…,qw=COL "
                                                    "(keys t, t_unit, x, y, z, qx, qy, qz, qw).", "KEY=COL,…")
 
@@ -262,8 +270,8 @@ class GateOptions:
 class PairOptions:
     """Which relative motions (pairs of samples) are solved."""
 
-    pairs: str = option("keyframes", strategy, "Pair strategy: keyframes | consecutive | stride:K | all | "
-                        "random:N.", "STRATEGY")
+    pairs: str = option("auto", strategy, "Pair strategy: auto (spans and weights from a noise model fitted to "
+                        "the recording) | keyframes | consecutive | stride:K | all | random:N.", "STRATEGY")
     min_rotation: float = option(10.0, number(unit="degrees", strict=False),
                                  "Least rotation of a pair [deg] (keyframes, all, random).", "DEGREES")
     keyframe_rotation: float = option(5.0, number(unit="degrees"),
@@ -271,6 +279,9 @@ class PairOptions:
     keyframe_translation: float = option(0.02, number(unit="metres"),
                                          "... or moved this far [m].", "METRES")
     max_pairs: int = option(2000, integer(low=1), "Cap on the number of pairs, spread over the recording.", "N")
+    stations: str = option("auto", choice("auto", "off"), "Station captures (sparse poses, or dwells of both "
+                           "sensors): auto detects them and pairs the averaged stations all with all, without the "
+                           "pose-jump gate; off treats every capture as continuous tracking.", choices=("auto", "off"))
     seed: int = option(0, integer(), "Seed of random:N and of the bootstrap.", "N")
 
 
@@ -278,10 +289,14 @@ class PairOptions:
 class SolverOptions:
     """The solver and its cost (paper eqs 8, 26)."""
 
-    method: str = option("dqopt", choice(*METHODS), "Solver: dqopt is the global optimum (paper §4); the others "
+    method: str = option("dqopt", choice(*METHODS), "Solver: dqopt is the global optimum (paper §3.2.1); the others "
                          "are the paper's approximations and Daniilidis' method.", choices=tuple(METHODS))
-    alpha: float | str = option(1.0, number(unit="1/m", word="auto"),
-                                "Weight of translational residuals [1/m] (eq 8), or auto.", "NUMBER|auto")
+    alpha: float | str = option("auto", number(unit="1/m", word="auto"),
+                                "Weight of translational residuals [1/m] (eq 8), or auto (maximum likelihood "
+                                "under the recording's noise model).", "NUMBER|auto")
+    scale: float | str = option(1.0, number(unit="metres per unit of stream b", word="auto"),
+                                "Scale of stream b's translations [m per unit] (monocular odometry), or auto to "
+                                "estimate it with T_a_b.", "NUMBER|auto")
     prior: str | None = option(None, path, "Prior T_a_b file (a handeye result, or YAML with translation and "
                                "quaternion_xyzw): fixes directions the motion cannot observe (eq 26).", "FILE")
     prior_weights: tuple[float, float] = option((1.0, 1.0), weight_pair,

@@ -6,6 +6,8 @@ frame in sensor a's frame (maps points from b to a), where each stream holds ``T
 Options are the typed :class:`~handeye_cli.options.Options`; keyword arguments use the same flat
 names as the command line.
 
+Examples
+--------
 >>> import handeye_cli
 >>> cal = handeye_cli.calibrate_files("sample_data/rig_a.tum", "sample_data/rig_b.tum", method="dqopt")
 >>> cal.matrix.shape, cal.options.solver.method
@@ -19,19 +21,31 @@ from typing import Any
 
 import numpy as np
 
-from .analysis import (BootstrapResult, Residuals, RobustResult, assess_observability, auto_alpha, bootstrap,
-                       pair_residuals, robust_solve)
+from .analysis import (
+    BootstrapResult,
+    Residuals,
+    RobustResult,
+    assess_observability,
+    bootstrap,
+    pair_residuals,
+    robust_solve,
+)
+from .analysis.alpha import noise_model_alpha
 from .analysis.diagnosis import data_warning, too_few_pairs
+from .analysis.inversion import InversionVerdict, check_inversion
 from .config import load_options
 from .errors import ConfigError
 from .io.pairfile import read_extrinsic
-from .options import Options
+from .options import Options, ReadOptions
 from .output.document import result_document
 from .solvers import Prior, Solution, solve
+from .solvers.scale import scale_translations, solve_with_scale
 from .stages.counts import SampleCounts
 from .stages.gates import sync_and_gate
 from .stages.pairs import Pairs, make_pairs
-from .stages.sync import Synced
+from .stages.selection import Selection, select_pairs
+from .stages.stations import Stations, detect_stations
+from .stages.sync import Synced, default_max_dt_ns
 from .streams import PoseStream
 
 __all__ = ["Calibration", "StreamSpec", "calibrate", "calibrate_files", "read_streams"]
@@ -92,16 +106,19 @@ class Calibration:
 
     @property
     def frames(self) -> dict[str, str]:
-        """Names of frames a and b: ``name_a``/``name_b`` if given, else the streams' child frames."""
+        """Names of frames a and b: ``name_a``/``name_b`` if given, else the streams' child frames
+        (as valid tf2 frame ids: no leading '/')."""
         out = self.options.output
-        return {"a": out.name_a or self.stream_a.child_frame_id or "a",
-                "b": out.name_b or self.stream_b.child_frame_id or "b"}
+        return {"a": out.name_a or self.stream_a.child_frame_id.lstrip("/") or "a",
+                "b": out.name_b or self.stream_b.child_frame_id.lstrip("/") or "b"}
 
     def bootstrap_deviations(self) -> np.ndarray | None:
         """(K, 6) bootstrap deviations of X: rotation vector [deg] (3), translation [m] (3)."""
         if self.bootstrap is None:
             return None
-        return np.c_[self.bootstrap.rotation_deltas_deg, self.bootstrap.translations_m - self.matrix[:3, 3]]
+        deviations: np.ndarray = np.c_[self.bootstrap.rotation_deltas_deg,
+                                       self.bootstrap.translations_m - self.matrix[:3, 3]]
+        return deviations
 
     def with_origin(self, config_file: str | Path | None, preset: str | None) -> Calibration:
         """The same calibration, recording the config file and preset its options came from."""
@@ -134,28 +151,38 @@ def _spec(source: Source, topic: str | None, frames: tuple[str, str] | None) -> 
                       "give a file path, a StreamSpec or a PoseStream")
 
 
-def read_streams(spec_a: StreamSpec, spec_b: StreamSpec, options: Options | None = None, *,
-                 quiet: bool = True) -> tuple[PoseStream, PoseStream]:
-    """Read streams a and b (``T_world_sensor``), inverted where the options say so."""
-    from .io import detect_format, read_log_streams, read_stream   # mcap/rosbags: import only when reading
+def read_streams(spec_a: StreamSpec | PoseStream, spec_b: StreamSpec | PoseStream, options: Options | None = None,
+                 *, quiet: bool = True) -> tuple[PoseStream, PoseStream]:
+    """Streams a and b (``T_world_sensor``) from their specs — two streams of one log are read
+    in one pass; a PoseStream is taken as it is — inverted where the options say so."""
+    from .io import detect_format, read_log_streams  # mcap/rosbags: import only when reading
     from .io.detect import LOG_FORMATS
 
     read = (options or Options()).read
-    if spec_a.path == spec_b.path and spec_a.path != "-" and detect_format(spec_a.path) in LOG_FORMATS:
+    if (isinstance(spec_a, StreamSpec) and isinstance(spec_b, StreamSpec) and spec_a.path == spec_b.path
+            and spec_a.path != "-" and detect_format(spec_a.path) in LOG_FORMATS):
         a, b = read_log_streams(spec_a.path, [(spec_a.topic, spec_a.frames), (spec_b.topic, spec_b.frames)],
                                 time_source=read.time_source, quiet=quiet)
     else:
-        columns = dict(read.csv_columns) if read.csv_columns else None
-        a, b = (read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=read.time_source,
-                            columns=columns, quiet=quiet) for spec in (spec_a, spec_b))
+        a, b = _read_one(spec_a, read, quiet), _read_one(spec_b, read, quiet)
     return (a.inverted() if read.invert_a else a), (b.inverted() if read.invert_b else b)
+
+
+def _read_one(spec: StreamSpec | PoseStream, read: ReadOptions, quiet: bool) -> PoseStream:
+    if isinstance(spec, PoseStream):
+        return spec
+    from .io import read_stream
+
+    columns = dict(read.csv_columns) if read.csv_columns else None
+    return read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=read.time_source,
+                       columns=columns, quiet=quiet)
 
 
 def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, dict[str, Any], list[str]]:
     """The offset [ns] b's clock is ahead of a's, its report, and warnings about it."""
     value = options.sync.time_offset
     if value == "auto":
-        from .stages.timeoffset import estimate_time_offset    # scipy.signal: import only when used
+        from .stages.timeoffset import estimate_time_offset  # scipy.signal: import only when used
 
         est = estimate_time_offset(a, b, max_offset_s=options.sync.max_time_offset)
         return est.offset_ns, {"seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,
@@ -170,39 +197,87 @@ def _prior(options: Options) -> Prior | None:
 
 
 def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options,
-             offset_ns: int) -> tuple[Synced, Pairs, SampleCounts]:
-    """Sync, gates and pair formation: (kept samples, pairs, counts of every stage)."""
+             offset_ns: int) -> tuple[Synced, Pairs, SampleCounts, Stations | None, Selection | None]:
+    """Sync, gates and pair formation: (kept samples, pairs, counts of every stage, stations, and for
+    the ``auto`` strategy the selection: weights, α and noise model).
+
+    A station capture (see :mod:`~handeye_cli.stages.stations`) skips sync and the pose-jump gate:
+    its averaged stations are the samples, paired all with all."""
     sync, gates, p = options.sync, options.gates, options.pairs
-    kept, gate_counts = sync_and_gate(stream_a, stream_b, sync=sync.sync, max_dt_ns=sync.max_dt_ns,
-                                      time_offset_ns=offset_ns, gate=gates.effective_gate,
-                                      max_translation_m=gates.max_jump, max_rotation_rad=gates.max_jump_rad,
-                                      min_samples=options.solver.min_pairs + 1)
-    pairs, pair_counts = make_pairs(kept, p.pairs, keyframe_rotation_rad=np.deg2rad(p.keyframe_rotation),
-                                    keyframe_translation_m=p.keyframe_translation,
-                                    min_rotation_rad=np.deg2rad(p.min_rotation), max_pairs=p.max_pairs, seed=p.seed)
-    samples = SampleCounts.of(gate_counts, pair_counts, duplicates_dropped_a=stream_a.duplicates_dropped,
+    stations = None if p.stations == "off" else detect_stations(
+        stream_a, stream_b, time_offset_ns=offset_ns,
+        max_dt_ns=default_max_dt_ns(0) if sync.max_dt_ns is None else sync.max_dt_ns)
+    if stations is not None:
+        kept, strategy = stations.synced, "all"
+        stage_counts = [{"read_a": len(stream_a), "read_b": len(stream_b), "synced": len(stations),
+                         "synced_kept": len(stations)}]
+    else:
+        kept, gate_counts = sync_and_gate(stream_a, stream_b, sync=sync.sync, max_dt_ns=sync.max_dt_ns,
+                                          time_offset_ns=offset_ns, gate=gates.effective_gate,
+                                          max_translation_m=gates.max_jump, max_rotation_rad=gates.max_jump_rad,
+                                          min_samples=options.solver.min_pairs + 1)
+        strategy, stage_counts = p.pairs, [gate_counts]
+    selection = None
+    if strategy == "auto":
+        selection = select_pairs(kept, max_pairs=p.max_pairs, method=options.solver.method, prior=_prior(options))
+        pairs, pair_counts = selection.pairs, selection.counts(len(kept))
+    else:
+        pairs, pair_counts = make_pairs(kept, strategy, keyframe_rotation_rad=np.deg2rad(p.keyframe_rotation),
+                                        keyframe_translation_m=p.keyframe_translation,
+                                        min_rotation_rad=np.deg2rad(p.min_rotation), max_pairs=p.max_pairs,
+                                        seed=p.seed)
+    samples = SampleCounts.of(*stage_counts, pair_counts, duplicates_dropped_a=stream_a.duplicates_dropped,
                               duplicates_dropped_b=stream_b.duplicates_dropped)
     if len(pairs) < options.solver.min_pairs:
         raise too_few_pairs(len(pairs), samples, options)
-    return kept, pairs, samples
+    return kept, pairs, samples, stations, selection
 
 
-def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None,
+def _with_scale(kept: Synced, pairs: Pairs, options: Options, diagnostics: dict[str, Any]) -> tuple[Synced, Pairs]:
+    """``--scale auto``: estimate b's scale with T_a_b and return b's samples and motions in metres."""
+    alpha = 1.0 if options.solver.alpha == "auto" else float(options.solver.alpha)
+    est = solve_with_scale(pairs.A, pairs.B, alpha=alpha, samples=(pairs.i, pairs.j))
+    diagnostics["scale"] = est.as_dict()
+    return (replace(kept, xyz_b=kept.xyz_b * est.scale),
+            replace(pairs, B=scale_translations(pairs.B, est.scale)))
+
+
+def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float) -> InversionVerdict | None:
+    """The inversion check; raises its refusal when the evidence is overwhelming and the user set no
+    ``--invert-*`` / ``--no-invert-*`` flag explicitly."""
+    read = options.read
+    verdict = check_inversion(kept.T_a, kept.T_b, pairs.i, pairs.j, alpha=alpha,
+                              inverted_now=(bool(read.invert_a), bool(read.invert_b)))
+    refusal = verdict and verdict.refusal(read.invert_a is not None or read.invert_b is not None)
+    if refusal:
+        raise refusal
+    return verdict
+
+
+def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None, selection: Selection | None,
                        diagnostics: dict[str, Any]) -> tuple[Solution, float, np.ndarray | None, RobustResult | None]:
-    """[robust: RANSAC inliers] → [α auto] → the weighted solve; diagnostics filled in place."""
+    """[robust: RANSAC inliers] → [α auto] → the weighted solve; diagnostics filled in place.
+
+    With the ``auto`` strategy the pairs carry the noise model's weights, and α auto is its ML α."""
     A, B, solver = pairs.A, pairs.B, options.solver
-    alpha = 1.0 if solver.alpha == "auto" else float(solver.alpha)
-    weights = robust = None
+    auto = solver.alpha == "auto"
+    alpha = (selection.alpha if selection else 1.0) if auto else float(solver.alpha)
+    weights = None if selection is None else selection.weights
+    robust = None
     if options.analysis.robust:
         robust = robust_solve(A, B, method=solver.method, alpha=alpha, prior=prior, seed=options.pairs.seed)
-        weights = robust.inliers.astype(float)
+        weights = robust.inliers.astype(float) * (1.0 if weights is None else weights)
         t0 = min(pairs.t_i_ns.min(), pairs.t_j_ns.min())    # readable: seconds since the first paired sample
         diagnostics["robust"] = {**robust.as_dict(), "rejected_spans_since_start_s": [
             [round((pairs.t_i_ns[k] - t0) / 1e9, 6), round((pairs.t_j_ns[k] - t0) / 1e9, 6)] for k in robust.rejected]}
-    if solver.alpha == "auto":
-        choice = auto_alpha(A, B, prior=prior, weights=weights)
+    if selection is not None:
+        diagnostics["noise_model"] = selection.as_dict()
+    if auto and selection is None:
+        choice = noise_model_alpha(A, B, prior=prior, weights=weights, spans_s=(pairs.t_j_ns - pairs.t_i_ns) / 1e9)
         alpha = choice.alpha
         diagnostics["alpha_auto"] = choice.as_dict()
+    elif auto:
+        diagnostics["alpha_auto"] = {"alpha": alpha, "method": "noise-model"}
     return solve(A, B, method=solver.method, alpha=alpha, prior=prior, weights=weights), alpha, weights, robust
 
 
@@ -213,15 +288,24 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     ``overrides`` given by flat option name (``method="dqopt"``, ``max_jump="off"``…). Raises a
     :class:`~handeye_cli.errors.HandEyeError` subclass on data that cannot be calibrated.
 
-    Order: time offset → sync → gates → pairs → [robust] → [α auto] → weighted solve →
-    observability warnings, residuals, inversion check → [bootstrap].
+    Order: [fixed scale of b] → time offset → stations, or sync → gates → pairs → [scale auto] →
+    [robust] → [α auto] → weighted solve → observability warnings, residuals, inversion check
+    (first warning; refuses the result when overwhelming) → [bootstrap].
     """
     opts = Options.from_flat(options, **overrides) if overrides else (options or Options())
+    if opts.solver.scale not in (1.0, "auto"):
+        stream_b = replace(stream_b, xyz=stream_b.xyz * float(opts.solver.scale))
     offset_ns, offset_report, warnings = _time_offset(stream_a, stream_b, opts)
-    kept, pairs, samples = pairs_of(stream_a, stream_b, opts, offset_ns)
+    kept, pairs, samples, stations, selection = pairs_of(stream_a, stream_b, opts, offset_ns)
     prior = _prior(opts)
-    diagnostics: dict[str, Any] = {"time_offset": offset_report, "sync": kept.describe()}
-    solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, diagnostics)
+    diagnostics: dict[str, Any] = {"time_offset": offset_report}
+    if stations is not None:
+        diagnostics["stations"] = stations.as_dict()
+    else:
+        diagnostics["sync"] = kept.describe()
+    if opts.solver.scale == "auto":
+        kept, pairs = _with_scale(kept, pairs, opts, diagnostics)
+    solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, selection, diagnostics)
 
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
     obs = assess_observability(A, B, solution.matrix, alpha=alpha, prior=prior, weights=weights, samples=ij)
@@ -229,8 +313,10 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     diagnostics["observability"] = obs.as_dict()
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    suspect = data_warning(stream_a, stream_b, res, weights, samples,
-                           lambda a, b: pairs_of(a, b, opts, offset_ns))
+    verdict = _inversion(kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha)   # thresholds set at α 1
+    if verdict is not None:
+        diagnostics["inversion"] = verdict.as_dict()
+    suspect = verdict.message() if verdict else data_warning(res, weights, samples)
     if suspect:
         warnings.insert(0, suspect)
     boot = None
@@ -257,28 +343,13 @@ def calibrate_files(a: Source, b: Source | None = None, *, topic_a: str | None =
     """
     opts = load_options(config_file, preset, base=options, **overrides)
     spec_a, spec_b = _spec(a, topic_a, frames_a), _spec(a if b is None else b, topic_b, frames_b)
-    files = [s for s in (spec_a, spec_b) if isinstance(s, StreamSpec)]
-    if len(files) == 2:
-        stream_a, stream_b = read_streams(files[0], files[1], opts, quiet=quiet)    # type: ignore[arg-type]
-    else:
-        stream_a, stream_b = (_read_one(s, opts, quiet) for s in (spec_a, spec_b))
-        stream_a = stream_a.inverted() if opts.read.invert_a else stream_a
-        stream_b = stream_b.inverted() if opts.read.invert_b else stream_b
+    stream_a, stream_b = read_streams(spec_a, spec_b, opts, quiet=quiet)
     inputs: dict[str, Any] = {"a": _describe(spec_a), "b": _describe(spec_b), "time_source": opts.read.time_source}
     for key in ("invert_a", "invert_b"):
         if getattr(opts.read, key):
             inputs[key] = True
     return calibrate(stream_a, stream_b, opts, inputs=inputs).with_origin(config_file, preset)
 
-
-def _read_one(spec: StreamSpec | PoseStream, opts: Options, quiet: bool) -> PoseStream:
-    if isinstance(spec, PoseStream):
-        return spec
-    from .io import read_stream
-
-    columns = dict(opts.read.csv_columns) if opts.read.csv_columns else None
-    return read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=opts.read.time_source,
-                       columns=columns, quiet=quiet)
 
 
 def _describe(spec: StreamSpec | PoseStream) -> dict[str, Any]:

@@ -8,11 +8,23 @@ Conventions used throughout handeye:
 * Translations are in metres, angles in radians.
 
 All functions accept a single transform of shape (4, 4) or a stack of shape (N, 4, 4).
+
+Examples
+--------
+>>> import numpy as np
+>>> from handeye_cli import se3
+>>> half = np.sqrt(0.5)
+>>> T_a_b = se3.from_xyz_quat(np.array([0.1, 0.0, 0.0]), np.array([0.0, 0.0, half, half]))  # 90° about z
+>>> p_b = np.array([1.0, 0.0, 0.0, 1.0])      # 1 m along b's x axis (homogeneous)
+>>> (T_a_b @ p_b).round(9).tolist()           # in frame a: b's x axis is a's y axis, b's origin at x = 0.1
+[0.1, 1.0, 0.0, 1.0]
 """
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+
+from ._typing import BoolArray, FloatArray
 
 __all__ = [
     "from_xyz_quat",
@@ -24,10 +36,22 @@ __all__ = [
 ]
 
 
-def from_xyz_quat(xyz: np.ndarray, quat_xyzw: np.ndarray) -> np.ndarray:
+def from_xyz_quat(xyz: FloatArray, quat_xyzw: FloatArray) -> FloatArray:
     """Build homogeneous transforms from translations (…, 3) [m] and x-y-z-w quaternions (…, 4).
 
     Quaternions need not be unit length; they are normalised.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from handeye_cli import se3
+    >>> se3.from_xyz_quat(np.array([1.0, 2.0, 3.0]), np.array([0.0, 0.0, 0.0, 2.0]))
+    array([[1., 0., 0., 1.],
+           [0., 1., 0., 2.],
+           [0., 0., 1., 3.],
+           [0., 0., 0., 1.]])
+    >>> se3.from_xyz_quat(np.zeros((5, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (5, 1))).shape
+    (5, 4, 4)
     """
     xyz = np.asarray(xyz, dtype=float)
     quat = np.asarray(quat_xyzw, dtype=float)
@@ -40,8 +64,18 @@ def from_xyz_quat(xyz: np.ndarray, quat_xyzw: np.ndarray) -> np.ndarray:
     return out[0] if single else out
 
 
-def to_xyz_quat(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Split transforms into translations (…, 3) [m] and x-y-z-w quaternions (…, 4), w ≥ 0."""
+def to_xyz_quat(T: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Split transforms into translations (…, 3) [m] and x-y-z-w quaternions (…, 4), w ≥ 0.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from handeye_cli import se3
+    >>> T = se3.from_xyz_quat(np.array([0.5, 0.0, 0.0]), np.array([-0.1, -0.5, -0.5, -0.7]))
+    >>> xyz, q = se3.to_xyz_quat(T)
+    >>> xyz.tolist(), q.round(9).tolist()      # the sign is fixed so that w ≥ 0
+    ([0.5, 0.0, 0.0], [0.1, 0.5, 0.5, 0.7])
+    """
     T = np.asarray(T, dtype=float)
     single = T.ndim == 2
     T2 = T[None] if single else T
@@ -50,8 +84,18 @@ def to_xyz_quat(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (xyz[0], quat[0]) if single else (xyz, quat)
 
 
-def inverse(T: np.ndarray) -> np.ndarray:
-    """Invert rigid transforms exactly (transpose the rotation, no general matrix inverse)."""
+def inverse(T: FloatArray) -> FloatArray:
+    """Invert rigid transforms exactly (transpose the rotation, no general matrix inverse).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from handeye_cli import se3
+    >>> T_a_b = se3.from_xyz_quat(np.array([0.1, 0.2, 0.3]), np.array([0.1, 0.2, 0.3, 0.9]))
+    >>> T_b_a = se3.inverse(T_a_b)
+    >>> bool(np.allclose(T_b_a @ T_a_b, np.eye(4)))
+    True
+    """
     T = np.asarray(T, dtype=float)
     R = T[..., :3, :3]
     Rt = np.swapaxes(R, -1, -2)
@@ -62,21 +106,44 @@ def inverse(T: np.ndarray) -> np.ndarray:
     return out
 
 
-def relative(T_w_i: np.ndarray, T_w_j: np.ndarray) -> np.ndarray:
-    """Relative motions ``T_i_j = T_w_i⁻¹ · T_w_j`` (the pose of j expressed in i)."""
-    return inverse(T_w_i) @ np.asarray(T_w_j, dtype=float)
+def relative(T_w_i: FloatArray, T_w_j: FloatArray) -> FloatArray:
+    """Relative motions ``T_i_j = T_w_i⁻¹ · T_w_j`` (the pose of j expressed in i).
+
+    Examples
+    --------
+    A sensor at x = 1 m facing along the world's y axis moves 2 m along the world's y axis: in
+    its own frame at ``t_i`` it moved 2 m along its x axis.
+
+    >>> import numpy as np
+    >>> from handeye_cli import se3
+    >>> half = np.sqrt(0.5)
+    >>> T_w_i = se3.from_xyz_quat(np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, half, half]))
+    >>> T_w_j = se3.from_xyz_quat(np.array([1.0, 2.0, 0.0]), np.array([0.0, 0.0, half, half]))
+    >>> se3.relative(T_w_i, T_w_j)[:3, 3].round(9).tolist()
+    [2.0, 0.0, 0.0]
+    """
+    return inverse(T_w_i) @ np.asarray(T_w_j, dtype=np.float64)
 
 
-def rotation_angle(T_or_R: np.ndarray) -> np.ndarray:
-    """Rotation angle [rad] of transforms (…, 4, 4) or rotation matrices (…, 3, 3).
+def rotation_angle(T_or_R: FloatArray) -> FloatArray | np.float64:
+    """Rotation angle [rad] of transforms (…, 4, 4) or rotation matrices (…, 3, 3); a numpy scalar for one.
 
     Uses the numerically robust ``atan2(|skew|, trace-1)`` form, exact near 0 and π.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from handeye_cli import se3
+    >>> T = se3.from_xyz_quat(np.zeros(3), np.array([0.0, np.sin(0.25), 0.0, np.cos(0.25)]))   # 0.5 rad about y
+    >>> round(float(se3.rotation_angle(T)), 12)
+    0.5
     """
-    R = np.asarray(T_or_R, dtype=float)[..., :3, :3]
+    R = np.asarray(T_or_R, dtype=np.float64)[..., :3, :3]
     skew = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
                      R[..., 1, 0] - R[..., 0, 1]], axis=-1)
     trace = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
-    return np.arctan2(np.linalg.norm(skew, axis=-1), trace - 1.0)
+    skew_norm: FloatArray | np.float64 = np.linalg.norm(skew, axis=-1)
+    return np.arctan2(skew_norm, trace - 1.0)
 
 
 # Determinant of a 3x3 matrix flattened row-major: Σ sign · product over the six permutations.
@@ -85,12 +152,19 @@ _DET_SIGN = np.array([1.0, 1.0, 1.0, -1.0, -1.0, -1.0])
 _EYE3 = np.eye(3)[:, :, None]
 
 
-def is_rotation(R: np.ndarray, tol: float = 1e-6) -> np.ndarray:
-    """Boolean mask: which (…, 3, 3) matrices are proper rotations within ``tol``:
+def is_rotation(R: FloatArray, tol: float = 1e-6) -> BoolArray | np.bool_:
+    """Boolean mask (a numpy scalar for one matrix): which (…, 3, 3) matrices are proper rotations within ``tol``:
     ``|RᵀR - I|`` (largest entry) and ``|det R - 1|`` both at most ``tol``.
 
     The batch is moved to the last axis so that every step is one elementwise pass over it
     (numpy's batched 3x3 products and reductions over short inner axes are slow).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from handeye_cli import se3
+    >>> se3.is_rotation(np.stack([np.eye(3), 2 * np.eye(3), -np.eye(3)])).tolist()   # scaled; reflection
+    [True, False, False]
     """
     R = np.asarray(R, dtype=float)
     shape = R.shape[:-2]
@@ -98,4 +172,5 @@ def is_rotation(R: np.ndarray, tol: float = 1e-6) -> np.ndarray:
     D = (C[:, :, None] * C[:, None]).sum(0) - _EYE3                      # RᵀR - I
     det = _DET_SIGN @ C.reshape(9, -1)[_DET_INDEX].prod(1)
     dev = np.maximum(np.abs(D).max((0, 1)), np.abs(det - 1.0))
-    return (dev <= tol).reshape(shape)[()]
+    mask: BoolArray | np.bool_ = (dev <= tol).reshape(shape)[()]
+    return mask

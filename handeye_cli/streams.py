@@ -30,6 +30,19 @@ class PoseStream:
         ``"header"`` or ``"log"``.
     duplicates_dropped:
         How many exact duplicate stamps the reader removed.
+
+    Examples
+    --------
+    >>> from handeye_cli import PoseStream
+    >>> s = PoseStream([0, 100_000_000], [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]], [[0, 0, 0, 1], [0, 0, 0, 1]],
+    ...                frame_id="world", child_frame_id="cam0")
+    >>> len(s), s.stamps_ns.dtype.name, s.matrices().shape
+    (2, 'int64', (2, 4, 4))
+    >>> inv = s.inverted()                       # T_cam0_world: the frames swap
+    >>> inv.frame_id, inv.child_frame_id, float(inv.xyz[1, 0])
+    ('cam0', 'world', -0.1)
+    >>> s.shifted(50_000_000).stamps_ns.tolist()  # + 50 ms
+    [50000000, 150000000]
     """
 
     stamps_ns: np.ndarray

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from handeye_cli.analysis import auto_alpha, extrinsic_error, residual_ratio_alpha
-from handeye_cli.analysis.alpha import DEFAULT_GRID
+from handeye_cli.analysis.alpha import DEFAULT_GRID, noise_model_alpha
 from handeye_cli.simulation import motion_pairs, random_transform
 from handeye_cli.solvers import solve
 
@@ -56,3 +56,27 @@ def test_noise_free_data_falls_back():
     A, B = motion_pairs(30, random_transform(rng), rng, "random")
     choice = auto_alpha(A, B)
     assert choice.method == "residual-ratio" and choice.alpha == 1.0
+
+
+@pytest.mark.parametrize("scenario", ["random", "line", "circle"])
+def test_noise_model_alpha_is_never_worse_than_alpha_one(scenario):
+    """The default rule (ML α under the noise model) on the paper's scenarios: mean errors over the
+    trials no worse than α = 1 by more than 5 %, rotation and translation alike."""
+    trials = 10
+    ml, one = np.zeros(2), np.zeros(2)
+    for seed in range(trials):
+        rng = np.random.default_rng(300 + seed)
+        X = random_transform(rng)
+        A, B = motion_pairs(100, X, rng, scenario, SIGMA_R, SIGMA_T)
+        choice = noise_model_alpha(A, B)
+        assert choice.method == "noise-model" and 0.05 < choice.alpha < 5
+        ml += extrinsic_error(solve(A, B, alpha=choice.alpha).matrix, X)
+        one += extrinsic_error(solve(A, B, alpha=1.0).matrix, X)
+    assert (ml <= 1.05 * one).all(), (ml / trials, one / trials)
+
+
+def test_noise_model_alpha_on_noise_free_motions_keeps_the_start():
+    rng = np.random.default_rng(4)
+    X = random_transform(rng)
+    A, B = motion_pairs(30, X, rng, "random")
+    assert noise_model_alpha(A, B, start=2.5).alpha == 2.5

@@ -7,42 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from _util import ROOT, pose_error, run, write_tum
 
 from handeye_cli import se3
-from handeye_cli.cli import main
 from handeye_cli.io.pairfile import read_extrinsic
 from handeye_cli.simulation import Rig, motion_pairs, random_transform, simulate_rig
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def run(capsys, *args: str) -> tuple[int, str, str]:
-    """Run ``handeye ARGS`` in-process: (exit code, stdout, stderr)."""
-    with pytest.raises(SystemExit) as info:
-        main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return info.value.code, out, err
-
-
-def _error(X: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
-    return (float(np.rad2deg(se3.rotation_angle(X[:3, :3].T @ truth[:3, :3]))),
-            float(np.linalg.norm(X[:3, 3] - truth[:3, 3])))
-
-
-def _write_tum(path: Path, stream) -> Path:
-    np.savetxt(path, np.c_[stream.stamps_ns / 1e9, stream.xyz, stream.quat_xyzw], fmt="%.9f",
-               header="timestamp tx ty tz qx qy qz qw")
-    return path
-
-
-@pytest.fixture(scope="module")
-def rig(tmp_path_factory):
-    """Two TUM files of a noisy rig (30 Hz / 20 Hz, 0.2°, 2 mm, tracking jumps) and the truth."""
-    d = tmp_path_factory.mktemp("rig")
-    X = se3.from_xyz_quat(np.array([0.21, -0.18, 0.05]), np.array([0.2, 0.4, -0.1, 0.85]))
-    a, b = simulate_rig(Rig(X, 0), duration_s=60, rate_a=30, rate_b=20, sigma_r=np.deg2rad(0.2),
-                        sigma_t=0.002, jumps=3, seed=3)
-    return {"X": X, "a": _write_tum(d / "a.tum", a), "b": _write_tum(d / "b.tum", b), "streams": (a, b), "dir": d}
 
 
 def test_version_and_help(capsys):
@@ -57,7 +26,7 @@ def test_solve_sample_pairs_recovers_the_truth(capsys):
     code, out, _ = run(capsys, "solve", ROOT / "sample_data" / "pairs.csv")
     assert code == 0
     doc = yaml.safe_load(out)
-    rot, trans = _error(np.array(doc["matrix"]), read_extrinsic(ROOT / "sample_data" / "pairs_truth.yaml"))
+    rot, trans = pose_error(np.array(doc["matrix"]), read_extrinsic(ROOT / "sample_data" / "pairs_truth.yaml"))
     assert rot < 0.5 and trans < 0.02          # 100 pairs with σr = 0.57°, σt = 1 cm
     for key in ("matrix", "translation", "quaternion_xyzw", "frames", "method", "alpha", "cost", "pairs_used",
                 "samples", "inputs", "version", "warnings"):
@@ -72,7 +41,7 @@ def test_solve_npz_with_weights_and_prior(capsys, tmp_path):
     code, out, _ = run(capsys, "solve", tmp_path / "p.npz", "--method", "dq2ndord", "--format", "json")
     assert code == 0
     doc = json.loads(out)
-    assert doc["method"] == "dq2ndord" and _error(np.array(doc["matrix"]), X)[0] < 2
+    assert doc["method"] == "dq2ndord" and pose_error(np.array(doc["matrix"]), X)[0] < 2
     (tmp_path / "prior.yaml").write_text(out)
     code, out2, _ = run(capsys, "solve", tmp_path / "p.npz", "--prior", tmp_path / "prior.yaml",
                         "--prior-weights", "1e6,1e6")
@@ -83,7 +52,7 @@ def test_calibrate_two_tum_files(capsys, rig, tmp_path):
     code, out, err = run(capsys, "calibrate", rig["a"], rig["b"])
     assert code == 0, err
     doc = yaml.safe_load(out)
-    rot, trans = _error(np.array(doc["matrix"]), rig["X"])
+    rot, trans = pose_error(np.array(doc["matrix"]), rig["X"])
     assert rot < 0.1 and trans < 0.005
     s = doc["samples"]
     assert s["read_a"] == 1800 and s["read_b"] == 1200 and s["dropped_pose_jump"] >= 3
@@ -103,30 +72,30 @@ def test_yaml_and_json_carry_the_same_content(capsys, rig, tmp_path):
 def test_swapping_the_streams_gives_the_inverse(capsys, rig):
     X_ab = np.array(yaml.safe_load(run(capsys, "calibrate", rig["a"], rig["b"], "-q")[1])["matrix"])
     X_ba = np.array(yaml.safe_load(run(capsys, "calibrate", rig["b"], rig["a"], "-q")[1])["matrix"])
-    rot, trans = _error(X_ba, se3.inverse(X_ab))
+    rot, trans = pose_error(X_ba, se3.inverse(X_ab))
     assert rot < 0.05 and trans < 0.003
 
 
 def test_invert_b_undoes_an_inverted_stream(capsys, rig, tmp_path):
     _, b = rig["streams"]
-    inv = _write_tum(tmp_path / "b_inv.tum", b.inverted())
+    inv = write_tum(tmp_path / "b_inv.tum", b.inverted())
     code, out, _ = run(capsys, "calibrate", rig["a"], inv, "--invert-b", "-q")
     assert code == 0
-    assert _error(np.array(yaml.safe_load(out)["matrix"]), rig["X"])[1] < 0.005
+    assert pose_error(np.array(yaml.safe_load(out)["matrix"]), rig["X"])[1] < 0.005
 
 
 def test_time_offset_auto(capsys, tmp_path):
     X = random_transform(np.random.default_rng(5), 0.3)
     a, b = simulate_rig(Rig(X, 100_250_000_000), duration_s=60, rate_a=100, rate_b=30,
                         sigma_r=np.deg2rad(0.1), sigma_t=0.002, seed=5)
-    fa, fb = _write_tum(tmp_path / "a.tum", a), _write_tum(tmp_path / "b.tum", b)
+    fa, fb = write_tum(tmp_path / "a.tum", a), write_tum(tmp_path / "b.tum", b)
     code, _, err = run(capsys, "calibrate", fa, fb)
     assert code == 2 and "--time-offset auto" in err        # the raw spans do not overlap: the error says how to fix it
     code, out, err = run(capsys, "calibrate", fa, fb, "--time-offset", "auto", "-q")
     assert code == 0, err
     doc = yaml.safe_load(out)
     assert doc["time_offset"]["seconds"] == pytest.approx(100.25, abs=1e-3)
-    assert _error(np.array(doc["matrix"]), X)[1] < 0.005
+    assert pose_error(np.array(doc["matrix"]), X)[1] < 0.005
 
 
 def test_config_file_and_command_line_precedence(capsys, rig, tmp_path):
@@ -158,7 +127,7 @@ def test_gates_can_be_switched_off(capsys, rig):
     (["calibrate", "missing.tum", "missing2.tum"], "not found"),
     (["calibrate", "{a}"], "topic or a frame pair"),
     (["calibrate", "{a}", "{b}", "--pairs", "bogus"], "bad pair strategy"),
-    (["calibrate", "{a}", "{b}", "--min-rotation", "179"], "motion pair(s) left"),
+    (["calibrate", "{a}", "{b}", "--pairs", "keyframes", "--min-rotation", "179"], "motion pair(s) left"),
     (["calibrate", "{a}", "{b}", "--max-dt", "1e-6"], "timestamp gate"),
     (["calibrate", "{a}", "{b}", "--time-offset", "soon"], "bad value"),
     (["calibrate", "{a}", "{b}", "--alpha", "big"], "bad value"),
@@ -178,7 +147,7 @@ def test_errors_are_one_line_exit_2_and_leave_no_output(capsys, rig, args, messa
     assert out == "" and not out_file.exists()
 
 
-def test_output_to_a_missing_folder_is_an_error(capsys, rig):
+def test_output_to_a_missing_folder_is_anpose_error(capsys, rig):
     code, _, err = run(capsys, "calibrate", rig["a"], rig["b"], "-o", "/nonexistent/dir/r.yaml")
     assert code == 2 and "output folder" in err
 
@@ -197,7 +166,7 @@ def test_generic_csv_with_columns_from_the_config(capsys, rig, tmp_path):
                                                    "qx": "rx", "qy": "ry", "qz": "rz", "qw": "rw"}}))
     code, out, err = run(capsys, "calibrate", *paths, "--config", cfg, "-q")
     assert code == 0, err
-    rot, trans = _error(np.array(yaml.safe_load(out)["matrix"]), rig["X"])
+    rot, trans = pose_error(np.array(yaml.safe_load(out)["matrix"]), rig["X"])
     assert rot < 0.1 and trans < 0.005
 
 

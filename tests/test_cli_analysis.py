@@ -6,39 +6,24 @@ import json
 from pathlib import Path
 
 import numpy as np
-import pytest
 import yaml
+from _util import pose_error, run, write_tum
 
 from handeye_cli import se3
-from handeye_cli.cli import main
 from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import Rig, simulate_rig
 
 X = se3.from_xyz_quat(np.array([0.2, -0.1, 0.15]), np.array([0.1, -0.3, 0.2, 0.9]))
 
 
-def run(capsys, *args) -> tuple[int, str, str]:
-    with pytest.raises(SystemExit) as info:
-        main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return info.value.code, out, err
-
-
-def _tum(path: Path, stream) -> Path:
-    np.savetxt(path, np.c_[stream.stamps_ns / 1e9, stream.xyz, stream.quat_xyzw], fmt="%.9f")
-    return path
-
-
 def _files(tmp_path: Path, motion: str = "3d", **kw) -> tuple[Path, Path, tuple]:
     a, b = simulate_rig(Rig(X, 0), duration_s=40, rate_a=30, rate_b=20, motion=motion,
                         sigma_r=np.deg2rad(0.2), sigma_t=0.002, seed=11, **kw)
-    return _tum(tmp_path / "a.tum", a), _tum(tmp_path / "b.tum", b), (a, b)
+    return write_tum(tmp_path / "a.tum", a), write_tum(tmp_path / "b.tum", b), (a, b)
 
 
 def _error(doc: dict) -> tuple[float, float]:
-    M = np.array(doc["matrix"])
-    return (float(np.rad2deg(se3.rotation_angle(M[:3, :3].T @ X[:3, :3]))),
-            float(np.linalg.norm(M[:3, 3] - X[:3, 3])))
+    return pose_error(doc["matrix"], X)
 
 
 def test_well_posed_log_has_no_warnings_and_reports_residuals(capsys, tmp_path):
@@ -76,11 +61,16 @@ def test_prior_fixes_the_planar_log(capsys, tmp_path):
 
 def test_forgotten_inversion_is_diagnosed(capsys, tmp_path):
     _, _, (a, b) = _files(tmp_path)
-    fb_inv = _tum(tmp_path / "b_inv.tum", b.inverted())
+    fb_inv = write_tum(tmp_path / "b_inv.tum", b.inverted())
+    # Inverted, b fits 15x better: without an explicit choice the result is refused (exit 2) …
     code, out, err = run(capsys, "calibrate", tmp_path / "a.tum", fb_inv, "-q", "--pairs", "random:300")
-    assert code == 0
+    assert code == 2 and not out and "almost certainly inverted" in err and "--invert-b" in err
+    # … and with one (--no-invert-b: "b is right as it is") it is the first warning.
+    code, out, err = run(capsys, "calibrate", tmp_path / "a.tum", fb_inv, "-q", "--pairs", "random:300",
+                         "--no-invert-b")
+    assert code == 0, err
     warnings = yaml.safe_load(out)["warnings"]
-    assert any("stream b looks inverted" in w and "--invert-b" in w for w in warnings), warnings
+    assert "looks inverted" in warnings[0] and "--invert-b" in warnings[0], warnings
 
 
 def test_robust_rejects_outlier_pairs(tmp_path):

@@ -2,6 +2,8 @@
 string, and that solving the pairs recovers a simulated rig's extrinsic."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -11,6 +13,7 @@ from handeye_cli.simulation import Rig, random_transform, simulate_rig
 from handeye_cli.solvers import solve
 from handeye_cli.stages.gates import pose_jump_gate
 from handeye_cli.stages.pairs import keyframes, make_pairs
+from handeye_cli.stages.selection import ladder, select_pairs
 from handeye_cli.stages.sync import Synced, associate
 
 X = random_transform(np.random.default_rng(21), 0.3)
@@ -23,7 +26,7 @@ def synced() -> Synced:
     a, b = simulate_rig(Rig(X), duration_s=20, rate_a=15, rate_b=45, seed=3)
     s, _ = associate(a, b)
     segment = (np.arange(len(s)) >= len(s) * 2 // 3).astype(np.int64)
-    return Synced(s.stamps_ns, s.T_a, s.T_b, s.dt_ns, segment)
+    return replace(s, segment=segment)
 
 
 def brute_force(s: Synced, min_rotation: float) -> set[tuple[int, int]]:
@@ -147,3 +150,67 @@ def test_pairs_of_a_noisy_rig_with_jumps_recover_the_extrinsic_within_the_noise(
     for strategy in ("keyframes", "all", "random:1000"):
         rot, trans = _solve_error(make_pairs(kept, strategy)[0])
         assert rot < sigma_r / 3 and trans < sigma_t / 2, (strategy, rot, trans)
+
+
+def _keyframes_by_definition(s: Synced, rot: float, trans: float) -> list[int]:
+    """Keyframes by a plain loop over the samples (the reference for the blocked implementation)."""
+    out = [0]
+    for k in range(1, len(s)):
+        k0 = out[-1]
+        if s.segment[k] != s.segment[k0] or any(
+                se3.rotation_angle(se3.relative(T[k0], T[k])) >= rot or
+                np.linalg.norm(T[k, :3, 3] - T[k0, :3, 3]) >= trans for T in (s.T_a, s.T_b)):
+            out.append(k)
+    return out
+
+
+@pytest.mark.parametrize("rot, trans", [(np.deg2rad(5), 0.02), (np.deg2rad(20), 0.25), (np.deg2rad(90), 5.0)])
+def test_keyframes_follow_the_definition(synced: Synced, rot: float, trans: float) -> None:
+    """Small, medium and larger-than-the-block spacings (the row-wise search beyond a block)."""
+    assert keyframes(synced, rot, trans).tolist() == _keyframes_by_definition(synced, rot, trans)
+
+
+def test_sampled_candidates_beyond_the_exact_limit(synced: Synced, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Beyond _EXACT_LIMIT pairs the candidates are sampled, not counted: the pairs still obey the
+    strategy, are spread, and the count is estimated within a few percent."""
+    import handeye_cli.stages.pairs as pairs_module
+
+    exact = brute_force(synced, MIN_ROT)
+    monkeypatch.setattr(pairs_module, "_EXACT_LIMIT", 1000)
+    pairs, counts = make_pairs(synced, "all", max_pairs=300)
+    check_motions(synced, pairs)
+    keys = set(zip(pairs.i.tolist(), pairs.j.tolist(), strict=True))
+    assert len(keys) == len(pairs) == 300 and keys <= exact
+    assert counts["candidate_pairs"] == pytest.approx(len(exact), rel=0.05)
+    share = np.bincount(np.r_[pairs.i, pairs.j] * 10 // len(synced), minlength=10)
+    assert share.min() >= 0.4 * share.mean(), share
+    drawn, _ = make_pairs(synced, "random:200", seed=3)
+    assert len(drawn) == 200 and set(zip(drawn.i.tolist(), drawn.j.tolist(), strict=True)) <= exact
+
+
+def test_auto_is_not_a_make_pairs_strategy(synced: Synced) -> None:
+    with pytest.raises(HandEyeError, match="select_pairs"):
+        make_pairs(synced, "auto")
+
+
+def test_auto_selection_keeps_to_segments_and_the_cap_and_recovers_the_extrinsic() -> None:
+    sigma_r, sigma_t = np.deg2rad(0.1), 0.002
+    a, b = simulate_rig(Rig(X), duration_s=30, rate_a=100, rate_b=30, seed=10, sigma_r=sigma_r,
+                        sigma_t=sigma_t, jumps=5)
+    kept, _ = pose_jump_gate(associate(a, b)[0])
+    sel = select_pairs(kept, max_pairs=500)
+    p = sel.pairs
+    np.testing.assert_allclose(p.A, se3.inverse(kept.T_a[p.i]) @ kept.T_a[p.j], atol=1e-12)
+    assert (p.i < p.j).all() and (kept.segment[p.i] == kept.segment[p.j]).all()
+    assert 100 < len(sel.pairs) <= 500 and sel.rounds >= 1 and sel.model is not None
+    assert np.all(np.isfinite(sel.weights) & (sel.weights > 0))
+    assert set((sel.pairs.j - sel.pairs.i).tolist()) <= set(range(sel.strides[0], len(kept)))
+    E = se3.inverse(X) @ solve(sel.pairs.A, sel.pairs.B, alpha=sel.alpha, weights=sel.weights).matrix
+    assert se3.rotation_angle(E) < sigma_r / 3 and np.linalg.norm(E[:3, 3]) < sigma_t / 2
+    d = sel.as_dict()
+    assert d["kind"] == "absolute" and d["strides"] == list(sel.strides) and d["alpha"] == sel.alpha
+
+
+def test_auto_ladder_is_geometric() -> None:
+    assert ladder(1).tolist() == [] and ladder(2).tolist() == [1]
+    assert ladder(100).tolist() == [1, 2, 3, 4, 6, 8, 11, 16, 23, 32, 45, 64, 91]

@@ -77,3 +77,17 @@ def test_too_few_pairs_is_a_handeye_error():
     A, B = motion_pairs(5, random_transform(rng), rng, "random")
     with pytest.raises(HandEyeError, match="too few"):
         robust_solve(A, B)
+
+
+def test_refinement_cap_still_runs_one_round():
+    """``max_refinements`` caps the solve / re-threshold rounds, and one round always runs (a result needs a solve)."""
+    rng = np.random.default_rng(10)
+    X = random_transform(rng)
+    A, B = motion_pairs(60, X, rng, "random", SIGMA_R, SIGMA_T)
+    A, B, bad = contaminate(A, B, 0.1, rng)
+    none, one, many = (robust_solve(A, B, max_refinements=m) for m in (0, 1, 10))
+    assert none.refinements == one.refinements == 1 and many.refinements >= 1
+    np.testing.assert_array_equal(none.solution.matrix, one.solution.matrix)
+    assert not one.inliers[bad].any()
+    rot, trans = extrinsic_error(one.solution.matrix, X)
+    assert rot < 1.0 and trans < 0.02

@@ -14,11 +14,13 @@ against the project's :func:`dqopt`, which takes over for any replicate with a s
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..errors import HandEyeError
+from .._typing import BoolArray, FloatArray, IntArray
+from ..errors import ConfigError, DataError
 from ..solvers import Prior, solve
 from ..solvers import dualquat as dq
 from ..solvers.optimal import dqopt
@@ -49,25 +51,25 @@ class BootstrapResult:
         Number of replicates, the seed and the interval's coverage (0.95).
     """
 
-    matrix: np.ndarray
-    rotation_std_deg: np.ndarray
-    translation_std_m: np.ndarray
-    rotation_interval_deg: np.ndarray
-    translation_interval_m: np.ndarray
-    rotation_deltas_deg: np.ndarray
-    translations_m: np.ndarray
+    matrix: FloatArray
+    rotation_std_deg: FloatArray
+    translation_std_m: FloatArray
+    rotation_interval_deg: FloatArray
+    translation_interval_m: FloatArray
+    rotation_deltas_deg: FloatArray
+    translations_m: FloatArray
     replicates: int
     seed: int
     level: float
 
-    def contains(self, T_a_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def contains(self, T_a_b: FloatArray) -> tuple[BoolArray, BoolArray]:
         """Per-axis booleans (3,), (3,): whether a transform's rotation and translation lie in the intervals."""
-        d, t = _deltas(self.matrix, np.asarray(T_a_b, dtype=float)[None])
+        d, t = _deltas(self.matrix, np.asarray(T_a_b, dtype=np.float64)[None])
         r_in = (self.rotation_interval_deg[0] <= d[0]) & (d[0] <= self.rotation_interval_deg[1])
         t_in = (self.translation_interval_m[0] <= t[0]) & (t[0] <= self.translation_interval_m[1])
         return r_in, t_in
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """Plain summary for the result file (no replicate arrays)."""
         return {"replicates": self.replicates, "seed": self.seed, "level": self.level,
                 "rotation_std_deg": self.rotation_std_deg.tolist(),
@@ -76,17 +78,18 @@ class BootstrapResult:
                 "translation_interval_m": self.translation_interval_m.tolist()}
 
 
-def _pair_gram(E: np.ndarray, F: np.ndarray, alpha: float) -> np.ndarray:
+def _pair_gram(E: FloatArray, F: FloatArray, alpha: float) -> FloatArray:
     """Per-pair 8x8 ``K_iᵀK_i`` of the rows ``[0, E_i; αE_i, αF_i]`` acting on ``[q'; q]``, as (N, 64)."""
     n = len(E)
     K = np.zeros((n, 8, 8))
     K[:, :4, 4:] = E
     K[:, 4:, :4] = alpha * E
     K[:, 4:, 4:] = alpha * F
-    return np.einsum("nki,nkj->nij", K, K).reshape(n, 64)
+    gram: FloatArray = np.einsum("nki,nkj->nij", K, K)
+    return gram.reshape(n, 64)
 
 
-def _problems_from_grams(Q: np.ndarray) -> list[Problem]:
+def _problems_from_grams(Q: FloatArray) -> list[Problem]:
     """Residual-row problems with ``M, Wᵀ, S`` equal to the blocks of each 8x8 ``Q`` (in ``[q'; q]`` order)."""
     lam, V = np.linalg.eigh(Q)
     K = np.sqrt(np.clip(lam, 0.0, None))[:, :, None] * np.swapaxes(V, 1, 2)     # KᵀK = Q
@@ -94,7 +97,7 @@ def _problems_from_grams(Q: np.ndarray) -> list[Problem]:
     return [Problem(empty, k[:, 4:], k[:, :4]) for k in K]
 
 
-def _prior_gram(A: np.ndarray, B: np.ndarray, alpha: float, prior: Prior | None) -> np.ndarray:
+def _prior_gram(A: FloatArray, B: FloatArray, alpha: float, prior: Prior | None) -> FloatArray:
     """The prior's 8x8 contribution (eq 29) in ``[q'; q]`` order; zero without a prior."""
     if prior is None:
         return np.zeros((8, 8))
@@ -102,22 +105,22 @@ def _prior_gram(A: np.ndarray, B: np.ndarray, alpha: float, prior: Prior | None)
     return with_p.form - without.form
 
 
-def replicate_grams(motions_a: np.ndarray, motions_b: np.ndarray, counts: np.ndarray,
-                    alpha: float = 1.0, prior: Prior | None = None) -> np.ndarray:
+def replicate_grams(motions_a: FloatArray, motions_b: FloatArray, counts: FloatArray,
+                    alpha: float = 1.0, prior: Prior | None = None) -> FloatArray:
     """``[[M, Wᵀ], [W, S]]`` (eq 9, + prior eq 29) per row of ``counts`` (R, N) as (R, 8, 8), via one matrix product."""
     A, B, _ = validate_motions(motions_a, motions_b)
     E, F = pair_blocks(A, B)
-    Q = (np.asarray(counts, dtype=float) @ _pair_gram(E, F, alpha)).reshape(-1, 8, 8)
+    Q = (np.asarray(counts, dtype=np.float64) @ _pair_gram(E, F, alpha)).reshape(-1, 8, 8)
     return Q + _prior_gram(A, B, alpha, prior)
 
 
-def replicate_problems(motions_a: np.ndarray, motions_b: np.ndarray, counts: np.ndarray,
+def replicate_problems(motions_a: FloatArray, motions_b: FloatArray, counts: FloatArray,
                        alpha: float = 1.0, prior: Prior | None = None) -> list[Problem]:
     """One weighted :class:`Problem` per row of ``counts`` (R, N), e.g. for the project's solvers."""
     return _problems_from_grams(replicate_grams(motions_a, motions_b, counts, alpha, prior))
 
 
-def _batched_z(Q: np.ndarray) -> tuple[np.ndarray, ...]:
+def _batched_z(Q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, BoolArray]:
     """Z0, Z1, Z2 of eq 13 for a stack of 8x8 ``Q`` in ``[q'; q]`` order, the Cholesky factor of M,
     and a mask of the stack entries whose M is regular (the others get a placeholder M).
 
@@ -134,14 +137,14 @@ def _batched_z(Q: np.ndarray) -> tuple[np.ndarray, ...]:
     return S - Gt @ np.swapaxes(Gt, 1, 2), WMinv + np.swapaxes(WMinv, 1, 2), np.swapaxes(H, 1, 2) @ H, L, regular
 
 
-def _eig_z(Z0: np.ndarray, Z1: np.ndarray, Z2: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _eig_z(Z0: FloatArray, Z1: FloatArray, Z2: FloatArray, mu: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Eigenpairs (ascending) of ``Z(μ) = Z0 + μZ1 - μ²Z2`` (eq 12) for a stack."""
     m = mu[:, None, None]
     return np.linalg.eigh(Z0 + m * Z1 - (m * m) * Z2)
 
 
-def _f_slope(Z1: np.ndarray, Z2: np.ndarray, mu: np.ndarray, lam: np.ndarray,
-             V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _f_slope(Z1: FloatArray, Z2: FloatArray, mu: FloatArray, lam: FloatArray,
+             V: FloatArray) -> tuple[FloatArray, FloatArray]:
     """f(μ) of eq 18 and its derivative (second-order eigenvalue perturbation), for a stack."""
     q = V[:, :, 0]
     z2q = np.einsum("rij,rj->ri", Z2, q)
@@ -152,7 +155,7 @@ def _f_slope(Z1: np.ndarray, Z2: np.ndarray, mu: np.ndarray, lam: np.ndarray,
     return f, qz2q + np.sum(coupling ** 2 / gaps, axis=1)
 
 
-def _batched_dqopt(Q: np.ndarray, iterations: int = 60) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _batched_dqopt(Q: FloatArray, iterations: int = 60) -> tuple[FloatArray, FloatArray, BoolArray]:
     """DQOpt (Algorithm 1) on a stack of problems at once: bisection-safeguarded Newton on f(μ) (eq 18).
 
     f(μ) = q₀ᵀ(μZ2 - ½Z1)q₀ is increasing; its root lies between the extreme generalised
@@ -184,7 +187,7 @@ def _batched_dqopt(Q: np.ndarray, iterations: int = 60) -> tuple[np.ndarray, np.
     return q, qd, ok & done
 
 
-def _to_transforms(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+def _to_transforms(q: FloatArray, qd: FloatArray) -> FloatArray:
     """Transforms (R, 4, 4) of unit dual quaternions (R, 4) x-y-z-w: ``t = 2 q' ⊗ q*`` (eq 2)."""
     X = np.tile(np.eye(4), (len(q), 1, 1))
     X[:, :3, :3] = Rotation.from_quat(q).as_matrix()
@@ -192,7 +195,7 @@ def _to_transforms(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     return X
 
 
-def _solve_replicates(Q: np.ndarray) -> np.ndarray:
+def _solve_replicates(Q: FloatArray) -> FloatArray:
     """``T_a_b`` (R, 4, 4) minimising each replicate's cost; the project's DQOpt where batching gives up."""
     q, qd, ok = _batched_dqopt(Q)
     X = _to_transforms(q, qd)
@@ -202,7 +205,7 @@ def _solve_replicates(Q: np.ndarray) -> np.ndarray:
     return X
 
 
-def _deltas(X_hat: np.ndarray, Xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _deltas(X_hat: FloatArray, Xs: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Rotation vectors ``Log(R R̂ᵀ)`` [deg] (frame a) and translations [m] of transforms (R, 4, 4)."""
     dR = Xs[:, :3, :3] @ X_hat[:3, :3].T
     return np.rad2deg(Rotation.from_matrix(dR).as_rotvec()), Xs[:, :3, 3].copy()
@@ -214,13 +217,13 @@ def _dof_correction(n: int) -> float:
     return float(np.sqrt(n / (n - 6))) if n > 12 else float(np.sqrt(2.0))
 
 
-def _sample_counts(samples: tuple[np.ndarray, np.ndarray], use: np.ndarray, replicates: int,
-                   rng: np.random.Generator) -> tuple[int, np.ndarray]:
+def _sample_counts(samples: tuple[IntArray, IntArray], use: IntArray, replicates: int,
+                   rng: np.random.Generator) -> tuple[int, FloatArray]:
     """Vertex bootstrap: multinomial counts over the K samples the pairs ``use`` touch, and each
     pair's weight ``c[i]·c[j]`` as (R, len(use)). Returns K and the weights."""
     i, j = (np.asarray(v).reshape(-1) for v in samples)
     if i.shape != j.shape or len(i) < use.max(initial=-1) + 1:
-        raise HandEyeError(f"samples must be two index arrays of one entry per pair ({len(i)}, {len(j)})",
+        raise DataError(f"samples must be two index arrays of one entry per pair ({len(i)}, {len(j)})",
                            "bootstrap", "pass (pairs.i, pairs.j)")
     nodes, inv = np.unique(np.concatenate([i[use], j[use]]), return_inverse=True)
     k = len(nodes)
@@ -228,9 +231,9 @@ def _sample_counts(samples: tuple[np.ndarray, np.ndarray], use: np.ndarray, repl
     return k, c[:, inv[: len(use)]] * c[:, inv[len(use):]]
 
 
-def bootstrap(motions_a: np.ndarray, motions_b: np.ndarray, replicates: int = 1000, *,
-              alpha: float = 1.0, prior: Prior | None = None, weights: np.ndarray | None = None,
-              samples: tuple[np.ndarray, np.ndarray] | None = None, seed: int = 0,
+def bootstrap(motions_a: FloatArray, motions_b: FloatArray, replicates: int = 1000, *,
+              alpha: float = 1.0, prior: Prior | None = None, weights: FloatArray | None = None,
+              samples: tuple[IntArray, IntArray] | None = None, seed: int = 0,
               level: float = 0.95) -> BootstrapResult:
     """Pairs bootstrap (or samples bootstrap) of the DQOpt estimate of ``T_a_b``.
 
@@ -264,7 +267,7 @@ def bootstrap(motions_a: np.ndarray, motions_b: np.ndarray, replicates: int = 10
     """
     A, B, w = validate_motions(motions_a, motions_b, weights)
     if replicates < 2:
-        raise HandEyeError(f"{replicates} bootstrap replicates", "bootstrap", "ask for at least 2 (e.g. 1000)")
+        raise ConfigError(f"{replicates} bootstrap replicates", "bootstrap", "ask for at least 2 (e.g. 1000)")
     use = np.flatnonzero(w > 0)
     A, B, w = A[use], B[use], w[use]
     X_hat = solve(A, B, alpha=alpha, prior=prior, weights=w).matrix

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._typing import BoolArray, FloatArray, IntArray
 from ..solvers import Prior
 from ..solvers import dualquat as dq
 from ..solvers.problem import build_problem, pair_blocks, validate_motions
@@ -40,17 +41,17 @@ class LinearCovariance:
     ``singular`` says whether it had a null space (some direction is not determined at all).
     """
 
-    covariance: np.ndarray
-    hessian: np.ndarray
+    covariance: FloatArray
+    hessian: FloatArray
     singular: bool
 
     @property
-    def rotation_std_deg(self) -> np.ndarray:
+    def rotation_std_deg(self) -> FloatArray:
         """(3,) standard deviations of the rotation error about x, y, z of frame a [deg]."""
         return np.rad2deg(np.sqrt(np.clip(np.diag(self.covariance)[:3], 0.0, None)))
 
     @property
-    def translation_std_m(self) -> np.ndarray:
+    def translation_std_m(self) -> FloatArray:
         """(3,) standard deviations of the translation error along x, y, z of frame a [m]."""
         return np.sqrt(np.clip(np.diag(self.covariance)[3:], 0.0, None))
 
@@ -65,7 +66,7 @@ class LinearCovariance:
         return float(np.sqrt(max(np.trace(self.covariance[3:, 3:]), 0.0)))
 
 
-def tangent_basis(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+def tangent_basis(q: FloatArray, qd: FloatArray) -> FloatArray:
     """``D = dx/dδ`` (8x6) for ``Q_X(δ) = Q_Δ(ω, v) ⊗ Q_X``, x = [q; q'], δ = (ω [rad], v [m]) in frame a."""
     Rq, Rqd = dq.right(q)[:, :3], dq.right(qd)[:, :3]
     D = np.zeros((8, 6))
@@ -75,14 +76,14 @@ def tangent_basis(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     return D
 
 
-def _error_map(t: np.ndarray) -> np.ndarray:
+def _error_map(t: FloatArray) -> FloatArray:
     """6x6 map from δ = (ω, v) to the error (ω, δt = ω × t + v) of ``X = [R | t]``."""
     T = np.eye(6)
     T[3:, :3] = -np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
     return T
 
 
-def _meat(G: np.ndarray, samples: tuple[np.ndarray, np.ndarray] | None) -> tuple[np.ndarray, int]:
+def _meat(G: FloatArray, samples: tuple[IntArray, IntArray] | None) -> tuple[FloatArray, int]:
     """``Σ g gᵀ`` over independent units and their number: pairs, or — when pairs share pose
     samples ``(i, j)`` — the dyadic-robust sum ``Σ_n s_n s_nᵀ - Σ_k g_k g_kᵀ`` with ``s_n`` the
     summed scores of the pairs touching sample n (clipped to PSD)."""
@@ -97,9 +98,17 @@ def _meat(G: np.ndarray, samples: tuple[np.ndarray, np.ndarray] | None) -> tuple
     return (V * np.clip(lam, 0.0, None)) @ V.T, len(nodes)
 
 
-def linear_covariance(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np.ndarray, *,
-                      alpha: float = 1.0, prior: Prior | None = None, weights: np.ndarray | None = None,
-                      samples: tuple[np.ndarray, np.ndarray] | None = None) -> LinearCovariance:
+def select_samples(samples: tuple[IntArray, IntArray] | None, keep: BoolArray) -> tuple[IntArray, IntArray] | None:
+    """The pose-sample indices ``(i, j)`` (flattened) of the pairs selected by the mask ``keep``; ``None`` stays."""
+    if samples is None:
+        return None
+    i, j = (np.asarray(v).reshape(-1)[keep] for v in samples)
+    return i, j
+
+
+def linear_covariance(motions_a: FloatArray, motions_b: FloatArray, T_a_b: FloatArray, *,
+                      alpha: float = 1.0, prior: Prior | None = None, weights: FloatArray | None = None,
+                      samples: tuple[IntArray, IntArray] | None = None) -> LinearCovariance:
     """Sandwich covariance of the cost-(8) minimiser at ``T_a_b`` (which should be that minimiser).
 
     Parameters are those of :func:`handeye_cli.solvers.solve`; α in 1/m. The prior adds
@@ -110,7 +119,7 @@ def linear_covariance(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np.nd
     """
     A, B, w = validate_motions(motions_a, motions_b, weights)
     problem = build_problem(A, B, alpha=alpha, prior=prior, weights=w)
-    q, qd = dq.from_transforms(np.asarray(T_a_b, dtype=float))
+    q, qd = dq.from_transforms(np.asarray(T_a_b, dtype=np.float64))
     x = np.concatenate([q, qd])
     Q = np.block([[problem.S, problem.W], [problem.W.T, problem.M]])
     Qx = Q @ x
@@ -128,8 +137,8 @@ def linear_covariance(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np.nd
     singular = bool(ev[0] <= 1e-12 * max(abs(ev[-1]), 1e-300))
     Hinv = np.linalg.pinv(H, hermitian=True)
     keep = w > 0
-    meat, n = _meat(G[keep], None if samples is None else tuple(np.asarray(v)[keep] for v in samples))
+    meat, n = _meat(G[keep], select_samples(samples, keep))
     cov = Hinv @ meat @ Hinv * (n / (n - 6) if n > 12 else 2.0)              # HC1 correction
-    Tm = _error_map(np.asarray(T_a_b, dtype=float)[:3, 3])
+    Tm = _error_map(np.asarray(T_a_b, dtype=np.float64)[:3, 3])
     Tinv = np.linalg.inv(Tm)
     return LinearCovariance(Tm @ cov @ Tm.T, Tinv.T @ H @ Tinv, singular)

@@ -19,16 +19,18 @@ Two kinds of evidence:
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..errors import HandEyeError
+from .._typing import BoolArray, FloatArray, IntArray
+from ..errors import HandEyeError, UnderdeterminedError
 from ..solvers import Prior, build_problem, solve
 from ..solvers import dualquat as dq
 from ..solvers.approximate import dqconvrlx
 from ..solvers.problem import validate_motions
-from .covariance import LinearCovariance, linear_covariance
+from .covariance import LinearCovariance, linear_covariance, select_samples
 
 __all__ = ["ObservabilityWarning", "Observability", "assess_observability", "describe_direction"]
 
@@ -56,7 +58,7 @@ class ObservabilityWarning:
     def __str__(self) -> str:
         return f"{self.message}; {self.remedy}"
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """Plain dict for the result file."""
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
 
@@ -84,7 +86,7 @@ class Observability:
     pairs: int
     rotating_pairs: int
     rotation_median_deg: float
-    axis_a: np.ndarray | None
+    axis_a: FloatArray | None
     axis_spread_deg: float
     covariance: LinearCovariance | None
 
@@ -98,9 +100,9 @@ class Observability:
         """The warning codes, in order."""
         return [w.code for w in self.warnings]
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """Plain summary for the result file."""
-        out = {"pairs": self.pairs, "rotating_pairs": self.rotating_pairs,
+        out: dict[str, Any] = {"pairs": self.pairs, "rotating_pairs": self.rotating_pairs,
                "rotation_median_deg": self.rotation_median_deg,
                "axis_a": None if self.axis_a is None else self.axis_a.tolist(),
                "axis_spread_deg": self.axis_spread_deg,
@@ -111,9 +113,9 @@ class Observability:
         return out
 
 
-def describe_direction(v: np.ndarray, frame: str) -> str:
+def describe_direction(v: FloatArray, frame: str) -> str:
     """``"z of frame a"`` when ``v`` is within 15° of an axis (sign ignored), else the components."""
-    v = np.asarray(v, dtype=float) / np.linalg.norm(v)
+    v = np.asarray(v, dtype=np.float64) / np.linalg.norm(v)
     i = int(np.argmax(np.abs(v)))
     if abs(v[i]) >= np.cos(np.deg2rad(15.0)):
         return f"{'xyz'[i]} of frame {frame}"
@@ -121,7 +123,7 @@ def describe_direction(v: np.ndarray, frame: str) -> str:
     return f"direction [{v[0]:.2f}, {v[1]:.2f}, {v[2]:.2f}] of frame {frame}"
 
 
-def _principal(vectors: np.ndarray) -> tuple[np.ndarray, float]:
+def _principal(vectors: FloatArray) -> tuple[FloatArray, float]:
     """Dominant direction of (K, 3) vectors (sign-free) and the RMS angle [deg] of their spread about it."""
     lam, V = np.linalg.eigh(vectors.T @ vectors)
     spread = np.degrees(np.arctan(np.sqrt(max(lam[0] + lam[1], 0.0) / max(lam[2], 1e-300))))
@@ -129,24 +131,31 @@ def _principal(vectors: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def _warning(code: str, message: str, remedy: str, kind: str | None = None,
-             d_a: np.ndarray | None = None, R_x: np.ndarray | None = None) -> ObservabilityWarning:
+             d_a: FloatArray | None = None, R_x: FloatArray | None = None) -> ObservabilityWarning:
     """Build a warning; frame-b direction is ``R_Xᵀ d_a`` when the rotation of X is known."""
     if d_a is None:
         return ObservabilityWarning(code, message, remedy, kind)
-    d_b = None if R_x is None else tuple(float(c) for c in R_x.T @ d_a)
-    return ObservabilityWarning(code, message, remedy, kind, tuple(float(c) for c in d_a), d_b)
+    d_b = None if R_x is None else _vec3(R_x.T @ d_a)
+    return ObservabilityWarning(code, message, remedy, kind, _vec3(d_a), d_b)
 
 
-def _estimate(A: np.ndarray, B: np.ndarray, alpha: float, prior: Prior | None, w: np.ndarray) -> np.ndarray:
+def _vec3(v: FloatArray) -> tuple[float, float, float]:
+    """A 3-vector as a tuple of Python floats."""
+    x, y, z = (float(c) for c in v)
+    return x, y, z
+
+
+def _estimate(A: FloatArray, B: FloatArray, alpha: float, prior: Prior | None, w: FloatArray) -> FloatArray:
     """DQOpt estimate, or the DQConvRlx one (Alg. 3) when the solver refuses a degenerate problem."""
     try:
         return solve(A, B, alpha=alpha, prior=prior, weights=w).matrix
-    except HandEyeError:
+    except UnderdeterminedError:
         r = dqconvrlx(build_problem(A, B, alpha=alpha, prior=prior, weights=w))
         return dq.to_transform(r.q, r.qd)
 
 
-def _pure_translation(A: np.ndarray, angles: np.ndarray, max_spread: float, R_x: np.ndarray) -> list[ObservabilityWarning]:
+def _pure_translation(A: FloatArray, angles: FloatArray, max_spread: float,
+                      R_x: FloatArray) -> list[ObservabilityWarning]:
     """Warnings when no motion rotates: all translation, and rotation about a common travel line."""
     n = len(A)
     out = [_warning("pure_translation",
@@ -166,7 +175,7 @@ def _pure_translation(A: np.ndarray, angles: np.ndarray, max_spread: float, R_x:
     return out
 
 
-def _fixed_line_residual(A: np.ndarray, axis: np.ndarray) -> float:
+def _fixed_line_residual(A: FloatArray, axis: FloatArray) -> float:
     """How far the motions are from rotations about one fixed line ``t_A = (I - R_A) p`` (0 = exactly)."""
     P = np.eye(3) - np.outer(axis, axis)
     t = A[:, :3, 3] @ P                                           # translation across the axis
@@ -177,8 +186,8 @@ def _fixed_line_residual(A: np.ndarray, axis: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(res * res, axis=1))) / scale) if scale > 0 else 0.0
 
 
-def _single_axis(A: np.ndarray, total: int, axis: np.ndarray, spread: float, max_spread: float,
-                 line_tol: float, R_x: np.ndarray) -> list[ObservabilityWarning]:
+def _single_axis(A: FloatArray, total: int, axis: FloatArray, spread: float, max_spread: float,
+                 line_tol: float, R_x: FloatArray) -> list[ObservabilityWarning]:
     """Warnings for rotating motions ``A`` (of ``total``) that all rotate about one axis (e.g. planar motion)."""
     n = len(A)
     t = A[:, :3, 3]
@@ -202,13 +211,13 @@ def _single_axis(A: np.ndarray, total: int, axis: np.ndarray, spread: float, max
     return out
 
 
-def _already_named(named: list[ObservabilityWarning], kind: str, d: np.ndarray) -> bool:
+def _already_named(named: list[ObservabilityWarning], kind: str, d: FloatArray) -> bool:
     """Whether a warning of this kind covers direction ``d`` (no direction = all directions)."""
     return any(w.kind == kind and (w.direction_a is None or abs(np.dot(w.direction_a, d)) > np.cos(np.deg2rad(20.0)))
                for w in named)
 
 
-def _weak_directions(cov: LinearCovariance, block: slice, limit: float) -> list[tuple[np.ndarray, float, bool]]:
+def _weak_directions(cov: LinearCovariance, block: slice, limit: float) -> list[tuple[FloatArray, float, bool]]:
     """(direction, predicted std, null) for the Hessian's null directions, else covariance axes above ``limit``."""
     hv, hV = np.linalg.eigh(cov.hessian[block, block])
     null = hv <= 1e-9 * max(abs(cov.hessian).max(), 1e-300)
@@ -219,10 +228,10 @@ def _weak_directions(cov: LinearCovariance, block: slice, limit: float) -> list[
     return [(V[:, i], float(std[i]), False) for i in np.argsort(-std) if std[i] > limit]
 
 
-def _covariance_warnings(cov: LinearCovariance, R_x: np.ndarray, max_rot_deg: float, max_trans_m: float,
+def _covariance_warnings(cov: LinearCovariance, R_x: FloatArray, max_rot_deg: float, max_trans_m: float,
                          named: list[ObservabilityWarning]) -> list[ObservabilityWarning]:
     """Null or weak directions of the sandwich covariance not already named by a geometric warning."""
-    out = []
+    out: list[ObservabilityWarning] = []
     for kind, block, limit in (("rotation", slice(0, 3), np.deg2rad(max_rot_deg)),
                                ("translation", slice(3, 6), max_trans_m)):
         for d, std, null in _weak_directions(cov, block, limit):
@@ -240,12 +249,31 @@ def _covariance_warnings(cov: LinearCovariance, R_x: np.ndarray, max_rot_deg: fl
     return out
 
 
-def assess_observability(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np.ndarray | None = None, *,
-                         alpha: float = 1.0, prior: Prior | None = None, weights: np.ndarray | None = None,
+def _rotation_checks(A: FloatArray, rotvec: FloatArray, angles: FloatArray, rotating: BoolArray,
+                     R_x: FloatArray, small_rotation_deg: float, max_axis_spread_deg: float,
+                     fixed_line_tolerance: float) -> tuple[FloatArray | None, float, list[ObservabilityWarning]]:
+    """The principal rotation axis, its spread [deg] and the warnings about how the motions rotate:
+    not at all, too little, or about a single axis."""
+    if not rotating.any():
+        return None, float("nan"), _pure_translation(A, angles, max_axis_spread_deg, R_x)
+    found: list[ObservabilityWarning] = []
+    axis, spread = _principal(rotvec[rotating])
+    if float(np.median(angles)) < small_rotation_deg:
+        found.append(_warning("small_rotations", f"the motions rotate little (median {np.median(angles):.2f}°, "
+                              f"{100 * np.mean(angles < small_rotation_deg):.0f}% below {small_rotation_deg:g}°): "
+                              "the extrinsic is sensitive to noise", "pair samples further apart in time, "
+                              "or rotate the rig more"))
+    if spread < max_axis_spread_deg:
+        found += _single_axis(A[rotating], len(A), axis, spread, max_axis_spread_deg, fixed_line_tolerance, R_x)
+    return axis, spread, found
+
+
+def assess_observability(motions_a: FloatArray, motions_b: FloatArray, T_a_b: FloatArray | None = None, *,
+                         alpha: float = 1.0, prior: Prior | None = None, weights: FloatArray | None = None,
                          min_pairs: int = 10, min_rotation_deg: float = 1.0, small_rotation_deg: float = 2.0,
                          max_axis_spread_deg: float = 2.0, fixed_line_tolerance: float = 0.02,
                          max_rotation_std_deg: float = 1.0, max_translation_std_m: float = 0.05,
-                         samples: tuple[np.ndarray, np.ndarray] | None = None) -> Observability:
+                         samples: tuple[IntArray, IntArray] | None = None) -> Observability:
     """Detect degenerate motion and name the unobservable directions of ``T_a_b``.
 
     Parameters
@@ -278,8 +306,8 @@ def assess_observability(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np
     A, B, w = validate_motions(motions_a, motions_b, weights)
     keep = w > 0
     A, B, w = A[keep], B[keep], w[keep]
-    samples = None if samples is None else tuple(np.asarray(v).reshape(-1)[keep] for v in samples)
-    X = np.asarray(T_a_b, dtype=float) if T_a_b is not None else _estimate(A, B, alpha, prior, w)
+    samples = select_samples(samples, keep)
+    X = np.asarray(T_a_b, dtype=np.float64) if T_a_b is not None else _estimate(A, B, alpha, prior, w)
     R_x = X[:3, :3]
     rotvec = Rotation.from_matrix(A[:, :3, :3]).as_rotvec()
     angles = np.degrees(0.5 * (np.linalg.norm(rotvec, axis=1)
@@ -289,18 +317,9 @@ def assess_observability(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np
     if len(A) < min_pairs:
         found.append(_warning("too_few_pairs", f"only {len(A)} motion pairs", "record more motion, or pair "
                               f"more samples (at least {min_pairs} pairs are advised)"))
-    axis, spread = None, float("nan")
-    if not rotating.any():
-        found += _pure_translation(A, angles, max_axis_spread_deg, R_x)
-    else:
-        axis, spread = _principal(rotvec[rotating])
-        if float(np.median(angles)) < small_rotation_deg:
-            found.append(_warning("small_rotations", f"the motions rotate little (median {np.median(angles):.2f}°, "
-                                  f"{100 * np.mean(angles < small_rotation_deg):.0f}% below {small_rotation_deg:g}°): "
-                                  "the extrinsic is sensitive to noise", "pair samples further apart in time, "
-                                  "or rotate the rig more"))
-        if spread < max_axis_spread_deg:
-            found += _single_axis(A[rotating], len(A), axis, spread, max_axis_spread_deg, fixed_line_tolerance, R_x)
+    axis, spread, rotation_warnings = _rotation_checks(A, rotvec, angles, rotating, R_x, small_rotation_deg,
+                                                       max_axis_spread_deg, fixed_line_tolerance)
+    found += rotation_warnings
     try:
         cov = linear_covariance(A, B, X, alpha=alpha, prior=prior, weights=w, samples=samples)
     except (HandEyeError, np.linalg.LinAlgError):

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .._typing import BoolArray, FloatArray
 from ..solvers import dualquat as dq
 from ..solvers.problem import validate_motions
 
@@ -45,22 +46,22 @@ class ResidualSummary:
 class Residuals:
     """Per-pair residuals of ``A_i X = X B_i``: ``rotation_deg`` (N,) [deg], ``translation_m`` (N,) [m]."""
 
-    rotation_deg: np.ndarray
-    translation_m: np.ndarray
+    rotation_deg: FloatArray
+    translation_m: FloatArray
 
-    def summary(self, mask: np.ndarray | None = None) -> ResidualSummary:
+    def summary(self, mask: BoolArray | None = None) -> ResidualSummary:
         """Summary over all pairs, or over those selected by the boolean ``mask`` (e.g. inliers)."""
         return summarize(self, mask)
 
 
-def _rotation_parts(T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _rotation_parts(T: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Unit quaternions x-y-z-w (w ≥ 0), rotation matrices and translations [m] of transforms (…, 4, 4)."""
     q, _ = dq.from_transforms(T)
     return q, T[..., :3, :3], T[..., :3, 3]
 
 
-def residuals_batch(motions_a: np.ndarray, motions_b: np.ndarray,
-                    X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def residuals_batch(motions_a: FloatArray, motions_b: FloatArray,
+                    X: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Residuals of every pair for every candidate extrinsic; no validation (internal, fast).
 
     Parameters
@@ -87,17 +88,17 @@ def residuals_batch(motions_a: np.ndarray, motions_b: np.ndarray,
     return rot, np.sqrt(np.sum(res_t * res_t, axis=-1))
 
 
-def pair_residuals(motions_a: np.ndarray, motions_b: np.ndarray, T_a_b: np.ndarray) -> Residuals:
+def pair_residuals(motions_a: FloatArray, motions_b: FloatArray, T_a_b: FloatArray) -> Residuals:
     """Rotation [deg] and translation [m] residual of each pair ``A_i X`` vs ``X B_i`` with ``X = T_a_b``.
 
     Raises :class:`~handeye_cli.errors.HandEyeError` on malformed motions.
     """
     A, B, _ = validate_motions(motions_a, motions_b)
-    rot, trans = residuals_batch(A, B, np.asarray(T_a_b, dtype=float)[None])
+    rot, trans = residuals_batch(A, B, np.asarray(T_a_b, dtype=np.float64)[None])
     return Residuals(np.rad2deg(rot[0]), trans[0])
 
 
-def summarize(residuals: Residuals, mask: np.ndarray | None = None) -> ResidualSummary:
+def summarize(residuals: Residuals, mask: BoolArray | None = None) -> ResidualSummary:
     """Median, 95th percentile and maximum of rotation [deg] and translation [m] residuals."""
     r, t = residuals.rotation_deg, residuals.translation_m
     if mask is not None:
@@ -107,8 +108,8 @@ def summarize(residuals: Residuals, mask: np.ndarray | None = None) -> ResidualS
     return ResidualSummary(*(float(v) for v in pr), *(float(v) for v in pt))
 
 
-def extrinsic_error(T_a_b: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
+def extrinsic_error(T_a_b: FloatArray, truth: FloatArray) -> tuple[float, float]:
     """Error of an estimate against the true ``T_a_b``: geodesic rotation [deg], Euclidean translation [m]."""
-    X, Y = np.asarray(T_a_b, dtype=float), np.asarray(truth, dtype=float)
+    X, Y = np.asarray(T_a_b, dtype=np.float64), np.asarray(truth, dtype=np.float64)
     rot = Rotation.from_matrix(Y[:3, :3].T @ X[:3, :3]).magnitude()
     return float(np.rad2deg(rot)), float(np.linalg.norm(X[:3, 3] - Y[:3, 3]))

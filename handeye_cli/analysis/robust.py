@@ -10,8 +10,8 @@ Algorithm (:func:`robust_solve`):
    eigenvector of ``Σ E_iᵀE_i`` (eq 19, E_i from eq 7), the translation the least-squares
    solution of ``(R_Ai - I) t = R_X t_Bi - t_Ai``.
 2. **Scoring without a threshold (LMedS).** Every hypothesis is scored by the median over the
-   pairs (a random subset of ``score_pairs`` for large N) of ``(r_rot/s_rot)² + (r_t/s_t)²``, where ``s`` is the smallest per-hypothesis median
-   residual; the best hypothesis survives up to 50 % outliers.
+   pairs (a random subset of ``score_pairs`` for large N) of ``(r_rot/s_rot)² + (r_t/s_t)²``, where ``s``
+   is the smallest per-hypothesis median residual; the best hypothesis survives up to 50 % outliers.
 3. **Data-derived threshold.** For residual magnitudes the median is the MAD about zero;
    a pair is an inlier when both its residuals are ≤ ``k`` × the inliers' median residual
    (k = 3: a 3-D Gaussian residual exceeds 3 × its median with probability ≈ 1e-4).
@@ -21,11 +21,13 @@ Algorithm (:func:`robust_solve`):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..errors import HandEyeError
+from .._typing import BoolArray, FloatArray, IntArray
+from ..errors import TooFewPairsError
 from ..solvers import Prior, Solution, solve
 from ..solvers.problem import pair_blocks, validate_motions
 from .residuals import Residuals, residuals_batch
@@ -54,15 +56,15 @@ class RobustResult:
     """
 
     solution: Solution
-    inliers: np.ndarray
-    rejected: np.ndarray
+    inliers: BoolArray
+    rejected: IntArray
     threshold_rotation_deg: float
     threshold_translation_m: float
     residuals: Residuals
     hypotheses: int
     refinements: int
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """Plain summary for the result file (the rejected indices, not the mask)."""
         return {"inliers": int(self.inliers.sum()), "rejected": [int(i) for i in self.rejected],
                 "threshold_rotation_deg": self.threshold_rotation_deg,
@@ -70,12 +72,12 @@ class RobustResult:
                 "hypotheses": self.hypotheses, "refinements": self.refinements}
 
 
-def _sample_sets(n: int, size: int, count: int, rng: np.random.Generator) -> np.ndarray:
+def _sample_sets(n: int, size: int, count: int, rng: np.random.Generator) -> IntArray:
     """``count`` sets of ``size`` distinct pair indices in ``range(n)``, shape (count, size)."""
     return np.argpartition(rng.random((count, n)), size - 1, axis=1)[:, :size]
 
 
-def minimal_hypotheses(motions_a: np.ndarray, motions_b: np.ndarray, sets: np.ndarray) -> np.ndarray:
+def minimal_hypotheses(motions_a: FloatArray, motions_b: FloatArray, sets: IntArray) -> FloatArray:
     """Solve every minimal set of pairs with the two-step method (DQ2Steps, Alg. 2), vectorised.
 
     Parameters
@@ -105,15 +107,15 @@ def minimal_hypotheses(motions_a: np.ndarray, motions_b: np.ndarray, sets: np.nd
     return X
 
 
-def _chunked_residuals(A: np.ndarray, B: np.ndarray, cand: np.ndarray,
-                       budget: int = 1 << 20) -> tuple[np.ndarray, np.ndarray]:
+def _chunked_residuals(A: FloatArray, B: FloatArray, cand: FloatArray,
+                       budget: int = 1 << 20) -> tuple[FloatArray, FloatArray]:
     """:func:`residuals_batch` over the candidates in chunks of about ``budget`` (candidate, pair) cells."""
     step = max(1, budget // len(A))
     parts = [residuals_batch(A, B, cand[i:i + step]) for i in range(0, len(cand), step)]
     return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
-def _lmeds_best(rot: np.ndarray, trans: np.ndarray) -> int:
+def _lmeds_best(rot: FloatArray, trans: FloatArray) -> int:
     """Index of the hypothesis with the least median of the normalised squared residuals."""
     tiny = np.finfo(float).tiny
     s_r = max(float(np.median(rot, axis=1).min()), tiny)
@@ -122,15 +124,17 @@ def _lmeds_best(rot: np.ndarray, trans: np.ndarray) -> int:
     return int(np.argmin(score))
 
 
-def _inlier_mask(rot: np.ndarray, trans: np.ndarray, basis: np.ndarray, k: float) -> tuple[np.ndarray, float, float]:
-    """Inliers: both residuals ≤ k × their median over the pairs in ``basis``; also the thresholds."""
+def _inlier_mask(rot: FloatArray, trans: FloatArray, basis: IntArray | BoolArray,
+                 k: float) -> tuple[BoolArray, float, float]:
+    """Inliers: both residuals ≤ k × their median over the pairs in ``basis`` (indices or a mask); also the
+    thresholds."""
     floor = 1e-12
     tau_r = k * max(float(np.median(rot[basis])), floor)
     tau_t = k * max(float(np.median(trans[basis])), floor)
     return (rot <= tau_r) & (trans <= tau_t), tau_r, tau_t
 
 
-def robust_solve(motions_a: np.ndarray, motions_b: np.ndarray, *, method: str = "dqopt",
+def robust_solve(motions_a: FloatArray, motions_b: FloatArray, *, method: str = "dqopt",
                  alpha: float = 1.0, prior: Prior | None = None, hypotheses: int = 256,
                  sample_size: int = 3, k: float = 3.0, max_refinements: int = 10,
                  score_pairs: int = 2000, seed: int = 0) -> RobustResult:
@@ -148,7 +152,7 @@ def robust_solve(motions_a: np.ndarray, motions_b: np.ndarray, *, method: str = 
     k:
         Inlier threshold in multiples of the inliers' median residual (rotation and translation).
     max_refinements:
-        Cap on the solve / re-threshold rounds of step 4.
+        Cap on the solve / re-threshold rounds of step 4 (one round always runs).
     score_pairs:
         Hypotheses are scored on a random subset of this many pairs when there are more.
     seed:
@@ -167,7 +171,7 @@ def robust_solve(motions_a: np.ndarray, motions_b: np.ndarray, *, method: str = 
     A, B, _ = validate_motions(motions_a, motions_b)
     n = len(A)
     if sample_size < 2 or n < 2 * sample_size:
-        raise HandEyeError(f"{n} motion pairs are too few for outlier rejection with samples of "
+        raise TooFewPairsError(f"{n} motion pairs are too few for outlier rejection with samples of "
                            f"{sample_size}", "robust", f"record at least {2 * max(sample_size, 2)} "
                            "motion pairs, or solve without --robust")
     rng = np.random.default_rng(seed)
@@ -178,14 +182,17 @@ def robust_solve(motions_a: np.ndarray, motions_b: np.ndarray, *, method: str = 
     rot, trans = r[0], t[0]
     order = np.argsort((rot / max(np.median(rot), 1e-300)) ** 2 + (trans / max(np.median(trans), 1e-300)) ** 2)
     mask, tau_r, tau_t = _inlier_mask(rot, trans, order[: max(n // 2, sample_size)], k)   # scale: best half
-    solution, refinements = None, 0
-    for refinements in range(1, max_refinements + 1):
-        solution = solve(A, B, method=method, alpha=alpha, prior=prior, weights=mask.astype(float))
+    refinements = 0
+    while True:
+        refinements += 1
+        solution = solve(A, B, method=method, alpha=alpha, prior=prior, weights=mask.astype(np.float64))
         r, t = residuals_batch(A, B, solution.matrix[None])
         rot, trans = r[0], t[0]
         new, tau_r, tau_t = _inlier_mask(rot, trans, mask, k)
         if np.array_equal(new, mask) or new.sum() < sample_size:
             break
         mask = new
+        if refinements >= max_refinements:
+            break
     return RobustResult(solution, mask, np.flatnonzero(~mask), float(np.rad2deg(tau_r)), float(tau_t),
                         Residuals(np.rad2deg(rot), trans), int(len(cand)), refinements)

@@ -13,7 +13,7 @@ import click
 
 from .. import __version__
 from ..errors import HandEyeError
-from .common import CONTEXT, StrictFailure
+from .common import CONTEXT, Drifted, StrictFailure
 
 __all__ = ["cli", "main"]
 
@@ -36,11 +36,13 @@ def cli(debug: bool) -> None:
 
 
 def _register() -> None:
+    from .batch import batch, report
     from .calibrate import calibrate
+    from .check import check
     from .inspect import inspect
     from .solve import solve
 
-    for command in (calibrate, solve, inspect):
+    for command in (calibrate, solve, inspect, batch, check, report):
         cli.add_command(command)
 
 
@@ -65,6 +67,9 @@ def main(argv: list[str] | None = None) -> None:
         hint = f" (run '{ctx.command_path} --help')" if ctx is not None else ""
         click.echo(f"error: {e.format_message()}{hint}", err=True)
         sys.exit(e.exit_code)
+    except Drifted as e:
+        click.echo(f"drift: {e}", err=True)
+        sys.exit(1)
     except StrictFailure as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(3)
@@ -72,3 +77,4 @@ def main(argv: list[str] | None = None) -> None:
         click.echo("aborted", err=True)
         sys.exit(130)
     sys.exit(code if isinstance(code, int) else 0)
+

@@ -5,10 +5,13 @@ from typing import Any
 
 import click
 
+from ..analysis.verdict import verdict_for
 from ..errors import ConfigError, HandEyeError
+from ..io.nominal import read_nominal
 from ..output.writers import check_writable, output_format
 from ..pipeline import Calibration, StreamSpec, calibrate_files
-from .common import CONTEXT, StrictFailure, emit
+from .check import verdict_options
+from .common import CONTEXT, Drifted, StrictFailure, emit
 from .params import calibrate_options, options_from_cli, output_options, stream_options
 
 
@@ -55,6 +58,7 @@ def _report(path: str, result: Calibration) -> HandEyeError | None:
 @calibrate_options
 @click.option("--report", "report_file", metavar="FILE", help="Write a self-contained HTML report (trajectories, "
               "residuals, gates, uncertainty, warnings).")
+@verdict_options
 @output_options
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
@@ -70,25 +74,35 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
       handeye calibrate log.bag --frames-a world cam0 --frames-b odom imu --time-offset auto
       handeye calibrate a.tum b.tum --method dqopt -o extrinsic.json
       cat a.tum | handeye calibrate - b.tum --robust --alpha auto --bootstrap 1000 --report report.html
+      handeye calibrate log.mcap --topic-a /cam0/pose --topic-b /cam1/pose --against robot.urdf  # exit 1: moved
+      handeye calibrate log.mcap --topic-a /cam0/pose --topic-b /cam1/pose --format urdf -o cam1.urdf
     """
     config_file, preset = p.get("config_file"), p.get("preset")
     options = options_from_cli(p)
     spec_a, spec_b = stream_specs(inputs, p)
-    fmt = output_format(p["output"], p["fmt"])
     check_writable(p["output"], "-o")
+    fmt = output_format(p["output"], p["fmt"])
     if p["report_file"]:
         check_writable(p["report_file"], "--report")
+    nominal = read_nominal(p["against"]) if p["against"] else None      # a bad nominal fails before the work
     result = calibrate_files(spec_a, spec_b, options=options, quiet=p["quiet"])
     result = result.with_origin(config_file, preset)
     doc = result.document()
+    verdict = None if nominal is None else verdict_for(doc, nominal, p["max_rotation_deg"], p["max_translation_m"])
+    if verdict is not None:
+        doc["verdict"] = verdict.as_dict()
     report_error = _report(p["report_file"], result) if p["report_file"] else None
     emit(doc, p["output"], fmt)
     if not p["quiet"]:
         click.echo(_summary(doc), err=True)
     for w in doc["warnings"]:
         click.echo(f"warning: {w}", err=True)
+    if verdict is not None and not verdict.drift and not p["quiet"]:
+        click.echo(verdict.summary(), err=True)
     if report_error is not None:
         raise HandEyeError(f"the result was written, but not the report: {report_error.what}", report_error.where,
                            report_error.fix)
+    if verdict is not None and verdict.drift:
+        raise Drifted(verdict.summary())
     if doc["warnings"] and options.analysis.strict:
         raise StrictFailure(f"{len(doc['warnings'])} warning(s) under --strict (the result was still written)")

@@ -3,10 +3,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..output.document import render
+from ..output.formats import render_format
 from ..output.writers import output_format, write_output
 
-__all__ = ["CONTEXT", "StrictFailure", "emit"]
+__all__ = ["CONTEXT", "Drifted", "StrictFailure", "emit"]
 
 CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 
@@ -15,6 +15,10 @@ class StrictFailure(Exception):
     """Warnings were raised under ``--strict`` (exit code 3)."""
 
 
+class Drifted(Exception):
+    """The result differs from the nominal extrinsic beyond tolerance (exit code 1)."""
+
+
 def emit(doc: dict[str, Any], output: str | None, fmt: str | None) -> None:
     """Print the result to stdout (no ``-o`` or ``-o -``) or write it to ``output``."""
-    write_output(output, render(doc, output_format(output, fmt)))
+    write_output(output, render_format(doc, output_format(output, fmt)))

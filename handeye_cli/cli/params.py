@@ -13,9 +13,11 @@ from typing import Any
 import click
 
 from ..config import load_options, presets
-from ..options import FIELDS, Options
+from ..options import FIELDS, Options, optional_flag
+from ..output.formats import ALL_FORMATS
 
-__all__ = ["apply", "flags", "calibrate_options", "options_from_cli", "OPTION_NAMES", "stream_options", "output_options"]
+__all__ = ["apply", "flags", "calibrate_options", "options_from_cli", "OPTION_NAMES", "stream_options",
+           "output_options"]
 
 F = Callable[..., Any]
 
@@ -34,7 +36,7 @@ def _flag(name: str) -> Callable[[F], F]:
     _, info, default = FIELDS[name]
     dashed = "--" + name.replace("_", "-")
     help_text = f"{info.help} [default: {_default_text(default)}]"
-    if isinstance(default, bool):
+    if isinstance(default, bool) or info.parse is optional_flag:
         return click.option(f"{dashed}/--no-{dashed[2:]}", name, default=None, help=help_text)
     kind = click.Choice(info.choices, case_sensitive=False) if info.choices else click.STRING
     return click.option(dashed, name, type=kind, default=None, metavar=info.metavar, help=help_text)
@@ -85,6 +87,7 @@ stream_options = apply(
 output_options = apply(
     click.option("-o", "--output", metavar="FILE", help="Write the result here instead of stdout ('-': stdout); "
                  "a regular file is replaced atomically; .json selects JSON, .yaml/.yml YAML."),
-    click.option("--format", "fmt", type=click.Choice(["yaml", "json"]), help="Output format [default: from the "
-                 "-o suffix, else yaml]."),
+    click.option("--format", "fmt", type=click.Choice(ALL_FORMATS), help="Output format: the result as YAML/JSON, "
+                 "or the extrinsic as a URDF joint, a ROS 1/2 launch file, a static_transform_publisher line or "
+                 "Kalibr YAML [default: from the -o name (.yaml .json .urdf .launch .launch.py .sh), else yaml]."),
 )

@@ -1,8 +1,11 @@
 """``handeye solve``: the solver alone, on a file of relative motion pairs."""
 from __future__ import annotations
 
+from typing import Any
+
 import click
 
+from ..analysis.alpha import noise_model_alpha
 from ..config import load_options
 from ..io.pairfile import read_extrinsic, read_pairs
 from ..output.document import result_document
@@ -17,7 +20,7 @@ from .params import flags, output_options
 @click.argument("pairs_file", type=click.Path())
 @flags("method", "alpha", "prior", "prior_weights")
 @output_options
-def solve(pairs_file: str, output: str | None, fmt: str | None, **given: str | None) -> None:
+def solve(pairs_file: str, output: str | None, fmt: str | None, **given: Any) -> None:
     """Solve A_i X = X B_i for X = T_a_b from a file of relative motion pairs.
 
     PAIRS_FILE is a CSV with the header
@@ -30,11 +33,11 @@ def solve(pairs_file: str, output: str | None, fmt: str | None, **given: str | N
       handeye solve sample_data/pairs.csv --method dqopt --alpha 1
     """
     s = load_options(**given).solver
-    if s.alpha == "auto":
-        raise click.BadParameter("'auto' needs the pose streams; give a number", param_hint="--alpha")
-    fmt = output_format(output, fmt)
     check_writable(output, "-o")
+    fmt = output_format(output, fmt)
     A, B, weights = read_pairs(pairs_file)
     prior = None if s.prior is None else Prior(read_extrinsic(s.prior), *s.prior_weights)
-    sol = solve_pairs(A, B, method=s.method, alpha=float(s.alpha), prior=prior, weights=weights)
+    alpha = (noise_model_alpha(A, B, prior=prior, weights=weights).alpha if s.alpha == "auto"
+             else float(s.alpha))          # auto: ML under a noise model fitted to the pairs' residuals
+    sol = solve_pairs(A, B, method=s.method, alpha=alpha, prior=prior, weights=weights)
     emit(result_document(sol, inputs={"pairs_file": pairs_file}, samples={"pairs": len(A)}), output, fmt)

@@ -17,6 +17,7 @@ import numpy as np
 import yaml
 
 from .. import __version__
+from .._typing import FloatArray
 from ..errors import HandEyeError
 from ..solvers import Solution
 
@@ -38,15 +39,16 @@ def plain(value: Any) -> Any:
     return value
 
 
-def _static_transform_command(t: np.ndarray, q: np.ndarray, frames: dict) -> str:
-    nums = " ".join(f"--{k} {v:.9g}" for k, v in zip(("x", "y", "z", "qx", "qy", "qz", "qw"), [*t, *q], strict=True))
+def _static_transform_command(t: FloatArray, q: FloatArray, frames: dict[str, str]) -> str:
+    names = ("x", "y", "z", "qx", "qy", "qz", "qw")
+    nums = " ".join(f"--{k} {float(v)!r}" for k, v in zip(names, [*t, *q], strict=True))   # repr: round-trips
     return (f"ros2 run tf2_ros static_transform_publisher {nums} "
             f"--frame-id {frames.get('a', 'a')} --child-frame-id {frames.get('b', 'b')}")
 
 
-def result_document(solution: Solution, *, frames: dict | None = None, inputs: dict | None = None,
-                    samples: dict | None = None, warnings: list[str] | None = None,
-                    diagnostics: dict | None = None) -> dict:
+def result_document(solution: Solution, *, frames: dict[str, str] | None = None,
+                    inputs: dict[str, Any] | None = None, samples: dict[str, Any] | None = None,
+                    warnings: list[str] | None = None, diagnostics: dict[str, Any] | None = None) -> dict[str, Any]:
     """The result as a plain dict in schema order (see the module docstring).
 
     ``frames`` names frames a and b (default ``{"a": "a", "b": "b"}``); ``samples`` holds the
@@ -75,14 +77,15 @@ def result_document(solution: Solution, *, frames: dict | None = None, inputs: d
         **(diagnostics or {}),
         "ros2_static_transform": _static_transform_command(t, q, frames),
     }
-    return plain(doc)
+    plain_doc: dict[str, Any] = plain(doc)
+    return plain_doc
 
 
 class _Dumper(yaml.SafeDumper):
     """Lists of scalars in flow style (``[x, y, z]``), everything else in block style."""
 
 
-def _represent_list(dumper: yaml.SafeDumper, data: list) -> yaml.Node:
+def _represent_list(dumper: yaml.SafeDumper, data: list[Any]) -> yaml.Node:
     flow = all(not isinstance(v, (list, dict)) for v in data)
     return dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=flow)
 
@@ -90,7 +93,7 @@ def _represent_list(dumper: yaml.SafeDumper, data: list) -> yaml.Node:
 _Dumper.add_representer(list, _represent_list)
 
 
-def render(doc: dict, fmt: str = "yaml") -> str:
+def render(doc: dict[str, Any], fmt: str = "yaml") -> str:
     """The document as YAML or JSON text (floats at full precision, ``repr`` round-trip)."""
     if fmt == "json":
         return json.dumps(doc, indent=2) + "\n"

@@ -30,6 +30,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .. import __version__, se3
+from .._typing import BoolArray, FloatArray, IntArray
 from ..analysis.residuals import pair_residuals
 from ..errors import HandEyeError
 from .writers import check_writable, write_output
@@ -56,19 +57,23 @@ _HEADER_KEYS = {"matrix", "translation", "quaternion_xyzw", "frames", "method", 
 _CSS = """
 body{font-family:-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;margin:0;background:#f6f7f9;color:#1d232b}
 main{max-width:1140px;margin:0 auto;padding:18px 22px 40px}
-h1{font-size:1.5em;margin:.2em 0 .1em}h2{font-size:1.15em;margin:1.6em 0 .5em;border-bottom:1px solid #d5d9df;padding-bottom:.2em}
+h1{font-size:1.5em;margin:.2em 0 .1em}
+h2{font-size:1.15em;margin:1.6em 0 .5em;border-bottom:1px solid #d5d9df;padding-bottom:.2em}
 .sub{color:#5b6572;font-size:.9em}
 .card{background:#fff;border:1px solid #dde1e6;border-radius:6px;padding:12px 16px;margin:10px 0}
 .grid{display:flex;flex-wrap:wrap;gap:12px}.grid>.card{flex:1 1 330px;margin:0}
 table{border-collapse:collapse;font-size:.92em}td,th{padding:3px 10px 3px 0;text-align:left;vertical-align:top}
-th{color:#5b6572;font-weight:600}td.num,table.matrix td{font-family:ui-monospace,Menlo,Consolas,monospace;text-align:right}
+th{color:#5b6572;font-weight:600}
+td.num,table.matrix td{font-family:ui-monospace,Menlo,Consolas,monospace;text-align:right}
 table.matrix td{padding:2px 8px}
 .warnings{background:#fff4e5;border:2px solid #e8a33d;border-radius:6px;padding:10px 16px;margin:14px 0}
 .warnings h2{border:0;margin:.1em 0 .3em;color:#8a4b00}.warnings li{margin:.25em 0}
 .ok{background:#eaf6ec;border:1px solid #8cc79a;border-radius:6px;padding:8px 16px;margin:14px 0;color:#225c2f}
 figure{margin:10px 0;background:#fff;border:1px solid #dde1e6;border-radius:6px;padding:8px}
-figure img{max-width:100%;height:auto;display:block;margin:0 auto}figcaption{color:#5b6572;font-size:.88em;margin-top:4px}
-pre{background:#fff;border:1px solid #dde1e6;border-radius:6px;padding:8px 12px;white-space:pre-wrap;word-break:break-all;font-size:.85em}
+figure img{max-width:100%;height:auto;display:block;margin:0 auto}
+figcaption{color:#5b6572;font-size:.88em;margin-top:4px}
+pre{background:#fff;border:1px solid #dde1e6;border-radius:6px;padding:8px 12px;
+white-space:pre-wrap;word-break:break-all;font-size:.85em}
 .note{color:#5b6572;font-style:italic}.card>h2:first-child{margin-top:.2em}
 """
 
@@ -107,7 +112,7 @@ def _esc(value: Any) -> str:
     return html.escape(str(value), quote=True)
 
 
-def _flatten(d: dict, prefix: str = "") -> list[tuple[str, Any]]:
+def _flatten(d: dict[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
     """Nested dicts → ``[("a.b", value), …]``."""
     rows: list[tuple[str, Any]] = []
     for k, v in d.items():
@@ -147,12 +152,12 @@ def _new_figure(width: float, height: float) -> Figure:
     return Figure(figsize=(width, height), layout="constrained")
 
 
-def _thin(n: int) -> np.ndarray:
+def _thin(n: int) -> IntArray:
     """Indices of at most MAX_PLOT_POINTS evenly spread samples out of n."""
     return np.arange(n) if n <= MAX_PLOT_POINTS else np.linspace(0, n - 1, MAX_PLOT_POINTS).astype(int)
 
 
-def _extrinsic(calibration: Calibration, document: dict) -> np.ndarray:
+def _extrinsic(calibration: Calibration, document: dict[str, Any]) -> FloatArray:
     """``T_a_b`` as the result document states it (what the user gets), else the calibration's."""
     try:
         X = np.asarray(document["matrix"], dtype=float)
@@ -166,7 +171,7 @@ def _extrinsic(calibration: Calibration, document: dict) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------
 # trajectories
 
-def world_alignment(synced: Synced, T_a_b: np.ndarray) -> np.ndarray:
+def world_alignment(synced: Synced, T_a_b: FloatArray) -> FloatArray:
     """The transform ``T_wa_wb`` from b's world to a's world implied by the extrinsic.
 
     Each synced sample gives ``T_wa_wb(t) = T_wa_a(t) · X · T_wb_b(t)⁻¹``; the estimate is their
@@ -184,7 +189,7 @@ def world_alignment(synced: Synced, T_a_b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _trajectory_section(calibration: Calibration, X: np.ndarray) -> str:
+def _trajectory_section(calibration: Calibration, X: FloatArray) -> str:
     synced = calibration.synced
     if len(synced) == 0:
         return "<p class='note'>No synced samples: the trajectories cannot be aligned.</p>"
@@ -229,7 +234,7 @@ def _trajectory_section(calibration: Calibration, X: np.ndarray) -> str:
 # ----------------------------------------------------------------------------------------------
 # residuals over time
 
-def _rejected_mask(document: dict, n: int) -> np.ndarray:
+def _rejected_mask(document: dict[str, Any], n: int) -> BoolArray:
     mask = np.zeros(n, dtype=bool)
     robust = document.get("robust")
     rejected = robust.get("rejected") if isinstance(robust, dict) else None
@@ -239,7 +244,7 @@ def _rejected_mask(document: dict, n: int) -> np.ndarray:
     return mask
 
 
-def _residual_section(calibration: Calibration, document: dict, X: np.ndarray) -> str:
+def _residual_section(calibration: Calibration, document: dict[str, Any], X: FloatArray) -> str:
     pairs = calibration.pairs
     if len(pairs) == 0:
         return "<p class='note'>No motion pairs.</p>"
@@ -311,7 +316,7 @@ def _samples_section(samples: Any) -> str:
 # ----------------------------------------------------------------------------------------------
 # bootstrap
 
-def _bootstrap_section(deviations: np.ndarray | None) -> str:
+def _bootstrap_section(deviations: FloatArray | None) -> str:
     if deviations is None:
         return ""
     d = deviations[np.isfinite(deviations).all(axis=1)]
@@ -345,11 +350,12 @@ def _bootstrap_section(deviations: np.ndarray | None) -> str:
 # ----------------------------------------------------------------------------------------------
 # header
 
-def _header(calibration: Calibration, document: dict, X: np.ndarray) -> str:
+def _header(calibration: Calibration, document: dict[str, Any], X: FloatArray) -> str:
     rot = Rotation.from_matrix(X[:3, :3])
     q = rot.as_quat(canonical=True)
     t = X[:3, 3]
-    frames = document.get("frames") if isinstance(document.get("frames"), dict) else calibration.frames
+    given = document.get("frames")
+    frames = given if isinstance(given, dict) else calibration.frames
     fa, fb = _esc(frames.get("a", "a")), _esc(frames.get("b", "b"))
     sol = getattr(calibration, "solution", None)
     facts = [("method", document.get("method", getattr(sol, "method", None))),
@@ -381,7 +387,7 @@ def _header(calibration: Calibration, document: dict, X: np.ndarray) -> str:
             f"{ros_html}")
 
 
-def _warnings(document: dict) -> str:
+def _warnings(document: dict[str, Any]) -> str:
     warnings = document.get("warnings")
     if isinstance(warnings, str):
         warnings = [warnings]
@@ -391,7 +397,7 @@ def _warnings(document: dict) -> str:
     return f"<div class='warnings' id='warnings'><h2>⚠ {len(warnings)} warning(s)</h2><ul>{items}</ul></div>"
 
 
-def _tables(document: dict) -> str:
+def _tables(document: dict[str, Any]) -> str:
     parts = []
     for key, title in _SECTIONS:
         if key in document and key != "inputs" and document[key] not in (None, {}, []):
@@ -406,8 +412,8 @@ def _tables(document: dict) -> str:
 # ----------------------------------------------------------------------------------------------
 # entry points
 
-def render_report(calibration: Calibration, document: dict,
-                  bootstrap_deviations: np.ndarray | None = None) -> str:
+def render_report(calibration: Calibration, document: dict[str, Any],
+                  bootstrap_deviations: FloatArray | None = None) -> str:
     """The report as one HTML string (see :func:`write_report`)."""
     document = document if isinstance(document, dict) else {}
     if bootstrap_deviations is not None:

@@ -18,7 +18,10 @@ from ..errors import ConfigError, WriteError
 
 __all__ = ["SUFFIXES", "output_format", "check_writable", "write_output"]
 
-SUFFIXES = {".yaml": "yaml", ".yml": "yaml", ".json": "json"}
+# File-name endings that choose the output format (see handeye_cli/output/formats.py); Kalibr YAML
+# needs --format kalibr.
+SUFFIXES = {".yaml": "yaml", ".yml": "yaml", ".json": "json", ".urdf": "urdf", ".launch.py": "ros2-launch",
+            ".launch": "ros1-launch", ".sh": "tf-static"}
 
 
 def _is_stdout(path: str | Path | None) -> bool:
@@ -32,12 +35,13 @@ def output_format(path: str | Path | None, fmt: str | None, flag: str = "-o") ->
         return fmt
     if _is_stdout(path):
         return "yaml"
-    suffix = Path(str(path)).suffix.lower()
-    if suffix in SUFFIXES:
-        return SUFFIXES[suffix]
-    if not suffix or not Path(str(path)).exists() or Path(str(path)).is_file():
+    name = Path(str(path)).name.lower()
+    chosen = next((f for suffix, f in SUFFIXES.items() if name.endswith(suffix)), None)
+    if chosen:
+        return chosen
+    if not Path(str(path)).suffix or not Path(str(path)).exists() or Path(str(path)).is_file():
         raise ConfigError(f"cannot tell the output format from {str(path)!r}", flag,
-                          f"name the file {'/'.join(SUFFIXES)} or pass --format")
+                          f"name the file {', '.join(SUFFIXES)} or pass --format")
     return "yaml"    # a FIFO or device without a suffix: the default format
 
 

@@ -11,6 +11,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .. import se3
+from .._typing import FloatArray
 from ..streams import PoseStream
 
 __all__ = ["random_transform", "perturb", "motion_pairs", "Rig", "simulate_rig", "SCENARIOS"]
@@ -18,7 +19,7 @@ __all__ = ["random_transform", "perturb", "motion_pairs", "Rig", "simulate_rig",
 SCENARIOS = ("random", "line", "circle", "planar")
 
 
-def random_transform(rng: np.random.Generator, translation_scale: float = 1.0) -> np.ndarray:
+def random_transform(rng: np.random.Generator, translation_scale: float = 1.0) -> FloatArray:
     """A uniformly random rotation with a translation drawn from U(-s, s)³ [m]."""
     T = np.eye(4)
     T[:3, :3] = Rotation.random(random_state=rng).as_matrix()
@@ -26,13 +27,13 @@ def random_transform(rng: np.random.Generator, translation_scale: float = 1.0) -
     return T
 
 
-def perturb(T: np.ndarray, rng: np.random.Generator, sigma_r: float, sigma_t: float) -> np.ndarray:
+def perturb(T: FloatArray, rng: np.random.Generator, sigma_r: float, sigma_t: float) -> FloatArray:
     """Right-perturb transforms by small SE(3) noise, ``T ∘ [δR | δt]`` (paper eq 38).
 
     δR has a uniformly random axis and a normal(0, ``sigma_r`` [rad]) angle; δt has
     normal(0, ``sigma_t`` [m]) components.
     """
-    T = np.asarray(T, dtype=float)
+    T = np.asarray(T, dtype=np.float64)
     n = 1 if T.ndim == 2 else len(T)
     axis = rng.normal(size=(n, 3))
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)
@@ -43,7 +44,7 @@ def perturb(T: np.ndarray, rng: np.random.Generator, sigma_r: float, sigma_t: fl
     return out[0] if T.ndim == 2 else out
 
 
-def _scenario_motions(n: int, scenario: str, rng: np.random.Generator) -> np.ndarray:
+def _scenario_motions(n: int, scenario: str, rng: np.random.Generator) -> FloatArray:
     """Noise-free motions of sensor a for the paper's scenarios (appendix D.2) plus planar."""
     A = np.tile(np.eye(4), (n, 1, 1))
     if scenario == "random":
@@ -64,9 +65,9 @@ def _scenario_motions(n: int, scenario: str, rng: np.random.Generator) -> np.nda
     return A
 
 
-def motion_pairs(n: int, X: np.ndarray, rng: np.random.Generator, scenario: str = "random",
+def motion_pairs(n: int, X: FloatArray, rng: np.random.Generator, scenario: str = "random",
                  sigma_r: float = 0.0, sigma_t: float = 0.0,
-                 jitter: tuple[float, float] = (np.deg2rad(0.57), 0.01)) -> tuple[np.ndarray, np.ndarray]:
+                 jitter: tuple[float, float] = (np.deg2rad(0.57), 0.01)) -> tuple[FloatArray, FloatArray]:
     """N relative motion pairs ``(A, B)`` with ``A_i X = X B_i`` before noise.
 
     ``line`` and ``circle`` get the paper's symmetry-breaking ``jitter`` (σr [rad], σt [m]) on
@@ -89,11 +90,11 @@ class Rig:
     ``time_offset_ns`` is added to stream b's stamps: b's clock reads ``t + offset``.
     """
 
-    T_a_b: np.ndarray
+    T_a_b: FloatArray
     time_offset_ns: int = 0
 
 
-def _smooth_trajectory(t: np.ndarray, motion: str, rng: np.random.Generator) -> np.ndarray:
+def _smooth_trajectory(t: FloatArray, motion: str, rng: np.random.Generator) -> FloatArray:
     """Poses ``T_w_a(t)`` for times ``t`` [s]: sums of sinusoids, smooth and repeatable."""
     k = 4
     freqs = rng.uniform(0.05, 0.35, (k, 6))
@@ -119,7 +120,7 @@ def _smooth_trajectory(t: np.ndarray, motion: str, rng: np.random.Generator) -> 
 def simulate_rig(rig: Rig, *, duration_s: float = 60.0, rate_a: float = 30.0, rate_b: float = 20.0,
                  start_ns: int = 1_700_000_000_000_000_000, motion: str = "3d",
                  sigma_r: float = 0.0, sigma_t: float = 0.0, jumps: int = 0, seed: int = 0,
-                 T_wb_wa: np.ndarray | None = None, speed: float = 1.0) -> tuple[PoseStream, PoseStream]:
+                 T_wb_wa: FloatArray | None = None, speed: float = 1.0) -> tuple[PoseStream, PoseStream]:
     """Two pose streams of a rigid rig: ``T_wa_a(t)`` and ``T_wb_b(t)`` with ``T_a_b`` fixed.
 
     Each stream has its own world frame (b's world is ``T_wb_wa`` away from a's), its own
@@ -129,14 +130,14 @@ def simulate_rig(rig: Rig, *, duration_s: float = 60.0, rate_a: float = 30.0, ra
     """
     rng = np.random.default_rng(seed)
     traj_rng = np.random.default_rng(rng.integers(2**63))
-    G = random_transform(rng, 5.0) if T_wb_wa is None else np.asarray(T_wb_wa, dtype=float)
+    G = random_transform(rng, 5.0) if T_wb_wa is None else np.asarray(T_wb_wa, dtype=np.float64)
 
-    def stamps(rate: float) -> np.ndarray:
+    def stamps(rate: float) -> FloatArray:
         n = int(duration_s * rate)
         t = np.arange(n) / rate + rng.uniform(-0.1, 0.1, n) / rate
         return np.sort(t)
 
-    def stream(t: np.ndarray, T: np.ndarray, frame: str, child: str, offset_ns: int) -> PoseStream:
+    def stream(t: FloatArray, T: FloatArray, frame: str, child: str, offset_ns: int) -> PoseStream:
         T = perturb(T, rng, sigma_r, sigma_t) if (sigma_r or sigma_t) else T
         for i in rng.choice(len(T), size=jumps, replace=False) if jumps else []:
             T[i] = T[i] @ perturb(np.eye(4), rng, np.deg2rad(rng.uniform(20, 60)), 0.0)

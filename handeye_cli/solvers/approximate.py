@@ -5,10 +5,12 @@ Each picks a unit ``q`` in closed form and then the optimal ``q'`` for it (eq 20
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
+from .._typing import FloatArray
 from .problem import Problem, eigh
 
 __all__ = ["Approximation", "dq2steps", "dqconvrlx", "dq2ndord"]
@@ -18,13 +20,13 @@ __all__ = ["Approximation", "dq2steps", "dqconvrlx", "dq2ndord"]
 class Approximation:
     """An approximate solution ``q + ε q'``, its μ and method-specific figures (e.g. the gap bound of eq 22)."""
 
-    q: np.ndarray
-    qd: np.ndarray
+    q: FloatArray
+    qd: FloatArray
     mu: float
-    details: dict
+    details: Mapping[str, float]
 
 
-def _with_dual(problem: Problem, q: np.ndarray, details: dict) -> Approximation:
+def _with_dual(problem: Problem, q: FloatArray, details: Mapping[str, float]) -> Approximation:
     q = q / np.sqrt(q @ q)
     qd, mu = problem.dual_part(q)
     return Approximation(q, qd, mu, details)
@@ -35,7 +37,7 @@ def dq2steps(problem: Problem) -> Approximation:
     return _with_dual(problem, problem.M_smallest_eigenvector, {})
 
 
-def _z0_eigen(problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+def _z0_eigen(problem: Problem) -> tuple[FloatArray, FloatArray]:
     """Eigenpairs of Z0 (eq 21), ascending; defined for a singular M too."""
     return eigh(problem.Z0_relaxed)
 
@@ -71,7 +73,7 @@ def dq2ndord(problem: Problem) -> Approximation:
     # Z1^{ab}, Z2^{ab} as nested lists: the arithmetic on 4x4 numbers is cheaper in Python floats
     Z1e, Z2e = (V.T @ problem._Zs[1:] @ V).tolist()
     l0, *la = lam.tolist()
-    gaps = [l0 - l for l in la]                             # λ_{0a}, a = 1..3 (negative)
+    gaps = [l0 - lam_a for lam_a in la]                     # λ_{0a}, a = 1..3 (negative)
     z10 = [Z1e[a][0] for a in (1, 2, 3)]                    # Z1^{a0}
     c1 = [z / g for z, g in zip(z10, gaps, strict=True)]                 # Z1^{a0} / λ_{0a}
     mu = 0.5 * Z1e[0][0] / (Z2e[0][0] - sum(z * c for z, c in zip(z10, c1, strict=True)))

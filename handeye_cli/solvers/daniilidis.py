@@ -15,13 +15,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import HandEyeError
+from .._typing import FloatArray
+from ..errors import DataError
 
 __all__ = ["daniilidis"]
 
 
-def daniilidis(E: np.ndarray, F: np.ndarray, alpha: float = 1.0,
-               weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def daniilidis(E: FloatArray, F: FloatArray, alpha: float = 1.0,
+               weights: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
     """The dual quaternion ``(q, q')`` (x-y-z-w) of ``X = T_a_b`` by Daniilidis' SVD method, from
     the per-pair blocks ``E_i``, ``F_i`` (N, 4, 4) of :func:`~handeye_cli.solvers.problem.pair_blocks`."""
     n = len(E)
@@ -30,7 +31,7 @@ def daniilidis(E: np.ndarray, F: np.ndarray, alpha: float = 1.0,
     T[:, 3:, :4] = alpha * F[:, :3]
     T[:, 3:, 4:] = alpha * E[:, :3]
     if weights is not None:
-        T *= np.sqrt(np.asarray(weights, dtype=float))[:, None, None]
+        T *= np.sqrt(np.asarray(weights, dtype=np.float64))[:, None, None]
     _, _, Vt = np.linalg.svd(T.reshape(-1, 8), full_matrices=False)
     u1, v1 = Vt[-2, :4], Vt[-2, 4:]
     u2, v2 = Vt[-1, :4], Vt[-1, 4:]
@@ -39,7 +40,7 @@ def daniilidis(E: np.ndarray, F: np.ndarray, alpha: float = 1.0,
     if abs(a) > 1e-300:
         disc = b * b - 4 * a * c
         if disc < 0:
-            raise HandEyeError("Daniilidis' method found no real solution (noisy or degenerate motions)",
+            raise DataError("Daniilidis' method found no real solution (noisy or degenerate motions)",
                                "daniilidis", "use --method dqopt, which always has one")
         roots = (-b + np.array([1.0, -1.0]) * np.sqrt(disc)) / (2 * a)
         # pick the root maximising |s u1 + u2|², then scale to |q| = 1

@@ -10,38 +10,41 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._typing import FloatArray
+
 __all__ = ["left", "right", "conjugate", "multiply", "from_transforms", "to_transform"]
 
 
 # L(q)[i, j] = _L_SIGN[i, j] * q[_L_INDEX[i, j]] and likewise for R(q), in x-y-z-w order:
 # q ⊗ p = L(q) p and p ⊗ q = R(q) p. Index tables keep the batched build to one gather.
 _L_INDEX = np.array([[3, 2, 1, 0], [2, 3, 0, 1], [1, 0, 3, 2], [0, 1, 2, 3]])
-_L_SIGN = np.array([[1, -1, 1, 1], [1, 1, -1, 1], [-1, 1, 1, 1], [-1, -1, -1, 1]], dtype=float)
+_L_SIGN = np.array([[1, -1, 1, 1], [1, 1, -1, 1], [-1, 1, 1, 1], [-1, -1, -1, 1]], dtype=np.float64)
 _R_INDEX = _L_INDEX
-_R_SIGN = np.array([[1, 1, -1, 1], [-1, 1, 1, 1], [1, -1, 1, 1], [-1, -1, -1, 1]], dtype=float)
+_R_SIGN = np.array([[1, 1, -1, 1], [-1, 1, 1, 1], [1, -1, 1, 1], [-1, -1, -1, 1]], dtype=np.float64)
 
 
-def left(q: np.ndarray) -> np.ndarray:
+def left(q: FloatArray) -> FloatArray:
     """Matrices ``L(q)`` with ``q ⊗ p = L(q) p`` for quaternions (…, 4) in x-y-z-w order."""
-    return np.asarray(q, dtype=float)[..., _L_INDEX] * _L_SIGN
+    return np.asarray(q, dtype=np.float64)[..., _L_INDEX] * _L_SIGN
 
 
-def right(q: np.ndarray) -> np.ndarray:
+def right(q: FloatArray) -> FloatArray:
     """Matrices ``R(q)`` with ``p ⊗ q = R(q) p`` for quaternions (…, 4) in x-y-z-w order."""
-    return np.asarray(q, dtype=float)[..., _R_INDEX] * _R_SIGN
+    return np.asarray(q, dtype=np.float64)[..., _R_INDEX] * _R_SIGN
 
 
-def conjugate(q: np.ndarray) -> np.ndarray:
+def conjugate(q: FloatArray) -> FloatArray:
     """Quaternion conjugate ``q*`` (x-y-z-w)."""
-    return np.asarray(q, dtype=float) * np.array([-1.0, -1.0, -1.0, 1.0])
+    return np.asarray(q, dtype=np.float64) * np.array([-1.0, -1.0, -1.0, 1.0], dtype=np.float64)
 
 
-def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+def multiply(p: FloatArray, q: FloatArray) -> FloatArray:
     """Hamilton product ``p ⊗ q`` of quaternions (…, 4) in x-y-z-w order."""
-    return np.einsum("...ij,...j->...i", left(p), q)
+    product: FloatArray = np.einsum("...ij,...j->...i", left(p), q)
+    return product
 
 
-def _shepperd_matrix() -> np.ndarray:
+def _shepperd_matrix() -> FloatArray:
     """(16, 16): row 4p + i gives component i of the quaternion scaled by pivot p (``4·x_p·(x, y, z, w)``)
     from a transform flattened row-major (``X[4i + j] = T_ij``); the diagonal rows 5p lack the 1 of
     ``4x_p² = 1 ± R00 ± R11 ± R22``. The ten distinct values are 4x², 4y², 4z², 4w², R01 + R10,
@@ -57,7 +60,7 @@ def _shepperd_matrix() -> np.ndarray:
     return S
 
 
-def _dual_part_matrix() -> np.ndarray:
+def _dual_part_matrix() -> FloatArray:
     """(4, 12): ``q' = ½ (t, 0) ⊗ q`` from the products ``t_j q_k`` at 4j + k (vector part
     ``½ (t w + t × v)``, scalar part ``-½ t·v``)."""
     D = np.zeros((4, 12))
@@ -75,7 +78,7 @@ _DUAL = _dual_part_matrix()
 _PIVOTS = np.arange(4)[:, None]
 
 
-def _from_flat(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _from_flat(X: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Unit dual quaternions ``(q, q')`` as (4, M) arrays of transforms flattened batch-last, X (16, M).
 
     The rotation by Shepperd's method: of the four expressions ``4x², 4y², 4z², 4w²`` (from the
@@ -93,7 +96,7 @@ def _from_flat(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return q, qd
 
 
-def _block_matrix() -> np.ndarray:
+def _block_matrix() -> FloatArray:
     """(8, 16): ``vec(L(p) - R(r)) = [p, r] @ _BLOCK`` for row vectors p, r (row-major 4x4)."""
     B = np.zeros((8, 16))
     for i in range(4):
@@ -106,10 +109,10 @@ def _block_matrix() -> np.ndarray:
 _BLOCK = _block_matrix()
 
 
-def pair_difference_blocks(Ta: np.ndarray, Tb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``L(q_a) - R(q_b)`` and ``L(q'_a) - R(q'_b)`` (…, 4, 4) of the (broadcast) transforms
     ``Ta``, ``Tb`` (…, 4, 4): both stacks are converted in one pass and the blocks formed by one product."""
-    Ta, Tb = np.asarray(Ta, dtype=float), np.asarray(Tb, dtype=float)
+    Ta, Tb = np.asarray(Ta, dtype=np.float64), np.asarray(Tb, dtype=np.float64)
     if Ta.shape != Tb.shape:
         Ta, Tb = np.broadcast_arrays(Ta, Tb)
     shape = Ta.shape[:-2] + (4, 4)
@@ -125,22 +128,22 @@ def pair_difference_blocks(Ta: np.ndarray, Tb: np.ndarray) -> tuple[np.ndarray, 
     return blocks[:n].reshape(shape), blocks[n:].reshape(shape)
 
 
-def from_transforms(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def from_transforms(T: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Unit dual quaternions ``(q, q')`` of transforms (…, 4, 4), scalar part of ``q`` ≥ 0 (eq 2)."""
-    T = np.asarray(T, dtype=float)
+    T = np.asarray(T, dtype=np.float64)
     q, qd = _from_flat(np.ascontiguousarray(T.reshape(-1, 16).T))
     shape = T.shape[:-2] + (4,)
     return q.T.reshape(shape).copy(), qd.T.reshape(shape).copy()
 
 
-def to_transform(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+def to_transform(q: FloatArray, qd: FloatArray) -> FloatArray:
     """The 4x4 transform of a dual quaternion ``q + ε q'`` (normalised so |q| = 1).
 
     The translation is ``t = 2 q' ⊗ q*`` (vector part), from eq 2. Written out on Python floats:
     for one transform that is several times faster than the equivalent numpy calls.
     """
-    x, y, z, w = np.asarray(q, dtype=float).tolist()
-    a, b, c, d = np.asarray(qd, dtype=float).tolist()
+    x, y, z, w = np.asarray(q, dtype=np.float64).tolist()
+    a, b, c, d = np.asarray(qd, dtype=np.float64).tolist()
     s = 1.0 / (x * x + y * y + z * z + w * w)          # |q|⁻²: rotation terms are quadratic in q
     x2, y2, z2 = 2.0 * x, 2.0 * y, 2.0 * z
     xx, yy, zz = x * x2 * s, y * y2 * s, z * z2 * s

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._typing import FloatArray
 from .problem import Problem, eigh
 
 __all__ = ["LineSearchResult", "dqopt", "dqitr", "kkt_polish"]
@@ -33,8 +34,8 @@ _EPS = np.finfo(float).eps
 class LineSearchResult:
     """Solution ``q + ε q'`` with its multipliers and how the search went."""
 
-    q: np.ndarray
-    qd: np.ndarray
+    q: FloatArray
+    qd: FloatArray
     lam: float
     mu: float
     iterations: int
@@ -42,13 +43,14 @@ class LineSearchResult:
     singular_m: bool = False
 
 
-def _smallest(Zs: np.ndarray, mu: float) -> tuple[np.ndarray, np.ndarray]:
+def _smallest(Zs: FloatArray, mu: float) -> tuple[FloatArray, FloatArray]:
     """All eigenpairs of Z(μ) = Z0 + μ Z1 - μ² Z2 (eq 12), ascending; column 0 is the smallest.
     ``Zs`` is ``(Z0, Z1, Z2)`` stacked and flattened, (3, 16)."""
     return eigh(np.dot((1.0, mu, -mu * mu), Zs).reshape(4, 4))
 
 
-def _f_and_slope(Z12: np.ndarray, mu: float, lam: list, V: np.ndarray) -> tuple[float, float, list, float]:
+def _f_and_slope(Z12: FloatArray, mu: float, lam: list[float], V: FloatArray
+                 ) -> tuple[float, float, list[float], float]:
     """``f(μ)`` of eq 18, its derivative from second-order eigenvalue perturbation, the first-order
     change of the eigenvector q₀ per unit μ in the eigenbasis, and the (floored) gap λ₁ - λ₀.
 
@@ -67,20 +69,21 @@ def _f_and_slope(Z12: np.ndarray, mu: float, lam: list, V: np.ndarray) -> tuple[
     return f, z2[0] + c1 * r1 + c2 * r2 + c3 * r3, [0.0, -r1, -r2, -r3], g1
 
 
-def _rotated(V: np.ndarray, step: float, dq: list) -> np.ndarray:
+def _rotated(V: FloatArray, step: float, dq: list[float]) -> FloatArray:
     """The orthonormal basis ``V (I + δK)`` with ``K`` antisymmetric, ``K[a, 0] = dq[a]``: its first
     column is the perturbed eigenvector ``q₀ + δ Σ dq[a] qₐ`` and the others stay orthogonal to it,
     up to ``δ² |dq|²`` (below rounding where it is used). Columns are normalised exactly."""
     _, d1, d2, d3 = (step * d for d in dq)
     s0 = (1.0 + d1 * d1 + d2 * d2 + d3 * d3) ** -0.5
     s1, s2, s3 = (1.0 + d1 * d1) ** -0.5, (1.0 + d2 * d2) ** -0.5, (1.0 + d3 * d3) ** -0.5
-    return V @ np.array([[s0, -d1 * s1, -d2 * s2, -d3 * s3],
-                         [d1 * s0, s1, 0.0, 0.0],
-                         [d2 * s0, 0.0, s2, 0.0],
-                         [d3 * s0, 0.0, 0.0, s3]])
+    rotated: FloatArray = V @ np.array([[s0, -d1 * s1, -d2 * s2, -d3 * s3],
+                                        [d1 * s0, s1, 0.0, 0.0],
+                                        [d2 * s0, 0.0, s2, 0.0],
+                                        [d3 * s0, 0.0, 0.0, s3]])
+    return rotated
 
 
-def _mu_bracket(Z1: np.ndarray, Re: np.ndarray) -> tuple[float, float]:
+def _mu_bracket(Z1: FloatArray, Re: FloatArray) -> tuple[float, float]:
     """Appendix C: every solution μ lies between the extreme generalised eigenvalues of (½Z1, Z2).
 
     With ``Z2 = M⁻¹ = Re⁻¹ Re⁻ᵀ`` (``E = Qe Re``) they are the eigenvalues of ``Re (½Z1) Reᵀ``.
@@ -91,8 +94,8 @@ def _mu_bracket(Z1: np.ndarray, Re: np.ndarray) -> tuple[float, float]:
     return float(lo - pad), float(hi + pad)
 
 
-def kkt_polish(problem: Problem, q: np.ndarray, qd: np.ndarray, lam: float, mu: float,
-               iterations: int = 8) -> tuple[np.ndarray, np.ndarray, float, float]:
+def kkt_polish(problem: Problem, q: FloatArray, qd: FloatArray, lam: float, mu: float,
+               iterations: int = 8) -> tuple[FloatArray, FloatArray, float, float]:
     """Newton's method on the stationarity conditions of cost (8) with both constraints.
 
     Unknowns ``(q, q', λ, μ)``; equations ``Sq + Wq' - λq - μq' = 0``, ``Wᵀq + Mq' - μq = 0``
@@ -129,7 +132,7 @@ def kkt_polish(problem: Problem, q: np.ndarray, qd: np.ndarray, lam: float, mu: 
     return q, qd, float(lam), float(mu)
 
 
-def _result(problem: Problem, V: np.ndarray, mu: float, lam: list, iterations: int,
+def _result(problem: Problem, V: FloatArray, mu: float, lam: list[float], iterations: int,
             converged: bool) -> LineSearchResult:
     """Complete the smallest eigenvector ``q`` of Z(μ) (M regular) with its optimal dual part (eq 20,
     by least squares: ``M⁻¹`` amplifies rounding when the cost is tiny). The eigenvector's error is
@@ -169,8 +172,8 @@ def dqopt(problem: Problem, max_iterations: int = 100) -> LineSearchResult:
     Zs = problem._Zs
     Z12 = Zs[1:]
     n1, n2 = float(np.vdot(Zs[1], Zs[1])) ** 0.5, float(np.vdot(Zs[2], Zs[2])) ** 0.5      # Frobenius
-    lam, V = eigh(Zs[0])
-    lam = lam.tolist()
+    ev, V = eigh(Zs[0])
+    lam: list[float] = ev.tolist()
     Zs = Zs.reshape(3, 16)
     lo, hi = -np.inf, np.inf
     bracketed = False
@@ -206,8 +209,8 @@ def dqopt(problem: Problem, max_iterations: int = 100) -> LineSearchResult:
             converged = True
             break
         mu = new
-        lam, V = _smallest(Zs, mu)
-        lam = lam.tolist()
+        ev, V = _smallest(Zs, mu)
+        lam = ev.tolist()
     return _result(problem, V, mu, lam, it, converged)
 
 
@@ -226,7 +229,8 @@ def dqitr(problem: Problem, tolerance: float = 1e-12, max_iterations: int = 100)
     converged = False
     it = 0
     lam, V = _smallest(Zs, mu)
-    for it in range(1, max_iterations + 1):
+    while it < max_iterations:
+        it += 1
         q = V[:, 0]
         z1, z2 = (Z12 @ q @ q).tolist()
         new = 0.5 * z1 / z2

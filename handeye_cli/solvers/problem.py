@@ -27,7 +27,8 @@ import numpy as np
 from scipy.linalg import lapack
 
 from .. import se3
-from ..errors import HandEyeError
+from .._typing import FloatArray
+from ..errors import ConfigError, DataError
 from . import dualquat as dq
 from .dualquat import _L_INDEX, _L_SIGN
 
@@ -43,7 +44,7 @@ _LWORK, _IWORK = (int(v) for v in lapack.dgelsd_lwork(4, 3, 1, -1)[:2])      # w
 class Prior:
     """A prior extrinsic ``T_a_b`` and the weights of its rotation (``a``) and translation (``b``) terms (eq 26)."""
 
-    T_a_b: np.ndarray
+    T_a_b: FloatArray
     a: float = 1.0
     b: float = 1.0
 
@@ -59,64 +60,66 @@ class Problem:
     the cancellation in ``S - W M⁻¹ Wᵀ`` and costs be summed from residuals.
     """
 
-    P: np.ndarray
-    F: np.ndarray
-    E: np.ndarray
+    P: FloatArray
+    F: FloatArray
+    E: FloatArray
 
     @cached_property
-    def _K(self) -> np.ndarray:
+    def _K(self) -> FloatArray:
         """``[E F]`` (L, 8), column-major for LAPACK; zero rows pad it to at least 8."""
         n = len(self.E)
-        K = np.zeros((8, max(n, 8))).T
+        K: FloatArray = np.zeros((8, max(n, 8))).T
         K[:n, :4] = self.E
         K[:n, 4:] = self.F
         return K
 
     @cached_property
-    def _PtP(self) -> np.ndarray:
-        return self.P.T @ self.P
+    def _PtP(self) -> FloatArray:
+        PtP: FloatArray = self.P.T @ self.P
+        return PtP
 
     @cached_property
-    def form(self) -> np.ndarray:
+    def form(self) -> FloatArray:
         """The 8x8 matrix ``[[M, Wᵀ], [W, S]]`` of cost (8) (+ prior, eq 29) in ``(q', q)`` order:
         the cost is ``[q'; q]ᵀ form [q'; q]`` plus the prior's constant."""
         K = self._K
-        Q = K.T @ K
+        Q: FloatArray = K.T @ K
         Q[4:, 4:] += self._PtP
         return Q
 
     @property
-    def S(self) -> np.ndarray:
+    def S(self) -> FloatArray:
         return self.form[4:, 4:]
 
     @property
-    def M(self) -> np.ndarray:
+    def M(self) -> FloatArray:
         return self.form[:4, :4]
 
     @property
-    def W(self) -> np.ndarray:
+    def W(self) -> FloatArray:
         return self.form[4:, :4]
 
-    def cost(self, q: np.ndarray, qd: np.ndarray) -> float:
+    def cost(self, q: FloatArray, qd: FloatArray) -> float:
         """Cost (8) plus the prior terms at the dual quaternion ``q + ε q'``, summed from residuals."""
         rot = self.P @ q
         dual = self.F @ q + self.E @ qd
         return float(rot @ rot + dual @ dual)
 
     @cached_property
-    def _R(self) -> np.ndarray:
+    def _R(self) -> FloatArray:
         """The 8x8 R of the thin QR factorisation ``[E F] = Q R = Q [[Re, G], [0, Rf]]``.
 
         Then ``E = Q₁ Re`` and ``F = Q₁ G + Q₂ Rf`` (``Q = [Q₁ Q₂]``), so ``M = ReᵀRe``,
         ``W = GᵀRe`` and ``|F - Π_E F|² = RfᵀRf``: everything below is 4x4 algebra on R.
         """
+        r: FloatArray
         r, _, _, info = lapack.dgeqrf(self._K)
         if info:
             raise np.linalg.LinAlgError(f"QR factorisation failed (info {info})")
         return r[:8] * _UPPER8
 
     @cached_property
-    def _svd(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _svd(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         """SVD ``Re = U Σ Vᵀ`` (Σ: the singular values of E)."""
         u, s, vt, info = lapack.dgesdd(self.R_factor)
         if info:
@@ -124,7 +127,7 @@ class Problem:
         return u, s, vt
 
     @cached_property
-    def _Rinv(self) -> np.ndarray | None:
+    def _Rinv(self) -> FloatArray | None:
         """``Re⁻¹``, or None where Re is exactly singular."""
         Rinv, info = lapack.dtrtri(self.R_factor)
         return None if info else Rinv
@@ -146,17 +149,18 @@ class Problem:
         return bool(sv[-1] > _rank_tolerance(sv))
 
     @property
-    def M_smallest_eigenvector(self) -> np.ndarray:
+    def M_smallest_eigenvector(self) -> FloatArray:
         """The eigenvector of M with the smallest eigenvalue (eq 19), from the SVD of E."""
-        return self._svd[2][-1].copy()
+        v: FloatArray = self._svd[2][-1].copy()
+        return v
 
     @property
-    def R_factor(self) -> np.ndarray:
+    def R_factor(self) -> FloatArray:
         """The R of the thin QR factorisation ``E = Qe Re`` (so ``M = ReᵀRe``)."""
         return self._R[:4, :4]
 
     @cached_property
-    def _Zs(self) -> np.ndarray:
+    def _Zs(self) -> FloatArray:
         """``Z0, Z1, Z2`` stacked (3, 4, 4); see :attr:`Z`."""
         Rinv = self._Rinv
         if Rinv is None:
@@ -172,7 +176,7 @@ class Problem:
         return Zs
 
     @cached_property
-    def Z(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def Z(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         """``Z0 = S - W M⁻¹ Wᵀ``, ``Z1 = W M⁻¹ + M⁻¹ Wᵀ``, ``Z2 = M⁻¹`` (eq 13); needs a regular M.
 
         From ``[E F] = Q [[Re, G], [0, Rf]]`` (:attr:`_R`): ``Z2 = Re⁻¹ Re⁻ᵀ``, ``W M⁻¹ = Gᵀ Re⁻ᵀ`` and
@@ -183,7 +187,7 @@ class Problem:
         return Zs[0], Zs[1], Zs[2]
 
     @cached_property
-    def Z0_relaxed(self) -> np.ndarray:
+    def Z0_relaxed(self) -> FloatArray:
         """Z0 also for a singular M: the Schur complement with the projector on E's column space.
 
         With ``E = Q₁ Re`` and ``Re = U Σ Vᵀ``, E's numerical column space is ``Q₁ U_k``, so
@@ -196,10 +200,11 @@ class Problem:
         R = self._R
         G, Rf = R[:4, 4:], R[4:, 4:]
         Gr = G - U @ (U.T @ G)
-        return self._PtP + Rf.T @ Rf + Gr.T @ Gr
+        Z0: FloatArray = self._PtP + Rf.T @ Rf + Gr.T @ Gr
+        return Z0
 
-    def _dual(self, q: np.ndarray, basis: np.ndarray, full_rank: bool = False
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _dual(self, q: FloatArray, basis: FloatArray, full_rank: bool = False
+              ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """:meth:`dual_part` in a given orthonormal basis (4, 3) of ``q``'s complement, without μ:
         ``q'`` and, for μ, ``Re B``, ``G q`` and the coefficients ``y``.
 
@@ -218,7 +223,7 @@ class Problem:
         y = y[:3]
         return basis @ y, CB, gq, y
 
-    def dual_part(self, q: np.ndarray) -> tuple[np.ndarray, float]:
+    def dual_part(self, q: FloatArray) -> tuple[FloatArray, float]:
         """The optimal ``q'`` for a given unit ``q`` under ``q·q' = 0``, and its multiplier μ.
 
         Solves ``min |F q + E q'|²`` over ``q' = B y ⊥ q`` by least squares, with the orthonormal
@@ -230,13 +235,13 @@ class Problem:
         needs no inverse of M and stays defined when M is singular along ``q`` (noise-free data).
         Where the translation is truly unobservable the least-norm ``q'`` is returned.
         """
-        q = np.asarray(q, dtype=float)
+        q = np.asarray(q, dtype=np.float64)
         qd, CB, gq, y = self._dual(q, (q[_L_INDEX] * _L_SIGN)[:, :3])
         # M q' + Wᵀ q = μ q (eq 10), with M = ReᵀRe and Wᵀ = ReᵀG: μ = (Re q)·(Re q' + G q)
         return qd, float((self.R_factor @ q) @ (CB @ y + gq))
 
 
-def eigh(A: np.ndarray, vectors: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def eigh(A: FloatArray, vectors: bool = True) -> tuple[FloatArray, FloatArray]:
     """Eigenvalues (ascending) and eigenvectors (columns) of a small symmetric matrix: LAPACK
     ``dsyev`` called directly, without the per-call overhead of ``np.linalg.eigh`` (several times
     the work at 4x4). With ``vectors=False`` the second item is meaningless."""
@@ -246,61 +251,61 @@ def eigh(A: np.ndarray, vectors: bool = True) -> tuple[np.ndarray, np.ndarray]:
     return lam, V
 
 
-def _rank_tolerance(sv: np.ndarray) -> float:
+def _rank_tolerance(sv: FloatArray) -> float:
     """Singular values of E below this count as zero (M singular)."""
-    return 1e-8 * max(sv[0], 1e-300)
+    return 1e-8 * max(float(sv[0]), 1e-300)
 
 
-def _all_rigid(T: np.ndarray) -> bool:
+def _all_rigid(T: FloatArray) -> bool:
     """Whether every transform of a (N, 4, 4) stack is finite with a rotation block (both sensors at once)."""
     return bool(np.isfinite(T).all() and se3.is_rotation(T[:, :3, :3], 1e-6).all())
 
 
-def _raise_first_bad(A: np.ndarray, B: np.ndarray) -> None:
+def _raise_first_bad(A: FloatArray, B: FloatArray) -> None:
     """Raise the error for the first bad motion array: wrong shape, non-finite, or not a rotation."""
     for name, T in (("motions_a", A), ("motions_b", B)):
         if T.ndim != 3 or T.shape[1:] != (4, 4):
-            raise HandEyeError(f"{name} has shape {T.shape}", name, "pass an array of shape (N, 4, 4)")
+            raise DataError(f"{name} has shape {T.shape}", name, "pass an array of shape (N, 4, 4)")
         if not np.isfinite(T).all():
             bad = int(np.flatnonzero(~np.isfinite(T).all(axis=(1, 2)))[0])
-            raise HandEyeError(f"{name}[{bad}] contains NaN or inf", name, "remove or repair that motion")
+            raise DataError(f"{name}[{bad}] contains NaN or inf", name, "remove or repair that motion")
         ok = se3.is_rotation(T[:, :3, :3], 1e-6)
         if not ok.all():
             bad = int(np.flatnonzero(~ok)[0])
-            raise HandEyeError(f"{name}[{bad}] has a rotation block that is not a rotation", name,
+            raise DataError(f"{name}[{bad}] has a rotation block that is not a rotation", name,
                                "pass rigid transforms (orthonormal rotation, det +1)")
 
 
-def validate_motions(motions_a: np.ndarray, motions_b: np.ndarray,
-                     weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def validate_motions(motions_a: FloatArray, motions_b: FloatArray,
+                     weights: FloatArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Check shapes, finiteness and rotation blocks; return float arrays (N,4,4), (N,4,4), (N,)."""
-    A = np.asarray(motions_a, dtype=float)
-    B = np.asarray(motions_b, dtype=float)
+    A = np.asarray(motions_a, dtype=np.float64)
+    B = np.asarray(motions_b, dtype=np.float64)
     shapes_ok = A.ndim == B.ndim == 3 and A.shape[1:] == B.shape[1:] == (4, 4)
     if not (shapes_ok and _all_rigid(np.concatenate((A, B)))):
         _raise_first_bad(A, B)
     if len(A) != len(B):
-        raise HandEyeError(f"motions_a has {len(A)} motions, motions_b {len(B)}", "motions",
+        raise DataError(f"motions_a has {len(A)} motions, motions_b {len(B)}", "motions",
                            "pass the same number of motions for both sensors")
     if len(A) < 2:
-        raise HandEyeError(f"{len(A)} motion pair(s)", "motions", "at least 2 motion pairs are needed")
+        raise DataError(f"{len(A)} motion pair(s)", "motions", "at least 2 motion pairs are needed")
     if weights is None:
         w = np.ones(len(A))
     else:
-        w = np.asarray(weights, dtype=float).reshape(-1)
+        w = np.asarray(weights, dtype=np.float64).reshape(-1)
         if w.shape != (len(A),) or not np.isfinite(w).all() or (w < 0).any() or not (w > 0).any():
-            raise HandEyeError(f"weights must be {len(A)} finite non-negative numbers, not all zero",
+            raise DataError(f"weights must be {len(A)} finite non-negative numbers, not all zero",
                                "weights", "pass one weight per motion pair")
     return A, B, w
 
 
-def pair_blocks(motions_a: np.ndarray, motions_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def pair_blocks(motions_a: FloatArray, motions_b: FloatArray) -> tuple[FloatArray, FloatArray]:
     """The per-pair blocks ``E_i = L(q_C) - R(q_H)`` and ``F_i = L(q'_C) - R(q'_H)`` (eqs 6–7), (N,4,4) each."""
     return dq.pair_difference_blocks(motions_a, motions_b)
 
 
-def build_problem(motions_a: np.ndarray, motions_b: np.ndarray, alpha: float = 1.0,
-                  prior: Prior | None = None, weights: np.ndarray | None = None) -> Problem:
+def build_problem(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1.0,
+                  prior: Prior | None = None, weights: FloatArray | None = None) -> Problem:
     """Stack the residual rows of cost (8) (weighted) and of the prior (eqs 26–27).
 
     ``alpha`` [1/m] weighs the translational residuals against the rotational ones.
@@ -309,11 +314,11 @@ def build_problem(motions_a: np.ndarray, motions_b: np.ndarray, alpha: float = 1
     return problem_from_blocks(*pair_blocks(A, B), w, alpha=alpha, prior=prior)
 
 
-def problem_from_blocks(E: np.ndarray, F: np.ndarray, w: np.ndarray, alpha: float = 1.0,
+def problem_from_blocks(E: FloatArray, F: FloatArray, w: FloatArray, alpha: float = 1.0,
                         prior: Prior | None = None) -> Problem:
     """:func:`build_problem` from the per-pair blocks of :func:`pair_blocks` and validated weights."""
     if not (np.isfinite(alpha) and alpha > 0):
-        raise HandEyeError(f"alpha must be a positive number, got {alpha}", "alpha",
+        raise ConfigError(f"alpha must be a positive number, got {alpha}", "alpha",
                            "pass e.g. alpha=1.0 (units 1/m)")
     sw = np.sqrt(w)[:, None, None]
     P = (E * sw).reshape(-1, 4)
@@ -321,8 +326,8 @@ def problem_from_blocks(E: np.ndarray, F: np.ndarray, w: np.ndarray, alpha: floa
     Ed = alpha * P
     if prior is not None:
         if not (prior.a >= 0 and prior.b >= 0):
-            raise HandEyeError("prior weights must be non-negative", "prior", "pass a, b ≥ 0")
-        qp, qpd = dq.from_transforms(np.asarray(prior.T_a_b, dtype=float))
+            raise ConfigError("prior weights must be non-negative", "prior", "pass a, b ≥ 0")
+        qp, qpd = dq.from_transforms(np.asarray(prior.T_a_b, dtype=np.float64))
         Lc = dq.left(dq.conjugate(qp))                       # δq = L(q̂*) q            (eq 27)
         Lcd = dq.left(dq.conjugate(qpd))                     # δq' = L(q̂'*) q + L(q̂*) q'
         P = np.vstack([P, np.sqrt(prior.a) * (_G @ Lc)])

@@ -23,8 +23,13 @@ Strategies (``strategy`` string):
 
 Every strategy is capped at ``max_pairs`` (``random:N`` at N): the kept pairs are evenly spaced
 in the (i, j)-ordered list, so they are deterministic and spread over the whole recording.
-Candidate pairs are counted and chosen by index before any motion is built, so ``all`` on many
-thousand samples stays cheap in memory.
+Candidate pairs are chosen by index before any motion is built. Pairing is linear in the
+recording: up to ``_EXACT_LIMIT`` pairs i < j the valid ones are counted exactly; beyond, a
+stratified sample of evenly spaced positions in the (i, j)-ordered list of all pairs is tested
+(growing until it yields the cap) and ``candidate_pairs`` is the estimate from it.
+
+``auto`` (the default of ``handeye calibrate``) chooses and weighs pairs by a noise model fitted
+to the recording: see :mod:`handeye_cli.stages.selection`.
 """
 from __future__ import annotations
 
@@ -43,6 +48,9 @@ __all__ = ["Pairs", "make_pairs", "STRATEGIES"]
 
 STRATEGIES = ("keyframes", "consecutive", "stride:K", "all", "random:N")
 _BLOCK = 1 << 16     # entries of the pair matrix examined at once (cache-sized; larger blocks measured slower)
+_EXACT_LIMIT = 1 << 22   # pairs i < j counted exactly up to this many; sampled beyond (linear time)
+_KF_BLOCK = 64           # samples compared all-with-all at once when choosing keyframes
+_FIRST_SAMPLE = 8        # the sample starts at this many candidates per pair wanted, and grows ×4
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,17 +80,39 @@ def _parse(strategy: str) -> tuple[str, int]:
         return name, 0
     if name in ("stride", "random") and re.fullmatch(r"[0-9]+", arg) and int(arg) > 0:
         return name, int(arg)
+    if name == "auto":
+        raise HandEyeError("the auto strategy needs a solve", "make_pairs",
+                           "call handeye_cli.stages.selection.select_pairs for auto")
     raise HandEyeError(f"unknown pair strategy {strategy!r}", "pairs",
                        f"use one of {', '.join(STRATEGIES)} (K, N positive integers)")
 
 
 def _quats(T: np.ndarray) -> np.ndarray:
-    return Rotation.from_matrix(T[:, :3, :3]).as_quat()
+    return np.asarray(Rotation.from_matrix(T[:, :3, :3]).as_quat(), dtype=np.float64)
+
+
+def _moved(pos: np.ndarray, quat: np.ndarray, seg: np.ndarray, rows: slice, cols: slice, t2: float,
+           cos_half: float) -> np.ndarray:
+    """``moved[r, c]``: sample ``cols[c]`` moved ≥ the limits (either sensor) or changed segment from ``rows[r]``.
+
+    Distances by ``|p|² + |p'|² - 2 p·p'`` about the rows' first position, dot products by matrix
+    products: a few BLAS calls per block instead of elementwise passes over (r, c, 2, 3) arrays."""
+    moved: np.ndarray = np.asarray(seg[rows][:, None] != seg[cols][None])
+    for s in range(pos.shape[1]):
+        p, q = pos[rows, s] - pos[rows.start, s], pos[cols, s] - pos[rows.start, s]
+        d2 = np.einsum("ij,ij->i", p, p)[:, None] + np.einsum("ij,ij->i", q, q)[None] - 2.0 * (p @ q.T)
+        moved |= (d2 >= t2) | (np.abs(quat[rows, s] @ quat[cols, s].T) <= cos_half)
+    return moved
 
 
 def keyframes(synced: Synced, rotation_rad: float, translation_m: float) -> np.ndarray:
     """Indices of keyframes: the first sample, then each sample where either sensor moved
-    ≥ ``rotation_rad`` or ≥ ``translation_m`` since the last keyframe (or a new segment starts)."""
+    ≥ ``rotation_rad`` or ≥ ``translation_m`` since the last keyframe (or a new segment starts).
+
+    Blocks of ``_KF_BLOCK`` samples are compared all-with-all at once (each sample's first later
+    sample that moved from it), and the keyframe chain is walked through the block; a keyframe with
+    no successor in its block is searched for row-wise in growing windows. Linear in the samples.
+    """
     n = len(synced)
     if n == 0:
         return np.zeros(0, dtype=np.int64)
@@ -90,19 +120,28 @@ def keyframes(synced: Synced, rotation_rad: float, translation_m: float) -> np.n
     quat = np.stack([_quats(synced.T_a), _quats(synced.T_b)], axis=1)           # (n, 2, 4)
     seg = synced.segment
     cos_half, t2 = np.cos(rotation_rad / 2), translation_m ** 2
-    out, start, window = [0], 1, 16
-    while start < n:
-        k, stop = out[-1], min(n, start + window)
-        d = pos[start:stop] - pos[k]
-        moved = (np.einsum("mij,mij->mi", d, d) >= t2).any(axis=1)
-        moved |= (np.abs(np.einsum("mij,ij->mi", quat[start:stop], quat[k])) <= cos_half).any(axis=1)
-        moved |= seg[start:stop] != seg[k]
-        hit = np.flatnonzero(moved)
-        if len(hit):
-            out.append(start + int(hit[0]))
-            start, window = out[-1] + 1, max(16, 2 * (out[-1] - k))   # expect a similar spacing
-        else:                                   # nothing yet: look further, in growing windows
-            start, window = stop, window * 2
+    out, k = [0], 0
+    while k < n - 1:
+        stop = min(n, k + _KF_BLOCK)
+        moved = np.triu(_moved(pos, quat, seg, slice(k, stop), slice(k, stop), t2, cos_half), 1)
+        has: list[bool] = np.asarray(moved.any(axis=1)).tolist()
+        first: list[int] = np.asarray(moved.argmax(axis=1)).tolist()
+        r = 0
+        while has[r]:
+            r = first[r]
+            out.append(k + r)
+        if r > 0:
+            k += r
+            continue
+        start, window, hit = stop, 2 * _KF_BLOCK, None         # k's successor lies beyond the block
+        while start < n and hit is None:
+            row = _moved(pos, quat, seg, slice(k, k + 1), slice(start, min(n, start + window)), t2, cos_half)[0]
+            hit = int(np.argmax(row)) + start if row.any() else None
+            start, window = start + window, 2 * window
+        if hit is None:
+            break
+        out.append(hit)
+        k = hit
     return np.asarray(out, dtype=np.int64)
 
 
@@ -143,6 +182,33 @@ def _choose(qa: np.ndarray, seg: np.ndarray, cos_half: float, pick: Callable[[in
     return rows.astype(np.int64), out_j, total
 
 
+def _sample(qa: np.ndarray, seg: np.ndarray, cos_half: float, want: int, rng: np.random.Generator | None
+            ) -> tuple[np.ndarray, np.ndarray, int]:
+    """:func:`_choose` without counting every pair: positions in the (i, j)-ordered list of all
+    pairs i < j within a segment — evenly spaced, or uniform from ``rng`` — are tested for the
+    rotation, more each round until ``want`` valid ones are found or every pair was tested.
+    Returns ``want`` (or fewer) valid pairs spread over those found, and the estimated number of
+    valid pairs. Work: O(n + pairs tested), no quadratic term."""
+    n = len(qa)
+    seg_end = np.searchsorted(seg, seg, side="right")
+    per_row = seg_end - np.arange(n) - 1
+    first = np.cumsum(per_row) - per_row
+    total = int(per_row.sum())
+    tried = min(total, _FIRST_SAMPLE * want)
+    while True:
+        pos = (_spread(total, tried) if rng is None else
+               np.unique(rng.integers(0, total, tried)) if tried < total else np.arange(total))
+        i = np.searchsorted(first, pos, side="right") - 1
+        j = i + 1 + pos - first[i]
+        ok = np.abs(np.einsum("ij,ij->i", qa[i], qa[j])) <= cos_half
+        found = int(np.count_nonzero(ok))
+        if found >= want or tried >= total:
+            break
+        tried = min(total, 4 * tried)
+    keep = np.flatnonzero(ok)[_spread(found, want)]
+    return i[keep], j[keep], int(round(found * total / max(len(pos), 1)))
+
+
 def _spread(total: int, cap: int) -> np.ndarray:
     """``cap`` evenly spaced positions out of ``total`` (all when ``total <= cap``)."""
     if total <= cap:
@@ -152,7 +218,7 @@ def _spread(total: int, cap: int) -> np.ndarray:
 
 def make_pairs(synced: Synced, strategy: str = "keyframes", *, keyframe_rotation_rad: float = np.deg2rad(5),
                keyframe_translation_m: float = 0.02, min_rotation_rad: float = np.deg2rad(10),
-               max_pairs: int = 2000, seed: int = 0) -> tuple[Pairs, dict]:
+               max_pairs: int = 2000, seed: int = 0) -> tuple[Pairs, dict[str, int]]:
     """Form relative motions ``A_k = T_a(t_i)⁻¹ T_a(t_j)``, ``B_k`` likewise, by ``strategy``.
 
     See the module docstring for the strategies. Angles in radians, distances in metres.
@@ -183,8 +249,12 @@ def make_pairs(synced: Synced, strategy: str = "keyframes", *, keyframe_rotation
         i, j = i[keep], i[keep] + step
     else:
         args = (_quats(synced.T_a[nodes]), seg, np.cos(min(min_rotation_rad, np.pi) / 2))
-        if name == "random":
-            rng = np.random.default_rng(seed)
+        rng = np.random.default_rng(seed) if name == "random" else None
+        want = arg if name == "random" else max_pairs
+        seg_end = np.searchsorted(seg, seg, side="right")
+        if int((seg_end - np.arange(n) - 1).sum()) > _EXACT_LIMIT:
+            i, j, total = _sample(*args, want, rng)
+        elif rng is not None:
             i, j, total = _choose(*args, lambda m: rng.choice(m, size=min(arg, m), replace=False))
         else:
             i, j, total = _choose(*args, lambda m: _spread(m, max_pairs))

@@ -1,0 +1,154 @@
+"""Fleet scale: `handeye calibrate` on hour-long and image-heavy logs, beside the least any reader must do.
+
+Builds (in a temporary directory) zstd-chunked MCAP logs of a rig — a at 100 Hz and b at 30 Hz
+(PoseStamped) plus ``/tf`` at 100 Hz — of each ``--minutes`` length, and one image-heavy log
+(``--image-seconds`` of the same poses with ``--image-hz`` images of ``--image-mb`` MB
+interleaved). For each log it prints, all measured in this run:
+
+* the limit: Python start-up with numpy + scipy.linalg + scipy.spatial.transform (a fresh
+  process) plus zstd-decompressing every chunk of the file (in-process, ``zstandard``);
+* ``handeye calibrate`` as a user runs it (a fresh process): wall time, peak RSS, and the ratio
+  to the limit;
+* the same with every diagnostic (``--bootstrap 200 --robust --alpha auto --report``) and its
+  ratio to the plain run;
+* in-process stage timers (read, sync, gate, pairs, solve) of the default pipeline;
+* the ratio of the longest to the shortest log's calibrate time, beside the ratio of their lengths.
+
+    python benchmarks/scale.py [--minutes 10 60] [--image-seconds 80 --image-hz 20 --image-mb 1]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests"))
+
+CALIBRATE = ["calibrate", "--topic-a", "/a/pose", "--topic-b", "/b/pose", "-q", "--format", "json", "-o", "-"]
+DIAGNOSTICS = ["--bootstrap", "200", "--robust", "--alpha", "auto"]
+
+
+def build(path: Path, seconds: float, image_hz: float = 0.0, image_mb: float = 1.0) -> None:
+    """A rig log: /a/pose 100 Hz, /b/pose 30 Hz (PoseStamped), /tf 100 Hz, optional images."""
+    from _logs import POSE, ROS2_STORE, Channel, pose_channel, records, write_mcap
+
+    from handeye_cli import se3
+    from handeye_cli.simulation import Rig, simulate_rig
+
+    X = se3.from_xyz_quat(np.array([0.1, 0.25, -0.05]), np.array([0.2, 0.1, -0.3, 0.9]))
+    a, b = simulate_rig(Rig(X, 0), duration_s=seconds, rate_a=100, rate_b=30, speed=0.5,
+                        sigma_r=np.deg2rad(0.1), sigma_t=0.002, jumps=int(seconds // 60), seed=4)
+    channels = [pose_channel("/a/pose", POSE, records(a, "world", "")),
+                pose_channel("/b/pose", POSE, records(b, "odom", "")),
+                pose_channel("/tf", "tf2_msgs/msg/TFMessage", records(a, "world", "base_link"))]
+    if image_hz:
+        T = ROS2_STORE.types
+        n_bytes = int(image_mb * 1e6)
+        image = T["sensor_msgs/msg/Image"](
+            header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id="cam"),
+            height=1000, width=n_bytes // 1000, encoding="mono8", is_bigendian=0, step=n_bytes // 1000,
+            data=np.random.default_rng(0).integers(0, 255, n_bytes // 1000 * 1000, dtype=np.uint8))
+        raw = bytes(ROS2_STORE.serialize_cdr(image, "sensor_msgs/msg/Image"))
+        t = np.arange(a.stamps_ns[0], a.stamps_ns[-1], int(1e9 / image_hz), dtype=np.int64)
+        channels.append(Channel("/camera/image", "sensor_msgs/msg/Image", [(int(ti), raw) for ti in t]))
+    write_mcap(path, channels, chunk_size=4 * 1024 * 1024)
+
+
+def run_process(args: list[str]) -> tuple[float, float]:
+    """(wall time [s], peak RSS [MB]) of one fresh process."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    seconds = time.perf_counter() - t0
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise SystemExit(f"{' '.join(args)} failed: {proc.stderr.read().decode()[-2000:] if proc.stderr else ''}")
+    return seconds, usage.ru_maxrss / 1024
+
+
+def limit(path: Path) -> tuple[float, float, float]:
+    """(start-up [s], decompression of every chunk [s], their sum) — the least any reader must do."""
+    import zstandard
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader
+
+    startup, _ = run_process([sys.executable, "-c", "import numpy, scipy.linalg, scipy.spatial.transform"])
+    dctx = zstandard.ZstdDecompressor()
+    t0 = time.perf_counter()
+    with open(path, "rb") as f:
+        for record in StreamReader(f, skip_magic=False, emit_chunks=True).records:
+            if isinstance(record, Chunk) and record.compression == "zstd":
+                dctx.decompress(record.data, max_output_size=record.uncompressed_size)
+    decompress = time.perf_counter() - t0
+    return startup, decompress, startup + decompress
+
+
+def stage_times(path: Path) -> dict[str, float]:
+    """In-process timers of the default pipeline's stages [s]."""
+    from handeye_cli.options import Options
+    from handeye_cli.pipeline import StreamSpec, pairs_of, read_streams
+    from handeye_cli.solvers import solve
+
+    opts, times = Options(), {}
+    t0 = time.perf_counter()
+    a, b = read_streams(StreamSpec(str(path), "/a/pose"), StreamSpec(str(path), "/b/pose"), opts)
+    times["read"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    _, pairs, _ = pairs_of(a, b, opts, 0)
+    times["sync + gates + pairs"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    solve(pairs.A, pairs.B)
+    times["solve"] = time.perf_counter() - t0
+    return times
+
+
+def measure(path: Path, label: str, report_dir: Path) -> float:
+    """Print the limit, the CLI runs and the stage timers of one log; return the plain run's time."""
+    size = path.stat().st_size / 1e6
+    startup, decompress, floor = limit(path)
+    cmd = [sys.executable, "-m", "handeye_cli", *CALIBRATE[:1], str(path), *CALIBRATE[1:]]
+    plain, rss = min((run_process(cmd) for _ in range(2)), key=lambda r: r[0])
+    diag, diag_rss = run_process([*cmd, *DIAGNOSTICS, "--report", str(report_dir / f"{path.stem}.html")])
+    stages = stage_times(path)
+    print(f"\n{label}: {size:.0f} MB")
+    print(f"  limit: start-up {startup:.2f} s + decompress every chunk {decompress:.2f} s = {floor:.2f} s")
+    print(f"  calibrate           {plain:7.2f} s  peak RSS {rss:6.0f} MB  ratio to the limit {plain / floor:5.2f}x")
+    print(f"  + every diagnostic  {diag:7.2f} s  peak RSS {diag_rss:6.0f} MB  ratio to the plain run "
+          f"{diag / plain:5.2f}x")
+    print("  stages (in-process): " + ", ".join(f"{k} {v:.2f} s" for k, v in stages.items()))
+    return plain
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--minutes", type=float, nargs="+", default=[10.0, 60.0])
+    ap.add_argument("--image-seconds", type=float, default=80.0)
+    ap.add_argument("--image-hz", type=float, default=20.0)
+    ap.add_argument("--image-mb", type=float, default=1.0)
+    args = ap.parse_args()
+    print(f"python {sys.version.split()[0]}, {os.cpu_count()} cores")
+    times = {}
+    with tempfile.TemporaryDirectory(prefix="handeye-scale-") as tmp:
+        d = Path(tmp)
+        for minutes in args.minutes:
+            path = d / f"poses_{minutes:g}min.mcap"
+            build(path, 60 * minutes)
+            times[minutes] = measure(path, f"{minutes:g}-min pose log (100 + 30 Hz PoseStamped, /tf 100 Hz)", d)
+            path.unlink()
+        if args.image_seconds > 0:
+            path = d / "images.mcap"
+            build(path, args.image_seconds, args.image_hz, args.image_mb)
+            measure(path, f"{args.image_seconds:g}-s log with {args.image_hz:g} Hz images of {args.image_mb:g} MB", d)
+    if len(times) > 1:
+        lo, hi = min(times), max(times)
+        print(f"\n{hi:g}-min / {lo:g}-min calibrate time: {times[hi] / times[lo]:.2f} (lengths {hi / lo:.1f}x)")
+
+
+if __name__ == "__main__":
+    main()

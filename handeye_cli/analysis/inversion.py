@@ -1,0 +1,169 @@
+"""Is one stream inverted? The commonest set-up mistake, caught before anything else is reported.
+
+A stream of ``T_sensor_world`` given as ``T_world_sensor`` (e.g. a camera's target detections
+``T_camera_target`` without ``--invert-b``) still yields an extrinsic, but a wrong one whose
+residuals are far larger than the noise. With exactly one stream inverted, the relation
+``T_a X = Y T_b`` between the absolute poses cannot hold; inverting that stream restores it.
+(Both streams inverted satisfy the same relation with X and Y swapped: no fit can tell.)
+
+:func:`check_inversion` re-solves the same sample pairs ``(i, j)`` with each stream's poses
+inverted (relative rotation angles do not change, so the same pairs stay valid) and compares the
+median residuals (rotation [deg], translation [m]) with those of the streams as given (on at most
+``_MAX_PAIRS`` pairs spread over the list):
+
+* **inverted**: inverting the stream lowers one median at least ``_BETTER``-fold and raises
+  neither by more than ``_NOT_WORSE``;
+* **overwhelming**: lower at least ``_OVERWHELMING``-fold, and the given fit is implausible for a
+  rigid rig (median above ``_PLAUSIBLE_DEG`` or ``_PLAUSIBLE_M``).
+
+Policy (used by the pipeline): an inverted verdict is the first warning, so ``--strict`` exits 3.
+An overwhelming one refuses the result (:meth:`InversionVerdict.refusal`, exit 2) unless the user
+set an ``--invert-*`` / ``--no-invert-*`` flag explicitly. An extrinsic computed from an
+inverted stream is not slightly off but meaningless, and results are consumed by machines that do
+not read warnings; a ≥ 10-fold better fit of the inverted stream does not occur on correct data
+(it needs residuals far above the noise that vanish under inversion), so refusing costs a correct
+capture nothing, and the explicit flag is the way out when the user knows better. Inverting
+silently was rejected: it would hide a set-up error that also affects other tools the user runs.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .. import se3
+from ..errors import DataError
+from ..solvers import solve
+from .residuals import pair_residuals
+
+__all__ = ["Candidate", "InversionVerdict", "check_inversion"]
+
+_BETTER = 3.0
+_NOT_WORSE = 1.25
+_OVERWHELMING = 10.0
+_PLAUSIBLE_DEG = 0.5
+_PLAUSIBLE_M = 0.02
+_MAX_PAIRS = 500
+_TINY = (1e-9, 1e-12)        # floors [deg, m] so that noise-free fits compare as finite ratios
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One stream whose inversion fits far better: ``stream`` ("a" or "b"), the median residuals with
+    it inverted (rotation [deg], translation [m]), the improvement ``ratio`` (the larger of the two
+    medians' factors) and the CLI ``flag`` that inverts it."""
+
+    stream: str
+    inverted: tuple[float, float]
+    ratio: float
+    flag: str
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain dict for the result file."""
+        return {"stream": self.stream, "rotation_median_deg": self.inverted[0],
+                "translation_median_m": self.inverted[1], "ratio": self.ratio, "flag": self.flag}
+
+
+@dataclass(frozen=True)
+class InversionVerdict:
+    """A stream looks inverted.
+
+    given: median residuals as given (rotation [deg], translation [m]). candidates: the streams whose
+    inversion fits far better, best first; two when the fit cannot tell which stream is inverted
+    (inverting the other one also satisfies ``T_a X = Y T_b``, with X and Y swapped: the result would
+    be the transform between the two world frames). overwhelming: see the module docstring.
+    """
+
+    given: tuple[float, float]
+    candidates: tuple[Candidate, ...]
+    overwhelming: bool
+
+    @property
+    def streams(self) -> tuple[str, ...]:
+        """The candidate streams, best first."""
+        return tuple(c.stream for c in self.candidates)
+
+    def _evidence(self) -> str:
+        alts = ", ".join(f"{c.inverted[0]:.3g}° / {c.inverted[1]:.3g} m with {c.stream} inverted "
+                         f"({c.ratio:.3g}× better)" for c in self.candidates)
+        return f"the median residuals go from {self.given[0]:.3g}° / {self.given[1]:.3g} m to {alts}"
+
+    @staticmethod
+    def _fix(candidates: tuple[Candidate, ...]) -> str:
+        if len(candidates) == 1:
+            return f"rerun with {candidates[0].flag}"
+        return ("the fit cannot tell which one; rerun with the flag of the stream that holds T_sensor_world "
+                f"(a camera's target detections do): {' or '.join(c.flag for c in candidates)}")
+
+    def message(self) -> str:
+        """The one-line warning, with the numbers and the flags."""
+        who = f"stream {self.streams[0]}" if len(self.candidates) == 1 else "stream a or b"
+        return (f"{who} looks inverted (T_sensor_world instead of T_world_sensor): {self._evidence()}; "
+                f"{self._fix(self.candidates)}")
+
+    def refusal(self, explicit: bool) -> DataError | None:
+        """The error refusing the result when the verdict is overwhelming and the user set no invert
+        flag explicitly (``explicit``: any of --invert-a/--no-invert-a/--invert-b/--no-invert-b); else None."""
+        if not self.overwhelming or explicit:
+            return None
+        first = self.candidates[0]
+        keep = f"--{'no-' if first.flag.startswith('--invert') else ''}invert-{first.stream}"
+        return DataError("a stream is almost certainly inverted (T_sensor_world instead of T_world_sensor); "
+                         "no result was written", self._evidence(), f"{self._fix(self.candidates)}; or pass "
+                         f"{keep} to use the streams as they are")
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain dict for the result file."""
+        return {"given_median": {"rotation_deg": self.given[0], "translation_m": self.given[1]},
+                "candidates": [c.as_dict() for c in self.candidates], "overwhelming": self.overwhelming}
+
+
+def _fit(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64], j: NDArray[np.int64],
+         method: str, alpha: float) -> tuple[float, float] | None:
+    """Median residuals after solving the pairs (i, j) of the absolute poses; None when unsolvable."""
+    A, B = se3.relative(T_a[i], T_a[j]), se3.relative(T_b[i], T_b[j])
+    try:
+        X = solve(A, B, method=method, alpha=alpha).matrix
+    except DataError:
+        return None
+    summary = pair_residuals(A, B, X).summary()
+    return summary.rotation_median_deg, summary.translation_median_m
+
+
+def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64],
+                    j: NDArray[np.int64], *, method: str = "dqopt", alpha: float = 1.0,
+                    inverted_now: tuple[bool, bool] = (False, False)) -> InversionVerdict | None:
+    """Whether stream a or b fits far better inverted (see the module docstring).
+
+    Parameters
+    ----------
+    T_a, T_b: (N, 4, 4) synced absolute poses ``T_wa_a``, ``T_wb_b`` (samples or stations).
+    i, j: int64 (M,) the sample pairs the calibration used (motions ``T(t_i)⁻¹ T(t_j)``).
+    method, alpha: the solver used for the comparison fits.
+    inverted_now: whether streams a and b were already inverted by the user (to name the right flag).
+
+    Returns the verdict (both streams as candidates when their inversions fit alike), or None.
+    """
+    if len(i) > _MAX_PAIRS:                 # medians of a spread-out subset decide as well, 3 solves stay cheap
+        keep = np.linspace(0, len(i) - 1, _MAX_PAIRS).astype(np.int64)
+        i, j = i[keep], j[keep]
+    base = _fit(T_a, T_b, i, j, method, alpha)
+    if base is None:
+        return None
+    found = []
+    for name, Ta, Tb, now in (("a", se3.inverse(T_a), T_b, inverted_now[0]),
+                              ("b", T_a, se3.inverse(T_b), inverted_now[1])):
+        alt = _fit(Ta, Tb, i, j, method, alpha)
+        if alt is None:
+            continue
+        gains = [max(g, tiny) / max(v, tiny) for g, v, tiny in zip(base, alt, _TINY, strict=True)]
+        if max(gains) >= _BETTER and min(gains) >= 1 / _NOT_WORSE:
+            found.append(Candidate(name, alt, float(max(gains)), f"--no-invert-{name}" if now else f"--invert-{name}"))
+    if not found:
+        return None
+    found.sort(key=lambda c: -c.ratio)
+    found = [c for c in found if c.ratio >= found[0].ratio / _BETTER]      # alike fits: the data cannot tell
+    implausible = base[0] > _PLAUSIBLE_DEG or base[1] > _PLAUSIBLE_M
+    return InversionVerdict(base, tuple(found), bool(found[0].ratio >= _OVERWHELMING and implausible))

@@ -1,0 +1,122 @@
+"""Drift verdicts: how far a calibrated extrinsic is from the nominal one, and whether that matters.
+
+The result ``X = T_a_b`` and the nominal ``N = T_a_b`` (pose of frame b in frame a, maps points
+from b to a) differ by the rotation angle of ``R_Nᵀ R_X`` [deg] and the translation distance
+``|t_X − t_N|`` [m]. Each is *out of tolerance* above its limit. When the result carries a
+bootstrap interval (``uncertainty.rotation_interval_deg`` of ``δθ = Log(R* R̂ᵀ)`` and
+``uncertainty.translation_interval_m``, both (2, 3)), the difference is *significant* when the
+nominal lies outside the interval on some axis. A sensor has **drifted** when its rotation or its
+translation is out of tolerance and — where significance is known — significant.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from .. import se3
+from ..errors import DataError
+from ..io.nominal import Nominal
+
+__all__ = ["DEFAULT_MAX_ROTATION_DEG", "DEFAULT_MAX_TRANSLATION_M", "Verdict", "compare", "verdict_for"]
+
+DEFAULT_MAX_ROTATION_DEG = 0.5
+DEFAULT_MAX_TRANSLATION_M = 0.005
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The comparison of a result with its nominal.
+
+    rotation_deg, translation_m: angle of ``R_Nᵀ R_X`` [deg] and ``|t_X − t_N|`` [m].
+    max_rotation_deg, max_translation_m: the tolerances.
+    rotation_significant, translation_significant: whether the nominal lies outside the result's
+    bootstrap interval (None without an interval); ``as_dict`` adds ``significant``, either of them.
+    nominal: where the nominal came from (``source``, ``kind``) and its ``translation`` [m] and
+    ``quaternion_xyzw``.
+    """
+
+    rotation_deg: float
+    translation_m: float
+    max_rotation_deg: float
+    max_translation_m: float
+    rotation_significant: bool | None
+    translation_significant: bool | None
+    nominal: dict[str, Any]
+
+    @property
+    def rotation_out(self) -> bool:
+        return self.rotation_deg > self.max_rotation_deg
+
+    @property
+    def translation_out(self) -> bool:
+        return self.translation_m > self.max_translation_m
+
+    @property
+    def drift(self) -> bool:
+        """Out of tolerance, and significant where significance is known (per component)."""
+        return ((self.rotation_out and self.rotation_significant is not False)
+                or (self.translation_out and self.translation_significant is not False))
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain values for the result document and batch records."""
+        out: dict[str, Any] = {
+            "drift": self.drift, "rotation_deg": self.rotation_deg, "translation_m": self.translation_m,
+            "max_rotation_deg": self.max_rotation_deg, "max_translation_m": self.max_translation_m,
+            "rotation_out_of_tolerance": self.rotation_out, "translation_out_of_tolerance": self.translation_out}
+        if self.rotation_significant is not None:
+            out["significant"] = bool(self.rotation_significant or self.translation_significant)
+            out["rotation_significant"] = self.rotation_significant
+            out["translation_significant"] = self.translation_significant
+        return {**out, "nominal": self.nominal}
+
+    def summary(self) -> str:
+        """One human-readable line."""
+        word = "DRIFT" if self.drift else "within tolerance" if not (self.rotation_out or self.translation_out) \
+            else "out of tolerance but not significant"
+        return (f"{word}: rotation {self.rotation_deg:.3f}° (max {self.max_rotation_deg:g}°), translation "
+                f"{self.translation_m * 1000:.2f} mm (max {self.max_translation_m * 1000:g} mm) from the nominal "
+                f"{self.nominal.get('source', '')}".rstrip())
+
+
+def _significance(X: NDArray[np.float64], N: NDArray[np.float64], uncertainty: dict[str, Any] | None) -> tuple[
+        bool | None, bool | None]:
+    """Whether N lies outside X's bootstrap intervals (rotation, translation), or (None, None)."""
+    if not isinstance(uncertainty, dict):
+        return None, None
+    try:
+        r_lo, r_hi = np.array(uncertainty["rotation_interval_deg"], dtype=np.float64).reshape(2, 3)
+        t_lo, t_hi = np.array(uncertainty["translation_interval_m"], dtype=np.float64).reshape(2, 3)
+    except (KeyError, TypeError, ValueError):
+        return None, None
+    d = Rotation.from_matrix(N[:3, :3] @ X[:3, :3].T).as_rotvec(degrees=True)
+    t = N[:3, 3]
+    return bool(((d < r_lo) | (d > r_hi)).any()), bool(((t < t_lo) | (t > t_hi)).any())
+
+
+def compare(X: NDArray[np.float64], N: NDArray[np.float64], max_rotation_deg: float, max_translation_m: float, *,
+            uncertainty: dict[str, Any] | None = None, nominal: dict[str, Any] | None = None) -> Verdict:
+    """The verdict on the result ``X`` against the nominal ``N`` (both 4x4 ``T_a_b``)."""
+    if max_rotation_deg < 0 or max_translation_m < 0:
+        raise DataError("negative tolerance", "--max-rotation-deg/--max-translation-m", "give limits ≥ 0")
+    X, N = np.asarray(X, dtype=float), np.asarray(N, dtype=float)
+    t, q = se3.to_xyz_quat(N)
+    rot_sig, trans_sig = _significance(X, N, uncertainty)
+    return Verdict(rotation_deg=float(np.rad2deg(se3.rotation_angle(N[:3, :3].T @ X[:3, :3]))),
+                   translation_m=float(np.linalg.norm(X[:3, 3] - N[:3, 3])),
+                   max_rotation_deg=float(max_rotation_deg), max_translation_m=float(max_translation_m),
+                   rotation_significant=rot_sig, translation_significant=trans_sig,
+                   nominal={**(nominal or {}), "translation": t.tolist(), "quaternion_xyzw": q.tolist()})
+
+
+def verdict_for(doc: dict[str, Any], nominal: Nominal, max_rotation_deg: float = DEFAULT_MAX_ROTATION_DEG,
+                max_translation_m: float = DEFAULT_MAX_TRANSLATION_M) -> Verdict:
+    """The verdict on a result document (``matrix``, ``frames``, optional ``uncertainty``) against the
+    nominal's transform between the result's frames a and b."""
+    frames = doc.get("frames") or {}
+    N = nominal.transform(frames.get("a"), frames.get("b"))
+    return compare(np.asarray(doc["matrix"], dtype=float), N, max_rotation_deg, max_translation_m,
+                   uncertainty=doc.get("uncertainty"), nominal={"source": nominal.source, "kind": nominal.kind})

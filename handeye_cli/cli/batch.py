@@ -1,0 +1,102 @@
+"""``handeye batch INPUTS…`` (many logs, one JSON Lines record each) and ``handeye report``
+(the fleet-trend HTML report of those records).
+
+Exit codes of ``batch``: 1 when any input drifted from the nominal, else 2 when any input
+failed, else 0.
+"""
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+import click
+
+from ..errors import ConfigError
+from ..fleet import BatchSettings, Job, Streams, discover, run_batch
+from ..fleet.overrides import options_for, read_overrides
+from .check import verdict_options
+from .common import CONTEXT
+from .params import calibrate_options, options_from_cli, stream_options
+
+__all__ = ["batch", "report"]
+
+
+@click.command(context_settings=CONTEXT)
+@click.argument("inputs", nargs=-1, required=True)
+@stream_options
+@calibrate_options
+@verdict_options
+@click.option("--per-input", "per_input", type=click.Path(dir_okay=False), help="YAML mapping glob patterns of "
+              "input paths to the options that differ for them (flat names as in --config), applied over the "
+              "shared options in file order.")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), help="Local worker processes [default: one per core].")
+@click.option("--scheduler", metavar="ADDRESS", help="Run on this Dask distributed scheduler (e.g. tcp://host:8786) "
+              "instead of local processes; needs pip install 'handeye-cli[dask]'.")
+@click.option("--output-dir", type=click.Path(file_okay=False), help="Write each input's full result file here, "
+              "named after the input.")
+@click.option("--format", "fmt", type=click.Choice(["yaml", "json"]), default="yaml", show_default=True,
+              help="Format of the result files in --output-dir (stdout is always JSON Lines).")
+@click.option("--skip-done", is_flag=True, help="With --output-dir: reuse results computed from the same file "
+              "content, options and handeye version.")
+@click.option("--report", "report_file", type=click.Path(dir_okay=False), help="Also write the fleet-trend HTML "
+              "report of the records.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
+@click.pass_context
+def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
+    """Calibrate many logs with one set of options (every calibrate option applies to every input):
+    one JSON Lines record per input on stdout.
+
+    INPUTS are files, directories (searched recursively for logs by content: MCAP, ROS 1 bags,
+    ROS 2 bags, and folders holding two TUM/EuRoC files a and b), glob patterns, @LIST files
+    (one log, or two pose files 'A B', per line) or - (such a list on stdin). A bad log is an
+    error record, never an abort. With --against each record carries a drift verdict.
+
+    \b
+    Exit codes: 0 all within tolerance, 1 a sensor drifted, 2 some input failed,
+    3 --strict and some result has warnings.
+    \b
+    Examples:
+      handeye batch logs/2026-11-*/ --topic-a /cam0/pose --topic-b /cam1/pose \\
+          --against nominal/robot42.urdf --max-rotation-deg 0.5 --max-translation-m 0.005 \\
+          --jobs 8 --output-dir results/ > verdicts.jsonl
+      find logs -name '*.mcap' | handeye batch - --topic-a /cam0/pose --topic-b /cam1/pose
+    """
+    if o["skip_done"] and not o["output_dir"]:
+        raise ConfigError("--skip-done needs --output-dir", "--skip-done", "add --output-dir DIR")
+    nominal = None
+    if o["against"]:
+        from ..io.nominal import read_nominal
+
+        nominal = read_nominal(o["against"])
+    streams = Streams(o["topic_a"], o["topic_b"], o["frames_a"] or None, o["frames_b"] or None)
+    options = options_from_cli(o)
+    overrides = read_overrides(o["per_input"]) if o["per_input"] else ()
+    jobs = [Job(i, streams, options_for(i, options, overrides)) for i in discover(inputs, sys.stdin)]
+    settings = BatchSettings(nominal, o["max_rotation_deg"], o["max_translation_m"], o["output_dir"], o["fmt"],
+                             o["skip_done"], options.analysis.strict, o["jobs"], o["scheduler"],
+                             progress=not o["quiet"])
+    summary = run_batch(jobs, settings, click.echo)
+    if o["report_file"]:
+        from ..output.fleet_report import write_fleet_report
+
+        write_fleet_report(o["report_file"], summary.records, "--report")
+    if not o["quiet"]:
+        click.echo(summary.text(), err=True)
+    ctx.exit(summary.exit_code)
+
+
+@click.command(context_settings=CONTEXT)
+@click.argument("records_file", type=click.Path())
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="The HTML file to write.")
+def report(records_file: str, output: str) -> None:
+    """Write the fleet-trend report of batch records (JSON Lines): per sensor pair, the extrinsic's
+    rotation and translation over log time against the nominal and its tolerance band, and the
+    table of drifted and failed logs. One self-contained HTML file.
+
+    \b
+    Example:
+      handeye report verdicts.jsonl -o fleet.html
+    """
+    from ..output.fleet_report import read_records, write_fleet_report
+
+    write_fleet_report(output, read_records(records_file))

@@ -1,0 +1,324 @@
+"""Read a NOMINAL extrinsic (what a sensor's mounting should be) from the files ROS users keep.
+
+Kinds, told apart by content:
+
+* ``result`` — a handeye result (YAML/JSON with ``matrix``, or ``translation`` + ``quaternion_xyzw``);
+  its ``frames`` name the transform ``T_a_b``.
+* ``urdf`` — a URDF: every ``fixed`` joint is the transform ``T_parent_child`` of its ``<origin
+  xyz rpy>`` (rpy: fixed-axis roll about x, pitch about y, yaw about z, ``R = Rz·Ry·Rx``).
+* ``ros1-launch`` / ``ros2-launch`` — a launch file (ROS 1 or ROS 2 XML, or ROS 2 Python) with
+  ``static_transform_publisher`` nodes.
+* ``tf-static`` — text holding ``static_transform_publisher`` command lines (``rosrun tf2_ros …``,
+  ``ros2 run tf2_ros …``, also given directly as the NOMINAL string).
+* ``kalibr`` — a Kalibr camchain / camchain-imucam / IMU YAML: ``camN.T_cam_imu`` (``T_camN_imu0``),
+  ``camN.T_imu_cam`` (its inverse, as OpenVINS writes it), ``camN.T_cn_cnm1`` (``T_camN_cam(N-1)``),
+  ``imuN.T_i_b`` (``T_imuN_imu0``); the frames are named ``camN`` / ``imuN``.
+
+Every kind becomes a small frame graph of rigid transforms; :meth:`Nominal.transform` composes
+the chain between two frames (in either direction). ``T_a_b`` is the pose of frame b in frame a
+(maps points from b to a); quaternions are x-y-z-w; metres and radians.
+"""
+from __future__ import annotations
+
+import ast
+import re
+import shlex
+import xml.etree.ElementTree as ET
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from .. import se3
+from ..errors import ReadError
+from .pairfile import read_extrinsic
+
+__all__ = ["Edge", "Nominal", "NOMINAL_KINDS", "read_nominal", "read_result", "static_publisher_transform"]
+
+NOMINAL_KINDS = ("result", "urdf", "ros1-launch", "ros2-launch", "tf-static", "kalibr")
+_STP = "static_transform_publisher"
+_FIX = ("pass a handeye result (YAML/JSON), a URDF, a ROS launch file, a static_transform_publisher "
+        "command line or a Kalibr camchain YAML")
+
+
+@dataclass(frozen=True, eq=False)
+class Edge:
+    """One rigid transform of the nominal: ``matrix`` = ``T_parent_child`` (4x4, metres)."""
+
+    parent: str
+    child: str
+    matrix: NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class Nominal:
+    """A nominal extrinsic file as a graph of fixed transforms between named frames."""
+
+    source: str
+    kind: str
+    edges: tuple[Edge, ...]
+
+    @property
+    def frames(self) -> list[str]:
+        """The frames the file names, in order of appearance."""
+        return list(dict.fromkeys(f for e in self.edges for f in (e.parent, e.child)))
+
+    def transform(self, a: str | None = None, b: str | None = None) -> NDArray[np.float64]:
+        """``T_a_b`` (4x4): the chain of transforms from frame a to frame b, composed.
+
+        When a or b is not a frame of the file (or not given) and the file relates exactly two
+        frames, that one transform is used, read as ``T_parent_child`` of its first entry.
+        Raises ReadError when the frames are not connected.
+        """
+        frames = self.frames
+        if (a not in frames or b not in frames) and len(frames) == 2:
+            return np.array(self.edges[0].matrix, dtype=np.float64)
+        for name in (a, b):
+            if name not in frames:
+                raise ReadError(f"frame {name!r} is not in the nominal (it names {', '.join(frames)})",
+                                self.source, "name the result's frames as the nominal does with --name-a/--name-b")
+        return self._chain(str(a), str(b))
+
+    def _chain(self, a: str, b: str) -> NDArray[np.float64]:
+        """Breadth-first search from a to b over the edges taken in either direction."""
+        links: dict[str, list[tuple[str, NDArray[np.float64]]]] = {}
+        for e in self.edges:
+            links.setdefault(e.parent, []).append((e.child, e.matrix))
+            links.setdefault(e.child, []).append((e.parent, se3.inverse(e.matrix)))
+        reached = {a: np.eye(4)}
+        queue = deque([a])
+        while queue:
+            frame = queue.popleft()
+            for nxt, T in links.get(frame, []):
+                if nxt not in reached:
+                    reached[nxt] = reached[frame] @ T
+                    queue.append(nxt)
+        if b not in reached:
+            raise ReadError(f"no chain of fixed transforms between {a!r} and {b!r}", self.source,
+                            "check the frame names; movable URDF joints are not part of a nominal chain")
+        return reached[b]
+
+
+def _transform(xyz: NDArray[np.float64], rotation: Rotation) -> NDArray[np.float64]:
+    T = np.eye(4)
+    T[:3, :3] = rotation.as_matrix()
+    T[:3, 3] = xyz
+    return T
+
+
+def _floats(text: str | None, n: int, where: str) -> NDArray[np.float64]:
+    try:
+        values = np.array([float(v) for v in (text or " ".join(["0"] * n)).split()])
+    except ValueError:
+        values = np.array([])
+    if values.shape != (n,) or not np.isfinite(values).all():
+        raise ReadError(f"expected {n} numbers, got {text!r}", where, "fix the value")
+    return values
+
+
+# --- static_transform_publisher --------------------------------------------------------------
+_FLAGS = ("--x", "--y", "--z", "--qx", "--qy", "--qz", "--qw", "--roll", "--pitch", "--yaw", "--frame-id",
+          "--child-frame-id")
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _flag_args(args: list[str], where: str) -> Edge:
+    """ROS 2 style: ``--x X … --qw W | --roll R --pitch P --yaw Y --frame-id F --child-frame-id C``."""
+    values: dict[str, str] = {}
+    it = iter(args)
+    for flag in it:
+        if flag not in _FLAGS:
+            raise ReadError(f"unknown static_transform_publisher argument {flag!r}", where,
+                            "use --x … --child-frame-id")
+        values[flag[2:]] = next(it, "")
+    if "frame-id" not in values or "child-frame-id" not in values:
+        raise ReadError("static_transform_publisher without --frame-id/--child-frame-id", where, "add both frames")
+    num = {k: float(_floats(v, 1, where)[0]) for k, v in values.items() if not k.endswith("id")}
+    quat = [k for k in ("qx", "qy", "qz", "qw") if k in num]
+    euler = [k for k in ("roll", "pitch", "yaw") if k in num]
+    if quat and euler:
+        raise ReadError("both a quaternion and roll/pitch/yaw given", where, "give one rotation")
+    xyz = np.array([num.get(k, 0.0) for k in ("x", "y", "z")])
+    if quat:
+        q = np.array([num.get("qx", 0.0), num.get("qy", 0.0), num.get("qz", 0.0), num.get("qw", 1.0)])
+        rotation = _quaternion(q, where)
+    else:
+        rotation = Rotation.from_euler("xyz", [num.get(k, 0.0) for k in ("roll", "pitch", "yaw")])
+    return Edge(values["frame-id"], values["child-frame-id"], _transform(xyz, rotation))
+
+
+def _quaternion(q: NDArray[np.float64], where: str) -> Rotation:
+    if not (np.isfinite(q).all() and np.linalg.norm(q) > 1e-9):
+        raise ReadError("zero or non-finite quaternion", where, "give a unit quaternion qx qy qz qw")
+    return Rotation.from_quat(q)
+
+
+def static_publisher_transform(args: list[str], where: str = "static_transform_publisher") -> Edge:
+    """The transform a ``static_transform_publisher`` argument list publishes, ``T_frame_child``.
+
+    Accepts the ROS 2 flags (``--x … --frame-id F --child-frame-id C``) and the positional forms
+    ``x y z yaw pitch roll F C`` and ``x y z qx qy qz qw F C`` (ROS 1 ``tf`` adds a period [ms]).
+    """
+    args = args[: args.index("--ros-args")] if "--ros-args" in args else list(args)
+    if args and args[0].startswith("--"):
+        return _flag_args(args, where)
+    n_numbers = next((i for i, a in enumerate(args) if not _is_number(a)), len(args))
+    if n_numbers not in (6, 7) or len(args) not in (n_numbers + 2, n_numbers + 3):
+        raise ReadError(f"cannot parse static_transform_publisher arguments {' '.join(args)!r}", where,
+                        "use 'x y z yaw pitch roll frame child' or 'x y z qx qy qz qw frame child'")
+    nums = np.array([float(a) for a in args[:n_numbers]])
+    rotation = (Rotation.from_euler("xyz", nums[[5, 4, 3]]) if n_numbers == 6 else _quaternion(nums[3:7], where))
+    return Edge(args[n_numbers], args[n_numbers + 1], _transform(nums[:3], rotation))
+
+
+def _command_lines(text: str, where: str) -> tuple[Edge, ...]:
+    """Every ``… static_transform_publisher ARGS`` line of a shell text."""
+    edges = []
+    for line in text.replace("\\\n", " ").splitlines():
+        if _STP in line and not line.lstrip().startswith("#"):
+            words = shlex.split(line, comments=True)
+            if _STP in words:
+                edges.append(static_publisher_transform(words[words.index(_STP) + 1:], where))
+    return tuple(edges)
+
+
+# --- URDF and launch files ------------------------------------------------------------------
+def _urdf(root: ET.Element, where: str) -> tuple[Edge, ...]:
+    edges = []
+    for joint in root.iter("joint"):
+        if joint.get("type") != "fixed":
+            continue
+        parent, child, origin = joint.find("parent"), joint.find("child"), joint.find("origin")
+        if parent is None or child is None:
+            raise ReadError(f"joint {joint.get('name')!r} lacks <parent> or <child>", where, "fix the URDF")
+        name = f"{where}: joint {joint.get('name')}"
+        xyz = _floats(None if origin is None else origin.get("xyz"), 3, name)
+        rpy = _floats(None if origin is None else origin.get("rpy"), 3, name)
+        edges.append(Edge(str(parent.get("link")), str(child.get("link")),
+                          _transform(xyz, Rotation.from_euler("xyz", rpy))))
+    return tuple(edges)
+
+
+def _launch_xml(root: ET.Element, where: str) -> tuple[str, tuple[Edge, ...]]:
+    nodes = [n for n in root.iter("node") if _STP in (n.get("type"), n.get("exec"), n.get("executable"))]
+    ros2 = any(n.get("type") is None for n in nodes)
+    return ("ros2-launch" if ros2 else "ros1-launch",
+            tuple(static_publisher_transform(shlex.split(n.get("args", "")), where) for n in nodes))
+
+
+def _launch_python(text: str, where: str) -> tuple[Edge, ...]:
+    """``Node(package='tf2_ros', executable='static_transform_publisher', arguments=[...])`` calls."""
+    try:
+        tree = ast.parse(text)
+    except SyntaxError as e:
+        raise ReadError(f"not valid Python: {e.msg}", f"{where}:{e.lineno}", _FIX) from None
+    edges = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.Call):
+            continue
+        kw = {k.arg: k.value for k in node.keywords if k.arg}
+        exe = kw.get("executable", kw.get("node_executable"))
+        if isinstance(exe, ast.Constant) and exe.value == _STP and "arguments" in kw:
+            try:
+                args = [str(a) for a in ast.literal_eval(kw["arguments"])]
+            except ValueError:
+                raise ReadError("static_transform_publisher arguments are not literal strings",
+                                f"{where}:{node.lineno}", "write the numbers and frames as literals") from None
+            edges.append(static_publisher_transform(args, f"{where}:{node.lineno}"))
+    return tuple(edges)
+
+
+# --- YAML: handeye results and Kalibr --------------------------------------------------------
+_KALIBR_KEYS = {"T_cam_imu": "imu0", "T_imu_cam": "imu0", "T_cn_cnm1": None, "T_i_b": "imu0"}
+
+
+def _kalibr(doc: dict[str, Any], where: str) -> tuple[Edge, ...]:
+    edges = []
+    for name, entry in doc.items():
+        if not isinstance(entry, dict):
+            continue
+        for key, other in _KALIBR_KEYS.items():
+            if key not in entry:
+                continue
+            T = np.asarray(entry[key], dtype=float)
+            if T.shape != (4, 4) or not (np.isfinite(T).all() and se3.is_rotation(T[:3, :3], 1e-6)):
+                raise ReadError(f"{name}.{key} is not a 4x4 rigid transform", where, "fix the Kalibr YAML")
+            match = re.fullmatch(r"cam(\d+)", str(name))
+            if other is None:
+                if not match or match.group(1) == "0":
+                    raise ReadError(f"{name}.T_cn_cnm1 needs a previous camera", where, "fix the Kalibr YAML")
+                other = f"cam{int(match.group(1)) - 1}"
+            edges.append(Edge(other, str(name), T) if key == "T_imu_cam" else Edge(str(name), other, T))
+    return tuple(edges)
+
+
+def _yaml(text: str, path: Path) -> tuple[str, tuple[Edge, ...]]:
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError:
+        raise ReadError("not a nominal extrinsic (neither XML, Python, YAML nor a command line)", str(path),
+                        _FIX) from None
+    if isinstance(doc, dict) and ("matrix" in doc or "translation" in doc):
+        frames = doc["frames"] if isinstance(doc.get("frames"), dict) else {}
+        return "result", (Edge(str(frames.get("a", "a")), str(frames.get("b", "b")), read_extrinsic(path)),)
+    return "kalibr", (_kalibr(doc, str(path)) if isinstance(doc, dict) else ())
+
+
+def _parse_file(path: Path) -> tuple[str, tuple[Edge, ...]]:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise ReadError(f"cannot read the nominal: {e}", str(path), _FIX) from None
+    where = str(path)
+    if text.lstrip().startswith("<"):
+        try:
+            root = ET.fromstring(text)
+        except ET.ParseError as e:
+            raise ReadError(f"invalid XML: {e}", where, _FIX) from None
+        return ("urdf", _urdf(root, where)) if root.tag == "robot" else _launch_xml(root, where)
+    if re.search(r"^\s*(from|import)\s+launch", text, re.M):
+        return "ros2-launch", _launch_python(text, where)
+    if _STP in text:
+        return "tf-static", _command_lines(text, where)
+    return _yaml(text, path)
+
+
+def read_nominal(nominal: str | Path) -> Nominal:
+    """Read a nominal extrinsic file (see the module docstring), or a ``static_transform_publisher``
+    command line given as the string itself. Raises ReadError when nothing usable is found."""
+    text = str(nominal)
+    path = Path(nominal)
+    if not path.is_file():
+        if _STP in text:
+            return Nominal("command line", "tf-static", _command_lines(text, "--against"))
+        raise ReadError("nominal file not found", text, "check the --against path")
+    kind, edges = _parse_file(path)
+    if not edges:
+        raise ReadError(f"no transform found in this {kind} file", text, _FIX)
+    return Nominal(text, kind, edges)
+
+
+def read_result(path: str | Path) -> dict[str, Any]:
+    """A handeye result document (YAML or JSON) whose ``matrix`` is a valid ``T_a_b``; ReadError otherwise."""
+    p = Path(path)
+    if not p.is_file():
+        raise ReadError("result file not found", str(p), "check the path")
+    try:
+        doc = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except (yaml.YAMLError, UnicodeDecodeError):
+        doc = None
+    if not (isinstance(doc, dict) and "matrix" in doc):
+        raise ReadError("not a handeye result (no 'matrix')", str(p), "pass a file written by handeye calibrate")
+    return {**doc, "matrix": read_extrinsic(p).tolist()}

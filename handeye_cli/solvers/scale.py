@@ -1,0 +1,134 @@
+"""``A_i X = X B_i`` when stream b's translations have an unknown scale (monocular odometry).
+
+Stream b's translations are in unknown units; ``s`` [m per unit of b] turns them into metres, so
+each pair satisfies, with ``X = T_a_b`` (maps points b → a)::
+
+    R_Ai R_X = R_X R_Bi                               (rotation: free of the scale)
+    (R_Ai - I) t_X - s R_X t_Bi = -t_Ai               (translation: linear in t_X and s)
+
+:func:`solve_with_scale` takes the rotation from the scale-free part (the unit quaternion
+minimising ``Σ w_i |E_i q|²``, the rotational half of the paper's cost (8)), then ``t_X`` and
+``s`` by linear least squares, then refines all seven jointly by nonlinear least squares over
+the residuals ``[rotvec((R_X R_Bi)ᵀ R_Ai R_X), α (R_Ai t_X + t_Ai - s R_X t_Bi - t_X)]``
+(radians and α-weighted metres, as cost (8) weighs them). Quaternions x-y-z-w.
+
+The standard deviation of ``s`` is the Gauss–Newton one, ``σ̂² (JᵀJ)⁻¹``, inflated by the number
+of pairs per distinct sample when pairs share samples (all-pairs of N stations carry about N,
+not N²/2, independent observations).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from ..errors import DataError
+from .problem import pair_blocks, validate_motions
+
+__all__ = ["ScaleSolution", "scale_translations", "solve_with_scale"]
+
+_MAX_RELATIVE_STD = 0.5      # a scale known worse than ±50 % is not determined
+
+
+@dataclass(frozen=True)
+class ScaleSolution:
+    """``matrix``: 4x4 ``T_a_b`` (translation in metres); ``scale``: metres per unit of stream b;
+    ``scale_std``: its standard deviation; ``linear_scale``: the linear estimate before refinement;
+    ``cost``: half the sum of squared refined residuals."""
+
+    matrix: NDArray[np.float64]
+    scale: float
+    scale_std: float
+    linear_scale: float
+    cost: float
+
+    def as_dict(self) -> dict[str, float | str]:
+        """The result's ``scale`` block."""
+        return {"value": self.scale, "std": self.scale_std, "linear": self.linear_scale,
+                "meaning": "metres per unit of stream b"}
+
+
+def scale_translations(T: NDArray[np.float64], scale: float) -> NDArray[np.float64]:
+    """Copies of transforms (…, 4, 4) with their translations multiplied by ``scale``."""
+    out = np.array(T, dtype=float)
+    out[..., :3, 3] *= scale
+    return out
+
+
+def _rotation(A: NDArray[np.float64], B: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray[np.float64]:
+    """R_X from the rotational residuals only: eigenvector of ``Σ w EᵀE`` with the smallest eigenvalue."""
+    E, _ = pair_blocks(A, B)
+    _, vectors = np.linalg.eigh(np.einsum("n,nki,nkj->ij", w, E, E))
+    return np.asarray(Rotation.from_quat(vectors[:, 0]).as_matrix(), dtype=np.float64)
+
+
+def _linear(A: NDArray[np.float64], B: NDArray[np.float64], R_X: NDArray[np.float64],
+            sw: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """t_X [m] and s from ``(R_A - I) t_X - s R_X t_B = -t_A`` by weighted linear least squares."""
+    n = len(A)
+    M = np.zeros((n, 3, 4))
+    M[:, :, :3] = A[:, :3, :3] - np.eye(3)
+    M[:, :, 3] = -B[:, :3, 3] @ R_X.T
+    rhs = -A[:, :3, 3]
+    sol, *_ = np.linalg.lstsq((M * sw[:, None, None]).reshape(-1, 4), (rhs * sw[:, None]).reshape(-1), rcond=None)
+    return np.asarray(sol[:3], dtype=np.float64), float(sol[3])
+
+
+def _residuals(p: NDArray[np.float64], A: NDArray[np.float64], B: NDArray[np.float64], R0: Rotation,
+               alpha: float, sw: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Per-pair rotation [rad] and α-weighted translation residuals for ``p = [δθ (3), t_X (3), log s]``."""
+    R_X = (Rotation.from_rotvec(p[:3]) * R0).as_matrix()
+    rot = Rotation.from_matrix(np.swapaxes(R_X @ B[:, :3, :3], 1, 2) @ A[:, :3, :3] @ R_X).as_rotvec()
+    trans = A[:, :3, :3] @ p[3:6] + A[:, :3, 3] - np.exp(p[6]) * B[:, :3, 3] @ R_X.T - p[3:6]
+    return np.asarray(np.c_[rot, alpha * trans] * sw[:, None], dtype=np.float64).ravel()
+
+
+def _undetermined(why: str) -> DataError:
+    return DataError(f"the scale of stream b cannot be determined: {why}", "--scale auto",
+                     "record motion that translates the sensors (not only rotations in place), or give the "
+                     "scale as a number with --scale")
+
+
+def solve_with_scale(motions_a: NDArray[np.float64], motions_b: NDArray[np.float64], *, alpha: float = 1.0,
+                     weights: NDArray[np.float64] | None = None,
+                     samples: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None) -> ScaleSolution:
+    """``T_a_b`` and the scale of b's translations (see the module docstring).
+
+    Parameters
+    ----------
+    motions_a, motions_b: (N, 4, 4) motions; a in metres, b's translations in unknown units.
+    alpha: weight of the translational residuals [1/m], as in cost (8).
+    weights: optional (N,) non-negative pair weights.
+    samples: optional sample indices (i, j) of each pair, to account for pairs sharing samples.
+
+    Raises
+    ------
+    DataError: when the motions cannot determine the scale (no translation of b, or a scale
+        known worse than ±50 %, or not positive).
+    """
+    A, B, w = validate_motions(motions_a, motions_b, weights)
+    if not np.any(np.linalg.norm(B[:, :3, 3], axis=1) * (w > 0) > 0):
+        raise _undetermined("stream b does not translate")
+    sw = np.sqrt(w)
+    R_X = _rotation(A, B, w)
+    t_X, s_lin = _linear(A, B, R_X, sw)
+    if not s_lin > 0:
+        raise _undetermined(f"the linear estimate is {s_lin:.3g}")
+    p0 = np.r_[np.zeros(3), t_X, np.log(s_lin)]
+    R0 = Rotation.from_matrix(R_X)
+    fit = least_squares(_residuals, p0, args=(A, B, R0, alpha, sw), method="lm", x_scale="jac")
+    dof = max(fit.fun.size - 7, 1)
+    inflation = 1.0 if samples is None else max(1.0, len(A) / len(np.unique(np.r_[samples[0], samples[1]])))
+    J = np.asarray(fit.jac, dtype=np.float64)          # method="lm": already a dense float array (no copy)
+    cov = np.linalg.pinv(J.T @ J) * (2 * fit.cost / dof) * inflation
+    scale = float(np.exp(fit.x[6]))
+    std = scale * float(np.sqrt(max(cov[6, 6], 0.0)))           # d s = s d(log s)
+    if not std <= _MAX_RELATIVE_STD * scale:
+        raise _undetermined(f"estimate {scale:.3g} ± {std:.2g}")
+    X = np.eye(4)
+    X[:3, :3] = (Rotation.from_rotvec(fit.x[:3]) * R0).as_matrix()
+    X[:3, 3] = fit.x[3:6]
+    return ScaleSolution(X, scale, std, s_lin, float(fit.cost))

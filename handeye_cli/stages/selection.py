@@ -1,0 +1,254 @@
+"""The ``auto`` pair strategy: pairs chosen and weighted by a noise model fitted to the recording.
+
+Conventions: synced poses ``T_wa_a(t)``, ``T_wb_b(t)``; motions ``A_k = T_a(t_i)⁻¹ T_a(t_j)``,
+``B_k`` likewise, ``A_k X = X B_k`` with ``X = T_a_b``; stamps int64 ns; metres, radians.
+
+Candidate pairs are ``(i, i + K)`` for strides K on a ladder of factor √2 (1, 2, 3, 4, 6, 8, …,
+up to the longest segment), each stride a *level*. Per round:
+
+1. a probe of every level (at most ``probe`` pairs each, evenly spread) is solved for ``X``;
+2. the probe's residuals at ``X`` fit the :class:`~handeye_cli.analysis.noise_model.NoiseModel`
+   (variance vs span: floor for absolute sources, + k·Δ for drift);
+3. each pair gets its maximum-likelihood weights under the model, folded into one weight and one
+   α (the solver takes one α): ``log α² = mean log(σ_rot²/σ_trans²)``, ``w = 1/(σ_rot σ_trans α)``;
+4. each level's predicted covariance of ``X`` is ``H⁻¹`` with ``H`` the cost's curvature on the
+   level's probe, scaled to the pairs the level would contribute under the ``max_pairs`` cap and
+   divided by the overlap of those pairs: pairs ``(i, i+K)`` and ``(i+m, i+m+K)`` share K − m samples
+   of drift, so they count as ``1 + ρ (K/m − 1)`` times fewer independent pairs (ρ: drift share);
+5. the levels between the shortest and the longest whose predicted rotation and translation errors
+   are both within 1.5× of the best level's are kept, and every longer level whose variance is
+   mostly the absolute floor (short rotating spans when drift dominates, all long spread spans when
+   it does not: pairs of many spans average each absolute pose's noise best); the cap is shared
+   between them, and ``X`` is solved again with the weights and α.
+
+Rounds repeat until the kept levels stop changing (at most ``rounds``). Everything is linear in
+the number of samples: no candidate pair is enumerated beyond the probes and the kept pairs.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .. import se3
+from ..analysis.covariance import tangent_basis
+from ..analysis.noise_model import NoiseModel, PairFeatures, cost_residuals, fit_noise_model, pair_features
+from ..solvers import Prior, build_problem, solve
+from ..solvers import dualquat as dq
+from .pairs import Pairs
+from .sync import Synced
+
+__all__ = ["Selection", "select_pairs", "ladder"]
+
+_KEEP_RATIO = 1.5           # levels within this factor of the best predicted error are kept
+_ABSOLUTE_SHARE = 0.5       # ... and every longer level whose variance is mostly the absolute floor
+_MIN_LEVEL_PAIRS = 8
+
+
+@dataclass(frozen=True, eq=False)
+class Selection:
+    """What ``auto`` chose: the pairs, their weights, α [1/m], the noise model and the kept strides."""
+
+    pairs: Pairs
+    weights: NDArray[np.float64]
+    alpha: float
+    model: NoiseModel | None
+    strides: tuple[int, ...]
+    rounds: int
+    candidate_pairs: int
+
+    def as_dict(self) -> dict[str, Any]:
+        """The result's ``noise_model`` entry: the model (None: too few pairs to fit one) plus what the
+        selection made of it: strides [samples], spans [s] of the pairs, α [1/m], rounds."""
+        spans = (self.pairs.t_j_ns - self.pairs.t_i_ns) / 1e9
+        return {**(self.model.as_dict() if self.model else {"kind": None}), "strides": list(self.strides),
+                "span_s": [float(spans.min()), float(spans.max())] if len(spans) else [],
+                "alpha": self.alpha, "rounds": self.rounds}
+
+    def counts(self, samples: int) -> dict[str, int]:
+        """Counts in the form :func:`~handeye_cli.stages.pairs.make_pairs` returns them."""
+        return {"keyframes": samples, "candidate_pairs": self.candidate_pairs, "pairs": len(self.pairs)}
+
+
+def ladder(longest: int) -> NDArray[np.int64]:
+    """Strides 1, 2, 3, 4, 6, 8, 11, … (factor √2) below ``longest`` samples."""
+    if longest < 2:
+        return np.zeros(0, dtype=np.int64)
+    m = int(np.floor(2 * np.log2(longest - 1))) + 1
+    return np.unique(np.round(np.sqrt(2.0) ** np.arange(m)).astype(np.int64))
+
+
+@dataclass(frozen=True)
+class _Segments:
+    """Contiguous tracking segments of the synced samples: first index and length of each."""
+
+    start: NDArray[np.int64]
+    length: NDArray[np.int64]
+
+    @classmethod
+    def of(cls, segment: NDArray[np.int64]) -> _Segments:
+        start = np.flatnonzero(np.r_[True, segment[1:] != segment[:-1]]) if len(segment) else np.zeros(0, int)
+        return cls(start.astype(np.int64), np.diff(np.r_[start, len(segment)]).astype(np.int64))
+
+    def count(self, stride: int) -> int:
+        """Number of pairs ``(i, i + stride)`` inside one segment."""
+        return int(np.clip(self.length - stride, 0, None).sum())
+
+    def starts(self, stride: int, n: int) -> NDArray[np.int64]:
+        """``n`` first indices i of pairs ``(i, i + stride)``, evenly spread over all such pairs."""
+        per = np.clip(self.length - stride, 0, None)
+        total = int(per.sum())
+        if total == 0 or n <= 0:
+            return np.zeros(0, dtype=np.int64)
+        first = np.cumsum(per) - per
+        pos = _spread(total, n)
+        seg = np.searchsorted(first, pos, side="right") - 1
+        return self.start[seg] + pos - first[seg]
+
+    def band(self, lo: int, hi: int, n: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """``n`` pairs ``(i, j)`` with ``lo ≤ j - i ≤ hi`` in one segment, evenly spread over all such
+        pairs ordered by stride then i (so each stride gets its share of every such pair, as ``all``)."""
+        strides = np.arange(lo, hi + 1)
+        per = np.clip(self.length[None, :] - strides[:, None], 0, None)          # (strides, segments)
+        per_stride = per.sum(axis=1)
+        first = np.cumsum(per_stride) - per_stride
+        pos = _spread(int(per_stride.sum()), n)
+        k = np.searchsorted(first, pos, side="right") - 1
+        rank = pos - first[k]
+        seg_first = np.cumsum(per[k], axis=1) - per[k]                            # (picks, segments)
+        seg = (seg_first <= rank[:, None]).sum(axis=1) - 1
+        i = self.start[seg] + rank - seg_first[np.arange(len(k)), seg]
+        return i, i + strides[k]
+
+
+def _spread(total: int, n: int) -> NDArray[np.int64]:
+    """``n`` evenly spread positions in ``range(total)`` (all of them when ``n >= total``)."""
+    return np.arange(total) if n >= total else ((np.arange(n) + 0.5) * total / n).astype(np.int64)
+
+
+def _pairs(synced: Synced, i: NDArray[np.int64], j: NDArray[np.int64]) -> Pairs:
+    return Pairs(se3.relative(synced.T_a[i], synced.T_a[j]), se3.relative(synced.T_b[i], synced.T_b[j]),
+                 i, j, synced.stamps_ns[i], synced.stamps_ns[j])
+
+
+def _ml_weights(model: NoiseModel, f: PairFeatures) -> tuple[NDArray[np.float64], float]:
+    """One weight per pair and one α [1/m] closest (in log) to the per-pair ML weights 1/σ_rot², 1/σ_trans²."""
+    vr, vd = model.rot_variance(f), model.dual_variance(f)
+    alpha = float(np.exp(0.5 * np.mean(np.log(vr / vd))))
+    return 1.0 / (np.sqrt(vr * vd) * alpha), alpha
+
+
+def _level_errors(A: NDArray[np.float64], B: NDArray[np.float64], w: NDArray[np.float64], alpha: float,
+                  X: NDArray[np.float64], scale: float) -> tuple[float, float]:
+    """Predicted RMS rotation [rad] and translation [m] error of X from these pairs, ``scale`` times over."""
+    problem = build_problem(A, B, alpha=alpha, weights=w)
+    q, qd = dq.from_transforms(X)
+    D = tangent_basis(q, qd)
+    Q = np.block([[problem.S, problem.W], [problem.W.T, problem.M]])
+    cov = np.linalg.pinv(scale * D.T @ Q @ D, hermitian=True)
+    return float(np.sqrt(max(np.trace(cov[:3, :3]), 0.0))), float(np.sqrt(max(np.trace(cov[3:, 3:]), 0.0)))
+
+
+@dataclass(frozen=True, eq=False)
+class _Probe:
+    """Probe pairs of every level: ``level[k]`` is the ladder index of pair k."""
+
+    pairs: Pairs
+    level: NDArray[np.int64]
+    strides: NDArray[np.int64]
+    available: NDArray[np.int64]
+
+
+def _probe(synced: Synced, segs: _Segments, per_level: int) -> _Probe:
+    strides = ladder(int(segs.length.max()) if len(segs.length) else 0)
+    available = np.array([segs.count(int(k)) for k in strides], dtype=np.int64)
+    strides, available = strides[available > 0], available[available > 0]
+    starts = [segs.starts(int(k), per_level) for k in strides]
+    i = np.concatenate(starts) if starts else np.zeros(0, dtype=np.int64)
+    j = i + np.repeat(strides, [len(s) for s in starts])
+    level = np.repeat(np.arange(len(strides)), [len(s) for s in starts])
+    return _Probe(_pairs(synced, i, j), level, strides, available)
+
+
+def _overlap(stride: int, available: int, used: int, drift_share: float) -> float:
+    """How many times fewer independent pairs ``used`` evenly spread pairs of one stride are worth
+    (their drift is shared where their spans overlap; step 4 of the module docstring)."""
+    return 1.0 + drift_share * max(stride * used / available - 1.0, 0.0)
+
+
+def _choose_levels(probe: _Probe, w: NDArray[np.float64], alpha: float, share: NDArray[np.float64],
+                   X: NDArray[np.float64], max_pairs: int) -> NDArray[np.int64]:
+    """Ladder indices of the levels to keep (see the module docstring, step 4–5)."""
+    errors = np.full((len(probe.strides), 2), np.inf)
+    budget = max(max_pairs // 4, _MIN_LEVEL_PAIRS)       # what one level would get when a few are kept
+    for k, (stride, avail) in enumerate(zip(probe.strides, probe.available, strict=True)):
+        sel = probe.level == k
+        if np.count_nonzero(sel) < _MIN_LEVEL_PAIRS:
+            continue
+        used = min(int(avail), budget)
+        overlap = _overlap(int(stride), int(avail), used, float(np.mean(share[sel])))
+        errors[k] = _level_errors(probe.pairs.A[sel], probe.pairs.B[sel], w[sel], alpha, X,
+                                  used / np.count_nonzero(sel) / overlap)
+    if not np.isfinite(errors).any():
+        return np.arange(len(probe.strides))
+    ratio = np.max(errors / errors.min(axis=0), axis=1)
+    good = np.flatnonzero(ratio <= _KEEP_RATIO * ratio.min())
+    lo, hi = int(good[0]), int(good[-1])
+    level_share = np.bincount(probe.level, weights=share, minlength=len(errors)) / np.maximum(
+        np.bincount(probe.level, minlength=len(errors)), 1)
+    while hi + 1 < len(errors) and np.isfinite(errors[hi + 1, 0]) and level_share[hi + 1] < _ABSOLUTE_SHARE:
+        hi += 1                 # where drift does not dominate, longer spans only add lever and diversity
+    return np.arange(lo, hi + 1)
+
+
+def _kept_pairs(synced: Synced, segs: _Segments, strides: NDArray[np.int64], max_pairs: int, band: bool
+                ) -> tuple[Pairs, NDArray[np.float64]]:
+    """The pairs of the kept strides and each pair's overlap factor ``stride · used / available``
+    (see :func:`_overlap`). ``band``: every stride from the shortest kept to the longest segment,
+    pairs spread as ``all`` spreads them (absolute sources); else the kept strides share the cap."""
+    if band:
+        i, j = segs.band(int(strides[0]), int(segs.length.max()) - 1, max_pairs)
+        return _pairs(synced, i, j), np.ones(len(i))
+    per = max(max_pairs // max(len(strides), 1), 1)
+    starts = [segs.starts(int(k), per) for k in strides]
+    sizes = [len(s) for s in starts]
+    i = np.concatenate(starts)
+    crowding = np.repeat([k * n / segs.count(int(k)) for k, n in zip(strides, sizes, strict=True)], sizes)
+    return _pairs(synced, i, i + np.repeat(strides, sizes)), crowding
+
+
+def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt", prior: Prior | None = None,
+                 probe: int = 200, rounds: int = 3) -> Selection:
+    """The ``auto`` strategy (module docstring): pairs, weights, α and noise model for ``synced``.
+
+    Raises :class:`~handeye_cli.errors.HandEyeError` when the probe cannot be solved (too few
+    samples or motions that cannot determine the extrinsic; the solver's message says which).
+    """
+    segs = _Segments.of(synced.segment)
+    pr = _probe(synced, segs, probe)
+    if len(pr.pairs) < _MIN_LEVEL_PAIRS:       # too little to fit a model: every pair there is, as is
+        return Selection(pr.pairs, np.ones(len(pr.pairs)), 1.0, None, tuple(int(k) for k in pr.strides), 0,
+                         len(pr.pairs))
+    path = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(synced.T_a[:, :3, 3], axis=0), axis=1))]
+    count = np.bincount(pr.level, minlength=len(pr.strides)).astype(float)
+    X = solve(pr.pairs.A, pr.pairs.B, method=method, prior=prior, weights=1.0 / count[pr.level]).matrix
+    kept, done = np.zeros(0, dtype=np.int64), 0
+    while done < rounds:
+        done += 1
+        f = pair_features(synced.stamps_ns, path, pr.pairs.i, pr.pairs.j, pr.pairs.B, X)
+        model = fit_noise_model(*cost_residuals(pr.pairs.A, pr.pairs.B, X), f)
+        w, alpha = _ml_weights(model, f)
+        levels = _choose_levels(pr, w, alpha, model.drift_share(f), X, max_pairs)
+        if np.array_equal(levels, kept):
+            break
+        kept = levels
+        band = kept[-1] == len(pr.strides) - 1 and model.kind == "absolute"
+        pairs, crowding = _kept_pairs(synced, segs, pr.strides[kept], max_pairs, band)
+        fk = pair_features(synced.stamps_ns, path, pairs.i, pairs.j, pairs.B, X)
+        weights, alpha = _ml_weights(model, fk)
+        weights = weights / (1.0 + model.drift_share(fk) * np.clip(crowding - 1.0, 0.0, None))
+        X = solve(pairs.A, pairs.B, method=method, alpha=alpha, prior=prior, weights=weights).matrix
+    return Selection(pairs, weights / weights.mean(), alpha, model, tuple(int(k) for k in pr.strides[kept]), done,
+                     int(pr.available[kept].sum()))

@@ -1,0 +1,34 @@
+"""Helpers shared by the tests: run the CLI in-process, write TUM files, measure errors."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from handeye_cli import se3
+from handeye_cli.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run(capsys, *args) -> tuple[int, str, str]:
+    """Run ``handeye ARGS`` in-process: (exit code, stdout, stderr)."""
+    with pytest.raises(SystemExit) as info:
+        main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return info.value.code, out, err
+
+
+def write_tum(path: Path, stream, header: bool = True) -> Path:
+    """Write a PoseStream as a TUM file (``t x y z qx qy qz qw``, seconds)."""
+    np.savetxt(path, np.c_[stream.stamps_ns / 1e9, stream.xyz, stream.quat_xyzw], fmt="%.9f",
+               header="timestamp tx ty tz qx qy qz qw" if header else "")
+    return path
+
+
+def pose_error(X: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
+    """(rotation error [deg], translation error [m]) of ``X`` against ``truth`` (4x4 each)."""
+    X, truth = np.asarray(X, dtype=float), np.asarray(truth, dtype=float)
+    return (float(np.rad2deg(se3.rotation_angle(X[:3, :3].T @ truth[:3, :3]))),
+            float(np.linalg.norm(X[:3, 3] - truth[:3, 3])))

@@ -1,0 +1,83 @@
+"""An inverted stream is named first, with the numbers; overwhelming evidence refuses the result."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+from _util import pose_error, run, write_tum
+
+from handeye_cli.analysis.inversion import check_inversion
+from handeye_cli.errors import DataError
+from handeye_cli.simulation.arm import simulate_arm
+from handeye_cli.stages.stations import detect_stations
+
+
+def _stations(invert_b: bool):
+    c = simulate_arm(12, sparse=True, seed=1)
+    st = detect_stations(c.robot, c.camera.inverted() if invert_b else c.camera)
+    i, j = np.triu_indices(len(st), 1)
+    return st.synced.T_a, st.synced.T_b, i, j
+
+
+def test_correct_streams_give_no_verdict():
+    assert check_inversion(*_stations(invert_b=True)) is None
+
+
+def test_an_inverted_station_stream_is_named_with_the_numbers():
+    verdict = check_inversion(*_stations(invert_b=False))
+    assert verdict is not None and verdict.overwhelming
+    # Inverting a instead also satisfies T_a X = Y T_b (X and Y swapped): both are candidates.
+    assert set(verdict.streams) == {"a", "b"}
+    assert verdict.given[0] > 5 and all(c.inverted[0] < 0.3 and c.ratio > 50 for c in verdict.candidates)
+    text = verdict.message()
+    assert "--invert-b" in text and "--invert-a" in text and f"{verdict.given[0]:.3g}°" in text
+
+
+def test_refusal_only_without_an_explicit_invert_flag():
+    verdict = check_inversion(*_stations(invert_b=False))
+    with pytest.raises(DataError) as info:
+        raise verdict.refusal(False)
+    assert "no result was written" in str(info.value) and "--invert-b or --invert-a" in str(info.value)
+    assert verdict.refusal(True) is None
+
+
+def test_flag_names_the_undo_when_the_user_inverted_the_wrong_stream():
+    c = simulate_arm(12, sparse=True, seed=1)
+    st = detect_stations(c.robot.inverted(), c.camera.inverted())     # --invert-a --invert-b, a wrongly
+    i, j = np.triu_indices(len(st), 1)
+    verdict = check_inversion(st.synced.T_a, st.synced.T_b, i, j, inverted_now=(True, True))
+    assert {c.flag for c in verdict.candidates} == {"--no-invert-a", "--no-invert-b"}
+
+
+@pytest.fixture()
+def station_files(tmp_path):
+    c = simulate_arm(12, sparse=True, seed=2)
+    return c, write_tum(tmp_path / "robot.tum", c.robot), write_tum(tmp_path / "camera.tum", c.camera)
+
+
+def test_inverted_station_capture_is_refused_without_an_explicit_flag(capsys, tmp_path, station_files):
+    _, fa, fb = station_files
+    out_file = tmp_path / "result.yaml"
+    code, out, err = run(capsys, "calibrate", fa, fb, "-o", out_file)
+    assert code == 2 and not out_file.exists()
+    assert err.count("\n") == 1 and "almost certainly inverted" in err and "--invert-b" in err
+
+
+def test_explicit_no_invert_warns_first_and_strict_exits_3(capsys, station_files):
+    c, fa, fb = station_files
+    code, out, err = run(capsys, "calibrate", fa, fb, "--no-invert-b", "--no-invert-a", "-q")
+    assert code == 0, err
+    doc = yaml.safe_load(out)
+    assert "looks inverted" in doc["warnings"][0] and doc["inversion"]["overwhelming"]
+    assert pose_error(np.array(doc["matrix"]), c.truth)[0] > 1          # the streams as given: a wrong result
+    code, _, _ = run(capsys, "calibrate", fa, fb, "--no-invert-b", "--no-invert-a", "--strict", "-q")
+    assert code == 3
+
+
+def test_the_right_flag_calibrates_without_an_inversion_warning(capsys, station_files):
+    c, fa, fb = station_files
+    code, out, err = run(capsys, "calibrate", fa, fb, "--invert-b", "-q")
+    assert code == 0, err
+    doc = yaml.safe_load(out)
+    assert not any("inverted" in w for w in doc["warnings"]) and "inversion" not in doc
+    assert pose_error(np.array(doc["matrix"]), c.truth)[1] < 0.005

@@ -1,0 +1,92 @@
+"""Monocular scale: ``--scale auto`` estimates the scale of b's translations with T_a_b."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+from _util import pose_error, run, write_tum
+
+from handeye_cli import se3
+from handeye_cli.errors import DataError
+from handeye_cli.simulation import Rig, motion_pairs, random_transform, simulate_rig
+from handeye_cli.simulation.arm import monocular, simulate_arm
+from handeye_cli.solvers.scale import scale_translations, solve_with_scale
+from handeye_cli.stages.pairs import make_pairs
+from handeye_cli.stages.stations import detect_stations
+from handeye_cli.streams import PoseStream
+
+SCALE = 0.37          # metres per unit of the monocular stream
+
+
+def test_noise_free_pairs_give_the_exact_scale():
+    rng = np.random.default_rng(0)
+    X = random_transform(rng, 0.3)
+    A, B = motion_pairs(30, X, rng)
+    est = solve_with_scale(A, scale_translations(B, 1 / SCALE))
+    assert est.scale == pytest.approx(SCALE, rel=1e-9) and est.linear_scale == pytest.approx(SCALE, rel=1e-9)
+    assert pose_error(est.matrix, X)[1] < 1e-9
+
+
+def test_scale_of_an_arm_capture_within_0_1_percent_and_its_std():
+    c = simulate_arm(15, seed=4)                   # dwelling stations, 1 mm / 0.1° camera noise
+    b = monocular(c.camera.inverted(), SCALE)
+    st = detect_stations(c.robot, b)
+    pairs, _ = make_pairs(st.synced, "all")
+    est = solve_with_scale(pairs.A, pairs.B, samples=(pairs.i, pairs.j))
+    assert abs(est.scale / SCALE - 1) < 1e-3
+    assert abs(est.scale - SCALE) < 4 * est.scale_std and est.scale_std < 1e-3 * SCALE   # honest and small
+    rot, trans = pose_error(est.matrix, c.truth)
+    assert rot < 0.05 and trans < 0.002
+
+
+def test_no_translation_cannot_determine_a_scale():
+    rng = np.random.default_rng(1)
+    X = random_transform(rng, 0.3)
+    A, B = motion_pairs(20, X, rng)
+    B = B.copy()
+    B[:, :3, 3] = 0.0
+    with pytest.raises(DataError, match="does not translate"):
+        solve_with_scale(A, B)
+
+
+@pytest.fixture(scope="module")
+def mono_files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("mono")
+    X = se3.from_xyz_quat(np.array([0.12, -0.05, 0.08]), np.array([0.1, -0.2, 0.3, 0.93]))
+    a, b = simulate_rig(Rig(X, 0), duration_s=60, rate_a=30, rate_b=30, sigma_r=np.deg2rad(0.1), sigma_t=0.001,
+                        seed=7)
+    return X, write_tum(d / "a.tum", a), write_tum(d / "mono.tum", monocular(b, SCALE))
+
+
+def test_cli_scale_auto_recovers_the_scale(capsys, mono_files):
+    X, fa, fb = mono_files
+    code, out, err = run(capsys, "calibrate", fa, fb, "--scale", "auto", "-q")
+    assert code == 0, err
+    doc = yaml.safe_load(out)
+    assert abs(doc["scale"]["value"] / SCALE - 1) < 1e-3 and 0 < doc["scale"]["std"] < 1e-3 * SCALE
+    rot, trans = pose_error(np.array(doc["matrix"]), X)
+    assert rot < 0.05 and trans < 0.003
+    code, out, _ = run(capsys, "calibrate", fa, fb, "-q")           # ignoring the scale: far off, and said so
+    doc = yaml.safe_load(out)
+    assert code == 0 and pose_error(np.array(doc["matrix"]), X)[1] > 0.1 and "--scale auto" in doc["warnings"][0]
+
+
+def test_cli_fixed_scale_number(capsys, mono_files):
+    X, fa, fb = mono_files
+    code, out, err = run(capsys, "calibrate", fa, fb, "--scale", str(SCALE), "-q")
+    assert code == 0, err
+    assert pose_error(np.array(yaml.safe_load(out)["matrix"]), X)[1] < 0.003
+
+
+def test_cli_scale_auto_refuses_data_without_translation(capsys, tmp_path):
+    t = np.arange(300) / 30.0
+    rot = np.c_[0.6 * np.sin(0.7 * t), 0.5 * np.sin(1.1 * t + 1), 0.8 * np.sin(0.5 * t + 2)]
+    T_a = np.tile(np.eye(4), (300, 1, 1))
+    T_a[:, :3, :3] = se3.from_xyz_quat(np.zeros((300, 3)),
+                                       np.roll(np.c_[np.ones(300), 0.5 * rot], -1, axis=1))[:, :3, :3]
+    stamps = 1_700_000_000_000_000_000 + np.round(t * 1e9).astype(np.int64)
+    a = PoseStream.from_matrices(stamps, T_a)
+    b = PoseStream.from_matrices(stamps, T_a)              # X = identity: b rotates in place, never translates
+    fa, fb = write_tum(tmp_path / "a.tum", a), write_tum(tmp_path / "b.tum", b)
+    code, out, err = run(capsys, "calibrate", fa, fb, "--scale", "auto", "-q")
+    assert code == 2 and not out and "scale of stream b cannot be determined" in err and "--scale" in err

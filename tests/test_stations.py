@@ -1,0 +1,109 @@
+"""Station captures (robot arm at rest at each station) are found and calibrated with default flags."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+from _util import pose_error, run, write_tum
+
+from handeye_cli import se3
+from handeye_cli.simulation import Rig, simulate_rig
+from handeye_cli.simulation.arm import ArmCapture, simulate_arm
+from handeye_cli.solvers import solve
+from handeye_cli.stages.stations import detect_stations
+from handeye_cli.streams import PoseStream
+
+
+def _as_given(c: ArmCapture) -> tuple[PoseStream, PoseStream]:
+    """The streams with the capture's invert flags applied (what calibrate sees)."""
+    return (c.robot.inverted() if c.invert_a else c.robot), (c.camera.inverted() if c.invert_b else c.camera)
+
+
+def _daniilidis_one_sample_per_station(c: ArmCapture) -> np.ndarray:
+    """OpenCV-like baseline: one sample per station (nearest the station's middle), all pairs, Daniilidis."""
+    def at(stream: PoseStream) -> np.ndarray:
+        return stream.matrices()[np.searchsorted(stream.stamps_ns, c.station_times_ns).clip(0, len(stream) - 1)]
+
+    a, b = _as_given(c)
+    Ta, Tb = at(a), at(b)
+    i, j = np.triu_indices(len(Ta), 1)
+    return solve(se3.relative(Ta[i], Ta[j]), se3.relative(Tb[i], Tb[j]), method="daniilidis").matrix
+
+
+@pytest.mark.parametrize("setup", ["eye-in-hand", "eye-to-hand"])
+def test_sparse_capture_is_one_station_per_sample(setup):
+    c = simulate_arm(15, setup=setup, sparse=True, seed=3)
+    st = detect_stations(*_as_given(c))
+    assert st is not None and st.kind == "sparse" and len(st) == 15
+    assert np.array_equal(st.synced.stamps_ns, c.station_times_ns)
+    assert np.array_equal(st.samples_a, np.ones(15)) and np.array_equal(st.samples_b, np.ones(15))
+
+
+def test_dwells_in_a_continuous_log_become_averaged_stations():
+    c = simulate_arm(15, dwell_s=2.0, move_s=2.0, seed=3)     # robot 100 Hz, camera 30 Hz, 1 mm / 0.1° noise
+    a, b = _as_given(c)
+    st = detect_stations(a, b)
+    assert st is not None and st.kind == "dwell" and len(st) == 15
+    assert np.abs(st.synced.stamps_ns - c.station_times_ns).max() < 0.2e9             # the middle of each dwell
+    assert (st.samples_a > 150).all() and (st.samples_b > 45).all()                  # most of each 2 s dwell
+    # Averaging ~55 camera samples shrinks the 1 mm noise per axis well below it.
+    i = np.searchsorted(b.stamps_ns, c.station_times_ns)
+    truth_b = _as_given(simulate_arm(15, dwell_s=2.0, move_s=2.0, seed=3, camera_sigma_r=0.0,
+                                     camera_sigma_t=0.0))[1].matrices()
+    err = [pose_error(st.synced.T_b[k], truth_b[i[k]])[1] for k in range(15)]
+    assert np.median(err) < 0.0015
+    assert st.as_dict()["pose_jump_gate"] == "not applied"
+
+
+def test_camera_publishing_only_at_the_stations_is_matched_to_the_robot_dwells():
+    """A robot streaming at 100 Hz and a camera sending three frames per station (a mixed capture)."""
+    c = simulate_arm(12, dwell_s=2.0, move_s=2.0, seed=5)
+    a, b = _as_given(c)
+    near = np.abs(b.stamps_ns[:, None] - c.station_times_ns[None]).min(axis=1) < 0.05e9
+    st = detect_stations(a, b.select(near))
+    assert st is not None and st.kind == "mixed" and len(st) == 12
+    assert (st.samples_b == 3).all()
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.002])
+def test_continuous_tracking_is_not_a_station_capture(noise):
+    a, b = simulate_rig(Rig(np.eye(4)), duration_s=60, sigma_r=noise, sigma_t=noise, seed=1)
+    assert detect_stations(a, b) is None
+
+
+def test_a_few_pauses_in_continuous_tracking_are_not_a_station_capture():
+    a, b = simulate_rig(Rig(np.eye(4)), duration_s=60, rate_a=30, rate_b=30, seed=2)
+    for k in range(6):                         # hold still for 1 s, six times: 10 % of the log
+        t0 = a.stamps_ns[0] + int((5 + 9 * k) * 1e9)
+        for s in (a, b):
+            hold = (s.stamps_ns >= t0) & (s.stamps_ns < t0 + 1_000_000_000)
+            s.xyz[hold], s.quat_xyzw[hold] = s.xyz[hold][0], s.quat_xyzw[hold][0]
+    assert len(detect_stations(a, b, min_rest_fraction=0.0)) == 6      # the pauses are found …
+    assert detect_stations(a, b) is None                               # … but cover too little of the log
+
+
+@pytest.mark.parametrize(("setup", "sparse"), [("eye-in-hand", True), ("eye-to-hand", True),
+                                                ("eye-in-hand", False), ("eye-to-hand", False)])
+def test_station_captures_calibrate_with_default_flags(capsys, tmp_path, setup, sparse):
+    """Only the invert flags the set-up needs; accuracy within 1.5x of Daniilidis on all pairs of
+    one sample per station (what OpenCV's calibrateHandEye is given), better with dwells."""
+    c = simulate_arm(12, setup=setup, sparse=sparse, seed=0)
+    fa, fb = write_tum(tmp_path / "robot.tum", c.robot), write_tum(tmp_path / "camera.tum", c.camera)
+    flags = ["--invert-a"] * c.invert_a + ["--invert-b"] * c.invert_b
+    code, out, err = run(capsys, "calibrate", fa, fb, *flags, "-q")
+    assert code == 0, err
+    doc = yaml.safe_load(out)
+    assert doc["stations"]["count"] == 12 and doc["samples"]["dropped_pose_jump"] == 0
+    assert doc["pairs_used"] >= 60                                 # all 66 pairs but those rotating < 10°
+    got = pose_error(np.array(doc["matrix"]), c.truth)
+    ref = pose_error(_daniilidis_one_sample_per_station(c), c.truth)
+    assert got[0] <= 1.5 * ref[0] and got[1] <= 1.5 * ref[1], (got, ref)
+    if not sparse:
+        assert got[0] < ref[0] and got[1] < ref[1]                 # averaging each dwell beats one sample
+
+
+def test_stations_off_treats_the_capture_as_continuous_tracking(capsys, tmp_path):
+    c = simulate_arm(12, sparse=True, seed=0)
+    fa, fb = write_tum(tmp_path / "robot.tum", c.robot), write_tum(tmp_path / "camera.tum", c.camera)
+    code, _, err = run(capsys, "calibrate", fa, fb, "--invert-b", "--stations", "off", "-q")
+    assert code == 2 and "pose-jump gate" in err and "--max-jump off" in err
