@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from test_cli import _write_tum, run
+from _util import run, write_tum
 
 from handeye_cli import se3
 from handeye_cli.errors import HandEyeError
@@ -34,7 +34,7 @@ def score(T: np.ndarray) -> tuple[float, float, float]:
 
 
 def cli_default(capsys, tmp_path: Path, rec: RateRecording, *flags: str) -> dict:
-    fa, fb = _write_tum(tmp_path / "a.tum", rec.a), _write_tum(tmp_path / "b.tum", rec.b)
+    fa, fb = write_tum(tmp_path / "a.tum", rec.a), write_tum(tmp_path / "b.tum", rec.b)
     code, out, err = run(capsys, "calibrate", fa, fb, "-q", *flags)
     assert code == 0, err
     return yaml.safe_load(out)
@@ -94,7 +94,7 @@ def test_tracking_jumps_in_the_slow_stream_are_dropped(capsys, tmp_path, rate_a:
 
 def test_the_paper_gate_stays_available_and_says_what_to_relax(capsys, tmp_path) -> None:
     rec = simulate_rates(Rig(X), 100, 1, duration_s=60, seed=4)
-    fa, fb = _write_tum(tmp_path / "a.tum", rec.a), _write_tum(tmp_path / "b.tum", rec.b)
+    fa, fb = write_tum(tmp_path / "a.tum", rec.a), write_tum(tmp_path / "b.tum", rec.b)
     code, _, err = run(capsys, "calibrate", fa, fb, "--gate", "paper")
     assert code == 2 and err.count("\n") == 1
     assert "a 100 Hz, b 1 Hz" in err and "--gate auto" in err and "--max-jump off --max-jump-deg off" in err
