@@ -17,7 +17,7 @@ Examples
 >>> Options.from_flat(max_dt="fast")
 Traceback (most recent call last):
 ...
-handeye_cli.errors.ConfigError: bad value 'fast' (max_dt): give a number of seconds > 0
+handeye_cli.errors.ConfigError: bad value 'fast' (max_dt): give a number of seconds > 0, or 'auto'
 """
 from __future__ import annotations
 
