@@ -101,3 +101,11 @@ def test_the_paper_gate_stays_available_and_says_what_to_relax(capsys, tmp_path)
     code, out, err = run(capsys, "calibrate", fa, fb, "--gate", "paper", "--max-jump", "off", "--max-jump-deg", "off",
                          "-q")
     assert code == 0, err
+
+
+def test_jumps_in_the_fast_stream_do_not_make_it_a_station_capture(capsys, tmp_path) -> None:
+    rec = simulate_rates(Rig(X), 100, 1, duration_s=DURATION_S, seed=5, jumps_a=Jumps(5), jumps_b=Jumps(3))
+    doc = cli_default(capsys, tmp_path, rec)
+    assert "stations" not in doc and doc["sync"]["reference"] == "b"
+    rot, trans, _ = score(np.array(doc["matrix"]))
+    assert rot < 0.1 and trans < 3.0
