@@ -17,7 +17,7 @@ Examples
 >>> Options.from_flat(max_dt="fast")
 Traceback (most recent call last):
 ...
-handeye_cli.errors.ConfigError: bad value 'fast' (max_dt): give a number of seconds > 0
+handeye_cli.errors.ConfigError: bad value 'fast' (max_dt): give a number of seconds > 0, or 'auto'
 """
 from __future__ import annotations
 
@@ -226,11 +226,14 @@ class ReadOptions:
 class SyncOptions:
     """Association of the two streams in time (paper §5: timestamp gate)."""
 
-    sync: str = option("interpolate", choice("interpolate", "nearest"),
-                       "Association of b to a's stamps: interpolate (linear + SLERP) or nearest.",
-                       choices=("interpolate", "nearest"))
-    max_dt: float = option(0.1, number(unit="seconds"), "Timestamp gate [s]: a sample is kept only if the "
-                           "samples of b it uses are this close.", "SECONDS")
+    sync: str = option("auto", choice("auto", "interpolate", "nearest"),
+                       "Association: auto (the faster stream interpolated at the slower one's stamps), interpolate "
+                       "(b at a's stamps, linear + SLERP) or nearest (b's closest sample to a's stamps).",
+                       choices=("auto", "interpolate", "nearest"))
+    max_dt: float | str = option("auto", number(unit="seconds", word="auto"),
+                                 "Timestamp gate [s]: a sample is kept only if the interpolated stream's samples it "
+                                 "uses are this close; auto: max(0.1 s, 2.5 median steps of that stream).",
+                                 "SECONDS|auto")
     time_offset: float | str = option(0.0, real(unit="seconds", word="auto"),
                                       "How far b's clock is ahead of a's [s], or auto to estimate it.",
                                       "SECONDS|auto")
@@ -238,15 +241,35 @@ class SyncOptions:
                                            "With --time-offset auto, search only ±this [s] (off: any).",
                                            "SECONDS|off")
 
+    @property
+    def max_dt_ns(self) -> int | None:
+        """The timestamp gate [ns], or None for the default that follows the interpolated stream's rate."""
+        return None if self.max_dt == "auto" else int(round(float(self.max_dt) * 1e9))
+
 
 @dataclass(frozen=True)
 class GateOptions:
-    """The paper's pose-jump gate on consecutive samples (off: keep every sample)."""
+    """The pose-jump gate: drops the samples of tracking failures (see handeye_cli/stages/gates.py)."""
 
-    max_jump: float | None = option(0.10, number(unit="metres", word="off"), "Pose-jump gate, translation [m] "
-                                    "since the last kept sample, or off.", "METRES|off")
+    gate: str = option("auto", choice("auto", "paper", "off"),
+                       "Pose-jump gate: auto (a and b must move alike, at any rate), paper (the paper's per-step "
+                       "limits --max-jump/--max-jump-deg, meant for ~5 Hz streams) or off.",
+                       choices=("auto", "paper", "off"))
+    max_jump: float | None = option(0.10, number(unit="metres", word="off"), "Limit of --gate paper: translation [m] "
+                                    "between consecutive samples, or off (with --max-jump-deg off: no gate).",
+                                    "METRES|off")
     max_jump_deg: float | None = option(11.5, number(unit="degrees", word="off"),
-                                        "Pose-jump gate, rotation [deg], or off.", "DEGREES|off")
+                                        "Limit of --gate paper: rotation [deg], or off.", "DEGREES|off")
+
+    @property
+    def effective_gate(self) -> str:
+        """The gate that runs: ``off`` when both limits are off (as before --gate existed), else ``gate``."""
+        return "off" if self.max_jump is None and self.max_jump_deg is None else self.gate
+
+    @property
+    def max_jump_rad(self) -> float | None:
+        """The paper gate's rotation limit [rad], or None."""
+        return None if self.max_jump_deg is None else math.radians(self.max_jump_deg)
 
 
 @dataclass(frozen=True)

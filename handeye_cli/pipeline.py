@@ -41,11 +41,11 @@ from .output.document import result_document
 from .solvers import Prior, Solution, solve
 from .solvers.scale import scale_translations, solve_with_scale
 from .stages.counts import SampleCounts
-from .stages.gates import pose_jump_gate
+from .stages.gates import sync_and_gate
 from .stages.pairs import Pairs, make_pairs
 from .stages.selection import Selection, select_pairs
 from .stages.stations import Stations, detect_stations
-from .stages.sync import Synced, associate
+from .stages.sync import Synced, default_max_dt_ns
 from .streams import PoseStream
 
 __all__ = ["Calibration", "StreamSpec", "calibrate", "calibrate_files", "read_streams"]
@@ -205,18 +205,19 @@ def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options,
     A station capture (see :mod:`~handeye_cli.stages.stations`) skips sync and the pose-jump gate:
     its averaged stations are the samples, paired all with all."""
     sync, gates, p = options.sync, options.gates, options.pairs
-    max_dt_ns = int(round(sync.max_dt * 1e9))
-    stations = None if p.stations == "off" else detect_stations(stream_a, stream_b, time_offset_ns=offset_ns,
-                                                                 max_dt_ns=max_dt_ns)
+    stations = None if p.stations == "off" else detect_stations(
+        stream_a, stream_b, time_offset_ns=offset_ns,
+        max_dt_ns=default_max_dt_ns(0) if sync.max_dt_ns is None else sync.max_dt_ns)
     if stations is not None:
         kept, strategy = stations.synced, "all"
-        stage_counts = [{"read_a": len(stream_a), "read_b": len(stream_b), "synced": len(stations)}]
+        stage_counts = [{"read_a": len(stream_a), "read_b": len(stream_b), "synced": len(stations),
+                         "synced_kept": len(stations)}]
     else:
-        synced, sync_counts = associate(stream_a, stream_b, method=sync.sync, max_dt_ns=max_dt_ns,
-                                        time_offset_ns=offset_ns)
-        max_rot = None if gates.max_jump_deg is None else np.deg2rad(gates.max_jump_deg)
-        kept, jump_counts = pose_jump_gate(synced, max_translation_m=gates.max_jump, max_rotation_rad=max_rot)
-        strategy, stage_counts = p.pairs, [sync_counts, jump_counts]
+        kept, gate_counts = sync_and_gate(stream_a, stream_b, sync=sync.sync, max_dt_ns=sync.max_dt_ns,
+                                          time_offset_ns=offset_ns, gate=gates.effective_gate,
+                                          max_translation_m=gates.max_jump, max_rotation_rad=gates.max_jump_rad,
+                                          min_samples=options.solver.min_pairs + 1)
+        strategy, stage_counts = p.pairs, [gate_counts]
     selection = None
     if strategy == "auto":
         selection = select_pairs(kept, max_pairs=p.max_pairs, method=options.solver.method, prior=_prior(options))
@@ -226,8 +227,7 @@ def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options,
                                         keyframe_translation_m=p.keyframe_translation,
                                         min_rotation_rad=np.deg2rad(p.min_rotation), max_pairs=p.max_pairs,
                                         seed=p.seed)
-    samples = SampleCounts.of(*stage_counts, pair_counts, synced_kept=len(kept),
-                              duplicates_dropped_a=stream_a.duplicates_dropped,
+    samples = SampleCounts.of(*stage_counts, pair_counts, duplicates_dropped_a=stream_a.duplicates_dropped,
                               duplicates_dropped_b=stream_b.duplicates_dropped,
                               recovered_truncated_a=stream_a.recovered_truncated,
                               recovered_truncated_b=stream_b.recovered_truncated)
@@ -241,7 +241,7 @@ def _with_scale(kept: Synced, pairs: Pairs, options: Options, diagnostics: dict[
     alpha = 1.0 if options.solver.alpha == "auto" else float(options.solver.alpha)
     est = solve_with_scale(pairs.A, pairs.B, alpha=alpha, samples=(pairs.i, pairs.j))
     diagnostics["scale"] = est.as_dict()
-    return (replace(kept, T_b=scale_translations(kept.T_b, est.scale)),
+    return (replace(kept, xyz_b=kept.xyz_b * est.scale),
             replace(pairs, B=scale_translations(pairs.B, est.scale)))
 
 
@@ -305,6 +305,8 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     diagnostics: dict[str, Any] = {"time_offset": offset_report}
     if stations is not None:
         diagnostics["stations"] = stations.as_dict()
+    else:
+        diagnostics["sync"] = kept.describe()
     if opts.solver.scale == "auto":
         kept, pairs = _with_scale(kept, pairs, opts, diagnostics)
     solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, selection, diagnostics)

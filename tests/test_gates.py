@@ -1,25 +1,24 @@
-"""The pose-jump gate: it drops the injected tracking jumps and only them, accepts a real
-re-localisation as a new segment, and no motion pair spans a segment boundary."""
+"""The pose-jump gates: ``auto`` keeps ordinary motion and drops tracking jumps at any rate, ``paper`` is the
+paper's per-step gate on the raw streams; both accept a re-localisation as a new segment that no pair
+spans, and the samples are associated once."""
 from __future__ import annotations
+
+import re
 
 import numpy as np
 import pytest
 
 from handeye_cli import se3
-from handeye_cli.errors import HandEyeError
-from handeye_cli.simulation import Rig, random_transform, simulate_rig
-from handeye_cli.stages.gates import pose_jump_gate, stream_jump_gate
+from handeye_cli.errors import ConfigError, DataError
+from handeye_cli.simulation import Rig, random_transform
+from handeye_cli.simulation.rates import Jumps, simulate_rates
+from handeye_cli.stages import gates
+from handeye_cli.stages.gates import pose_jump_gate, paper_gate, sync_and_gate
 from handeye_cli.stages.pairs import make_pairs
-from handeye_cli.stages.sync import Synced, associate
+from handeye_cli.stages.sync import associate
 from handeye_cli.streams import PoseStream
 
 X = random_transform(np.random.default_rng(11), 0.3)
-RIG = dict(duration_s=20, rate_a=100, rate_b=30, seed=5)
-
-
-def jumped(clean: PoseStream, dirty: PoseStream) -> np.ndarray:
-    """Which samples ``simulate_rig(jumps=…)`` displaced (noise-free: nothing else differs)."""
-    return np.abs(clean.xyz - dirty.xyz).max(axis=1) + np.abs(clean.quat_xyzw - dirty.quat_xyzw).max(axis=1) > 1e-12
 
 
 def shifted_from(stream: PoseStream, k: int, dx: float) -> PoseStream:
@@ -29,102 +28,107 @@ def shifted_from(stream: PoseStream, k: int, dx: float) -> PoseStream:
     return PoseStream(stream.stamps_ns, xyz, stream.quat_xyzw)
 
 
-@pytest.mark.parametrize("method", ["interpolate", "nearest"])
-def test_drops_the_injected_jumps_and_only_them(method: str) -> None:
-    clean_a, clean_b = simulate_rig(Rig(X), **RIG)
-    a, b = simulate_rig(Rig(X), jumps=6, **RIG)
-    bad_a, bad_b = jumped(clean_a, a), jumped(clean_b, b)
-    assert bad_a.sum() == bad_b.sum() == 6
-
-    synced, _ = associate(a, b, method=method)
+@pytest.mark.parametrize("slow_hz", [30, 5, 1, 0.5])
+@pytest.mark.parametrize("slow", ["a", "b"])
+def test_auto_drops_the_slow_streams_jumps_and_only_them(slow: str, slow_hz: float) -> None:
+    rates = (slow_hz, 100) if slow == "a" else (100, slow_hz)
+    rec = simulate_rates(Rig(X), *rates, duration_s=120, seed=2, **{f"jumps_{slow}": Jumps(4)})
+    synced, _ = associate(rec.a, rec.b)
+    assert synced.reference == slow
     kept, counts = pose_jump_gate(synced)
-    assert counts == {"dropped_pose_jump": len(synced) - len(kept), "jumps_a": 6, "jumps_b": 6, "accepted_jumps": 0}
-    np.testing.assert_array_equal(stream_jump_gate(a)[0], ~bad_a)
-    np.testing.assert_array_equal(stream_jump_gate(b)[0], ~bad_b)
-    # Exactly what associating the streams without the jumped samples gives: no smeared outlier left.
-    expected, _ = associate(a.select(~bad_a), b.select(~bad_b), method=method)
-    np.testing.assert_array_equal(kept.stamps_ns, expected.stamps_ns)
-    np.testing.assert_allclose(kept.T_b, expected.T_b, atol=1e-12)
-    assert not kept.segment.any()
+    jumped = getattr(rec, f"jumped_{slow}")
+    slow_stamps = getattr(rec, slow).stamps_ns
+    np.testing.assert_array_equal(np.sort(np.setdiff1d(synced.stamps_ns, kept.stamps_ns)),
+                                  slow_stamps[jumped])
+    assert counts == {"dropped_pose_jump": 4, "accepted_jumps": 0} and not kept.segment.any()
 
 
-def test_a_jump_in_b_does_not_leak_into_interpolated_neighbours() -> None:
-    a, b = simulate_rig(Rig(X), **RIG, T_wb_wa=np.eye(4))
-    quat = b.quat_xyzw.copy()
-    xyz = b.xyz.copy()
-    xyz[300] += [0.6, 0.0, 0.0]                   # one bad 30 Hz sample spans ~7 of a's stamps
-    kept, counts = pose_jump_gate(associate(a, PoseStream(b.stamps_ns, xyz, quat))[0])
-    assert counts["jumps_b"] == 1 and counts["dropped_pose_jump"] == 0
-    err = np.linalg.norm(kept.T_b[:, :3, 3] - (kept.T_a @ X)[:, :3, 3], axis=1)
-    assert err.max() < 5e-3                       # interpolation error only, not a share of 0.6 m
+@pytest.mark.parametrize("slow_hz", [5, 1, 0.5])
+def test_ordinary_motion_of_a_slow_stream_passes_auto_but_not_the_paper_gate(slow_hz: float) -> None:
+    rec = simulate_rates(Rig(X), 100, slow_hz, duration_s=120, seed=3)
+    kept, counts = pose_jump_gate(associate(rec.a, rec.b)[0])
+    assert counts["dropped_pose_jump"] == 0
+    keep, _, _ = paper_gate(rec.b)
+    assert (~keep).mean() > (0.3 if slow_hz < 5 else 0.01)     # the paper's 10 cm / 11.5° are for ~5 Hz
 
 
-@pytest.mark.parametrize("method", ["interpolate", "nearest"])
-def test_relocalisation_starts_a_new_segment_and_no_pair_spans_it(method: str) -> None:
-    a, b = simulate_rig(Rig(X), **RIG, T_wb_wa=np.eye(4))
-    k = len(b) // 2
-    b = shifted_from(b, k, 0.25)         # interpolating across it would hide it in 8 cm steps
-    synced, _ = associate(a, b, method=method)
+def test_a_jump_in_the_fast_stream_is_caught_where_it_is_interpolated() -> None:
+    rec = simulate_rates(Rig(X), 100, 2, duration_s=60, seed=4, sigma_r=0.0, sigma_t=0.0)
+    a, b = rec.a, rec.b
+    k = int(np.searchsorted(a.stamps_ns, b.stamps_ns[40]))      # the 100 Hz sample right after a 2 Hz stamp
+    xyz = a.xyz.copy()
+    xyz[k] += [0.3, 0.0, 0.0]
+    synced, _ = associate(PoseStream(a.stamps_ns, xyz, a.quat_xyzw), b)
     kept, counts = pose_jump_gate(synced)
-    assert counts["accepted_jumps"] == 1 and counts["jumps_b"] == 0
-    truth = (kept.T_a @ X)[:, :3, 3] + np.outer(kept.segment, [0.25, 0.0, 0.0])
-    tolerance = 5e-3 if method == "interpolate" else 0.1          # nearest: up to 1/60 s of motion
-    assert np.linalg.norm(kept.T_b[:, :3, 3] - truth, axis=1).max() < tolerance   # nothing bridges the shift
-    boundary = b.stamps_ns[k]
-    np.testing.assert_array_equal(kept.segment, (kept.stamps_ns >= boundary if method == "interpolate"
-                                                 else kept.segment > 0).astype(int))
-    assert kept.segment[kept.stamps_ns < b.stamps_ns[k - 1]].max() == 0
-    assert kept.segment[kept.stamps_ns > boundary].min() == 1
-    for strategy in ("keyframes", "consecutive", "stride:7", "all", "random:300"):
+    assert counts["dropped_pose_jump"] == 1 and b.stamps_ns[40] not in kept.stamps_ns
+
+
+@pytest.mark.parametrize("gate", ["auto", "paper"])
+def test_relocalisation_starts_a_new_segment_and_no_pair_spans_it(gate: str) -> None:
+    rec = simulate_rates(Rig(X), 100, 30, duration_s=30, seed=5, speed=0.5)
+    k = len(rec.b) // 2
+    b = shifted_from(rec.b, k, 0.25)
+    kept, counts = sync_and_gate(rec.a, b, gate=gate)
+    assert counts["accepted_jumps"] == 1
+    np.testing.assert_array_equal(kept.segment, (kept.stamps_ns >= b.stamps_ns[k]).astype(int))
+    for strategy in ("keyframes", "consecutive", "all"):
         pairs, _ = make_pairs(kept, strategy, max_pairs=500)
         assert len(pairs) > 0
         np.testing.assert_array_equal(kept.segment[pairs.i], kept.segment[pairs.j])
 
 
-def test_one_outlier_of_the_slower_stream_is_not_a_new_level_with_nearest() -> None:
-    a, b = simulate_rig(Rig(X), **RIG)
-    b = shifted_from(b, 200, 0.5)
-    b = shifted_from(b, 201, -0.5)                # only sample 200 displaced; ~3 a stamps use it
-    kept, counts = pose_jump_gate(associate(a, b, method="nearest")[0])
-    assert counts["accepted_jumps"] == 0 and counts["jumps_b"] == 1
-    assert not kept.segment.any()
+def test_paper_gate_drops_the_injected_jumps_of_each_raw_stream_and_counts_them() -> None:
+    rec = simulate_rates(Rig(X), 30, 20, duration_s=60, seed=6, speed=0.5, jumps_a=Jumps(3), jumps_b=Jumps(5))
+    np.testing.assert_array_equal(paper_gate(rec.a)[0], ~rec.jumped_a)
+    np.testing.assert_array_equal(paper_gate(rec.b)[0], ~rec.jumped_b)
+    kept, counts = sync_and_gate(rec.a, rec.b, gate="paper")
+    expected, _ = associate(rec.a.select(~rec.jumped_a), rec.b.select(~rec.jumped_b))
+    np.testing.assert_array_equal(kept.stamps_ns, expected.stamps_ns)
+    assert (counts["jumps_a"], counts["jumps_b"], counts["dropped_pose_jump"]) == (3, 5, 8)
+    assert (counts["read_a"], counts["read_b"]) == (len(rec.a), len(rec.b))
 
 
-def test_limits_can_be_switched_off_one_by_one() -> None:
-    a, b = simulate_rig(Rig(X), **RIG)
-    T = a.matrices()
-    T[400] = T[400] @ se3.from_xyz_quat(np.zeros(3), [0.0, 0.0, np.sin(0.25), np.cos(0.25)])  # 28.6°, no shift
-    a = PoseStream.from_matrices(a.stamps_ns, T)
-    synced, _ = associate(a, b)
-    assert pose_jump_gate(synced)[1]["jumps_a"] == 1
-    assert pose_jump_gate(synced, max_translation_m=None)[1]["jumps_a"] == 1
-    assert pose_jump_gate(synced, max_rotation_rad=None)[1]["jumps_a"] == 0
-    kept, counts = pose_jump_gate(synced, max_translation_m=None, max_rotation_rad=None)
-    assert counts["dropped_pose_jump"] == 0 and len(kept) == len(synced)
+def test_paper_limits_can_be_switched_off_one_by_one() -> None:
+    rec = simulate_rates(Rig(X), 30, 20, duration_s=20, seed=7, speed=0.5)
+    T = rec.a.matrices()
+    T[300] = T[300] @ se3.from_xyz_quat(np.zeros(3), [0.0, 0.0, np.sin(0.25), np.cos(0.25)])   # 28.6°, no shift
+    a = PoseStream.from_matrices(rec.a.stamps_ns, T)
+    assert (~paper_gate(a)[0]).sum() == 1
+    assert (~paper_gate(a, max_translation_m=None)[0]).sum() == 1
+    assert (~paper_gate(a, max_rotation_rad=None)[0]).sum() == 0
 
 
-def test_gating_a_selection_keeps_only_its_samples() -> None:
-    a, b = simulate_rig(Rig(X), jumps=3, **RIG)
-    synced, _ = associate(a, b)
-    part = synced.select(np.arange(len(synced)) % 2 == 0)
-    kept, counts = pose_jump_gate(part)
-    assert np.isin(kept.stamps_ns, part.stamps_ns).all()
-    assert counts["dropped_pose_jump"] == len(part) - len(kept) > 0
+def test_samples_are_associated_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    rec = simulate_rates(Rig(X), 100, 5, duration_s=30, seed=8, jumps_a=Jumps(2), jumps_b=Jumps(2))
+    calls = []
+
+    def counting(*args, **kw):
+        calls.append(kw.get("method"))
+        return associate(*args, **kw)
+
+    monkeypatch.setattr(gates, "associate", counting)
+    for gate in ("auto", "paper", "off"):
+        calls.clear()
+        sync_and_gate(rec.a, rec.b, gate=gate)
+        assert calls == ["auto"]
 
 
-def test_synced_built_without_source_is_gated_as_is() -> None:
-    a, b = simulate_rig(Rig(X), **RIG)
-    s, _ = associate(a, b)
-    T_b = s.T_b.copy()
-    T_b[50, :3, 3] += [0.0, 0.3, 0.0]
-    bare = Synced(s.stamps_ns, s.T_a, T_b, s.dt_ns)
-    kept, counts = pose_jump_gate(bare)
-    assert counts["jumps_b"] == 1 and counts["dropped_pose_jump"] == 1
-    np.testing.assert_array_equal(kept.stamps_ns, np.delete(s.stamps_ns, 50))
-    np.testing.assert_allclose(kept.T_b, np.delete(T_b, 50, axis=0), atol=1e-12)
+def test_too_few_samples_name_the_flags_and_the_rates() -> None:
+    rec = simulate_rates(Rig(X), 100, 1, duration_s=60, seed=9)
+    with pytest.raises(DataError) as info:
+        sync_and_gate(rec.a, rec.b, gate="paper", min_samples=10)    # a 1 Hz stream steps beyond 10 cm / 11.5°
+    text = str(info.value)
+    for flag in ("--gate auto", "--gate off", "--max-jump off --max-jump-deg off", "--time-offset auto"):
+        assert flag in text
+    assert re.search(r"a 100 Hz, b (0\.99|1\.0|1) Hz", text) and "gates." not in text
+    with pytest.raises(DataError, match="--sync auto.*--max-dt"):
+        sync_and_gate(rec.a, rec.b.select(np.arange(len(rec.b)) % 4 == 0), sync="interpolate", max_dt_ns=10**9,
+                      min_samples=10)
 
 
-def test_accept_after_must_be_positive() -> None:
-    a, _ = simulate_rig(Rig(X), **RIG)
-    with pytest.raises(HandEyeError, match="accept_after"):
-        stream_jump_gate(a, accept_after=0)
+def test_bad_gate_settings_are_config_errors() -> None:
+    rec = simulate_rates(Rig(X), 30, 20, duration_s=10, seed=10)
+    with pytest.raises(ConfigError, match="--gate"):
+        sync_and_gate(rec.a, rec.b, gate="strict")
+    with pytest.raises(ConfigError, match="accept_after"):
+        paper_gate(rec.a, accept_after=0)

@@ -2,6 +2,8 @@
 string, and that solving the pairs recovers a simulated rig's extrinsic."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -24,7 +26,7 @@ def synced() -> Synced:
     a, b = simulate_rig(Rig(X), duration_s=20, rate_a=15, rate_b=45, seed=3)
     s, _ = associate(a, b)
     segment = (np.arange(len(s)) >= len(s) * 2 // 3).astype(np.int64)
-    return Synced(s.stamps_ns, s.T_a, s.T_b, s.dt_ns, segment)
+    return replace(s, segment=segment)
 
 
 def brute_force(s: Synced, min_rotation: float) -> set[tuple[int, int]]:

@@ -7,9 +7,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from handeye_cli import se3
-from handeye_cli.errors import HandEyeError
+from handeye_cli.errors import ConfigError, DataError, HandEyeError
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
-from handeye_cli.stages.sync import associate, interpolate
+from handeye_cli.stages.sync import Synced, associate, default_max_dt_ns, interpolate
 from handeye_cli.streams import PoseStream
 
 T0 = 1_700_000_000_000_000_000        # epoch-scale stamps [ns]: float seconds would lose precision
@@ -46,10 +46,10 @@ def pose_error(T: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
 def test_interpolation_is_exact_on_constant_velocity_and_rate() -> None:
     a = analytic_stream(irregular_stamps(100, 10, seed=1))
     b = analytic_stream(irregular_stamps(30, 10, seed=2))
-    synced, counts = associate(a, b)
+    synced, counts = associate(a, b, method="interpolate")
     rot, trans = pose_error(synced.T_b, analytic_poses(synced.stamps_ns))
     assert rot < 1e-9 and trans < 1e-9
-    assert counts["synced"] == len(synced) >= len(a) - 2
+    assert counts["synced"] == len(synced) >= len(a) - 2 and synced.reference == "a"
     np.testing.assert_array_equal(synced.T_a, a.matrices()[np.isin(a.stamps_ns, synced.stamps_ns)])
 
 
@@ -113,10 +113,10 @@ def test_time_offset_shifts_stream_b_by_b_clock_ahead_of_a() -> None:
     offset = 2_345_678_901                                   # b's clock 2.35 s ahead of a's
     a, b = simulate_rig(Rig(X, offset), duration_s=10, rate_a=20, rate_b=400, seed=4, T_wb_wa=np.eye(4))
     assert b.stamps_ns[0] - a.stamps_ns[0] > 2_000_000_000
-    synced, _ = associate(a, b, time_offset_ns=offset)
+    synced, _ = associate(a, b, time_offset_ns=offset, method="interpolate")
     rot, trans = pose_error(synced.T_b, synced.T_a @ X)     # with T_wb_wa = I: T_wb_b = T_wa_a X
     assert rot < 1e-5 and trans < 1e-5
-    wrong, _ = associate(a, b, time_offset_ns=-offset)
+    wrong, _ = associate(a, b, time_offset_ns=-offset, method="interpolate")
     assert len(wrong) < len(synced)
     assert pose_error(wrong.T_b, wrong.T_a @ X)[1] > 0.1
 
@@ -137,8 +137,60 @@ def test_empty_streams_and_bad_settings_are_errors() -> None:
         associate(a, empty)
     with pytest.raises(HandEyeError, match="pose stream a is empty"):
         associate(empty, a)
-    with pytest.raises(HandEyeError, match="unknown association method"):
+    with pytest.raises(ConfigError, match="unknown association method"):
         associate(a, a, method="cubic")
     b = analytic_stream(T0 + 5_000_000 + np.arange(100) * 10_000_000)
     with pytest.raises(HandEyeError, match="no sample passed the timestamp gate"):
         associate(a, b, method="nearest", max_dt_ns=1_000_000)
+
+
+@pytest.mark.parametrize(("rate_a", "rate_b", "reference"), [(100, 1, "b"), (1, 100, "a"), (30, 20, "b")])
+def test_auto_lets_the_slower_stream_set_the_sample_times(rate_a: float, rate_b: float, reference: str) -> None:
+    a = analytic_stream(irregular_stamps(rate_a, 20, seed=5))
+    b = analytic_stream(irregular_stamps(rate_b, 20, seed=6))
+    synced, counts = associate(a, b)
+    slow = b if reference == "b" else a
+    assert synced.reference == reference
+    assert np.isin(synced.stamps_ns, slow.stamps_ns).all() and len(synced) >= len(slow) - 2
+    assert counts["synced"] + counts["dropped_outside_span"] + counts["dropped_timestamp_gate"] == len(slow)
+    truth = analytic_poses(synced.stamps_ns)
+    assert max(pose_error(synced.T_a, truth)) < 1e-9 and max(pose_error(synced.T_b, truth)) < 1e-9
+    assert synced.describe() == {"reference": reference, "rate_a_hz": pytest.approx(rate_a, rel=0.05),
+                                 "rate_b_hz": pytest.approx(rate_b, rel=0.05)}
+
+
+def test_default_gate_follows_the_interpolated_streams_rate() -> None:
+    assert default_max_dt_ns(10_000_000) == 100_000_000                 # 100 Hz: the paper's 0.1 s
+    assert default_max_dt_ns(1_000_000_000) == 2_500_000_000            # 1 Hz: 2.5 steps
+    a = analytic_stream(irregular_stamps(100, 30, seed=7))
+    b_stamps = T0 + np.arange(30) * 1_000_000_000                      # 1 Hz
+    b = analytic_stream(np.delete(b_stamps, [10, 20, 21]))              # one and two missing samples
+    synced, counts = associate(b, a, method="interpolate")               # 100 Hz stream at 1 Hz stamps
+    assert counts["dropped_timestamp_gate"] == 0
+    synced, counts = associate(a, b, method="interpolate")              # 1 Hz stream at 100 Hz stamps
+    q = a.stamps_ns
+    span = (q >= b.stamps_ns[0]) & (q <= b.stamps_ns[-1])
+    lo, hi = b_stamps[19], b_stamps[22]                                  # 3 s gap: ends beyond 2.5 s dropped
+    dropped = (q > lo) & (q < hi) & (np.maximum(q - lo, hi - q) > 2_500_000_000)
+    assert counts["dropped_timestamp_gate"] == int(dropped.sum()) > 0    # the 2 s gap is bridged
+    np.testing.assert_array_equal(synced.stamps_ns, q[span & ~dropped])
+
+
+def test_no_sample_through_the_gate_names_flags_and_rates() -> None:
+    a = analytic_stream(irregular_stamps(100, 20, seed=1))
+    b = analytic_stream(T0 + 500_000_000 + np.arange(20) * 1_000_000_000)
+    with pytest.raises(DataError) as info:
+        associate(a, b, method="interpolate", max_dt_ns=100_000_000)
+    text = str(info.value)
+    assert "a 100 Hz, b 1 Hz" in text and "--sync auto" in text and "--max-dt" in text and "max_dt 0.100 s" in text
+    assert "sync." not in text and "gates." not in text
+
+
+def test_synced_round_trips_matrices_and_selects() -> None:
+    stamps = irregular_stamps(50, 2, seed=9)
+    T = analytic_poses(stamps)
+    s = Synced.from_matrices(stamps, T, T @ random_transform(np.random.default_rng(1), 0.2), np.zeros(len(T), int))
+    np.testing.assert_allclose(s.T_a, T, atol=1e-12)
+    part = s.select(np.arange(len(s)) % 3 == 0)
+    np.testing.assert_allclose(part.T_b, s.T_b[::3], atol=1e-12)
+    assert part.segment.shape == (len(part),) and part.reference == "a"

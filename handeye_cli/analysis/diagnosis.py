@@ -37,11 +37,11 @@ def too_few_pairs(n_pairs: int, samples: SampleCounts, options: Options) -> TooF
         fix = (f"the motion rotates too little between samples: lower --min-rotation (now {p.min_rotation:g}) "
                "or try --pairs all")
     elif s.dropped_pose_jump >= by_time:
-        fix = ("the pose-jump gate dropped most samples: switch it off with --max-jump off --max-jump-deg off "
-               "(station captures: --preset robot-arm)")
+        fix = ("the pose-jump gate dropped most samples: try --gate auto (it follows the sampling rate) or switch it "
+               "off with --gate off (station captures: --preset robot-arm)")
     else:
-        fix = (f"the timestamp gate dropped most samples: widen --max-dt (now {options.sync.max_dt:g} s) or "
-               "estimate the clock offset with --time-offset auto")
+        fix = (f"the timestamp gate dropped most samples: widen --max-dt (now {options.sync.max_dt}), let the slower "
+               "stream set the sample times with --sync auto, or estimate the clock offset with --time-offset auto")
     return TooFewPairsError(f"only {n_pairs} motion pair(s) left, {need} needed", story, fix)
 
 

@@ -10,8 +10,10 @@ returns one averaged pose per station and sensor, to be paired all with all.
 Per stream (stamps int64 ns, poses ``T_world_sensor``, positions m, quaternions x-y-z-w):
 
 * **sparse**: consecutive samples that moved less than ``_GROUP_DEG`` / ``_GROUP_M`` form one
-  group; the stream is sparse when there are at least ``min_stations`` groups and the median
-  rotation between consecutive groups is at least ``sparse_rotation_deg``. Each group is a run.
+  group; the stream is sparse when there are at least ``min_stations`` groups, the median
+  rotation between consecutive groups is at least ``sparse_rotation_deg`` and the median group
+  holds at most ``_SPARSE_GROUP`` samples (a continuous stream cut by a few tracking jumps is not
+  sparse). Each group is a run.
 * **dwells**: the per-sample noise σ is estimated from second differences (robust, per axis);
   sample i is at rest when the pose a dwell window ``min_dwell_s`` later lies within
   ``max(floor, 6σ)`` of it (translation and rotation). A dwell is a maximal stretch covered by
@@ -51,6 +53,7 @@ from .sync import Synced
 __all__ = ["Stations", "detect_stations"]
 
 _GROUP_DEG, _GROUP_M = 2.0, 0.02          # consecutive sparse samples closer than this are one station
+_SPARSE_GROUP = 10                         # a sparse capture holds at most this many samples per station (median)
 _FLOOR_DEG, _FLOOR_M = 0.05, 0.0005       # smallest rest tolerance (noise-free streams)
 _REST_SIGMAS = 6.0                         # rest tolerance in estimated noise σ (difference of two samples)
 _INLIER_FLOOR_DEG = 0.05
@@ -125,6 +128,8 @@ def _sparse_runs(stream: PoseStream, min_stations: int, sparse_rotation_deg: flo
     start = np.r_[0, np.flatnonzero(move) + 1].astype(np.int64)
     if len(start) < min_stations or np.median(rot[move]) < sparse_rotation_deg:
         return None
+    if np.median(np.diff(np.r_[start, len(stream)])) > _SPARSE_GROUP:   # long runs split by a few tracking
+        return None                                                         # jumps: continuous tracking
     return _Runs(start, np.r_[start[1:], len(stream)].astype(np.int64), True)
 
 
@@ -243,7 +248,8 @@ def detect_stations(a: PoseStream, b: PoseStream, *, time_offset_ns: int = 0, ma
     per_a = [_robust_mean(a, *_in_window(a, ra, k, t0, t1, slack)) for k, _, t0, t1 in matches]
     per_b = [_robust_mean(b, *_in_window(b, rb, m, t0, t1, slack)) for _, m, t0, t1 in matches]
     t0s, t1s = (np.array([x[i] for x in matches], dtype=np.int64) for i in (2, 3))
-    synced = Synced((t0s + t1s) // 2, np.array([p.T for p in per_a]), np.array([p.T for p in per_b]), t1s - t0s)
+    synced = Synced.from_matrices((t0s + t1s) // 2, np.array([p.T for p in per_a]), np.array([p.T for p in per_b]),
+                                  t1s - t0s)
     kind = "sparse" if ra.sparse and rb.sparse else "dwell" if not (ra.sparse or rb.sparse) else "mixed"
     return Stations(synced, kind, *_columns(per_a), *_columns(per_b))
 

@@ -1,106 +1,162 @@
-"""Associate stream b to stream a's stamps: interpolation or nearest sample, with the timestamp gate.
+"""Associate the two pose streams in time: both streams' poses at common stamps, with the timestamp gate.
 
 Conventions (see :mod:`handeye_cli.se3`): each stream holds absolute poses ``T_w_sensor(t)``;
-stamps are int64 nanoseconds. The result :class:`Synced` holds both streams at a's stamps.
+stamps are int64 nanoseconds; positions [m]; quaternions x-y-z-w. :class:`Synced` holds both
+streams' poses (positions + quaternions, no 4×4 matrices) at common stamps in a's clock.
+
+Methods
+-------
+``auto`` (default): the slower stream (the larger median sample step) sets the sample times and
+    the faster stream is interpolated at them (linear position + SLERP between its two
+    neighbours). The faster stream's neighbours are close, so the interpolation is accurate and
+    every sample of the slow stream is used. The reference is a on a tie.
+``interpolate``: b is interpolated at a's stamps (a is the reference).
+``nearest``: b's closest sample at each of a's stamps.
+
+Timestamp gate: a sample is kept only when every sample of the interpolated stream it uses lies
+within ``max_dt`` of the reference stamp — for ``nearest`` the one sample, otherwise both
+neighbours (so nothing is interpolated across a gap). The default ``max_dt`` follows the data:
+``max(0.1 s, 2.5 × the interpolated stream's median step)`` — the paper's 0.1 s for streams faster
+than 25 Hz; for slower ones, a gap of one dropped sample plus stamp jitter is bridged, two are not.
 
 Time offset sign: ``time_offset_ns`` is how far b's clock is **ahead** of a's. b's sample
 stamped ``s`` was taken at a's time ``s - time_offset_ns``. This matches
 :class:`handeye_cli.simulation.Rig`'s ``time_offset_ns`` (b's clock reads ``t + offset``), so
 passing the rig's true offset aligns the streams.
-
-Timestamp gate: a sample is kept only when every b sample used lies within ``max_dt`` of the a
-stamp — for ``nearest`` the one sample, for ``interpolate`` both bracketing samples (no
-interpolation across a gap). With ``interpolate`` this needs b's sample interval to be below
-``2·max_dt`` (b faster than 5 Hz for the default 0.1 s); use ``nearest`` or a larger ``max_dt``
-for slower streams.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from .. import se3
-from ..errors import HandEyeError
+from ..errors import ConfigError, DataError
 from ..streams import PoseStream
 
-__all__ = ["Association", "Synced", "associate", "interpolate", "METHODS"]
+__all__ = ["Synced", "associate", "interpolate", "median_step_ns", "default_max_dt_ns", "rates_text", "METHODS"]
 
-METHODS = ("interpolate", "nearest")
+METHODS = ("auto", "interpolate", "nearest")
+_MIN_MAX_DT_NS = 100_000_000     # the paper's timestamp gate [ns]: the floor of the default
+_MAX_DT_STEPS = 2.5              # the default gate in median steps of the interpolated stream
 
-
-@dataclass(frozen=True, eq=False)
-class Association:
-    """How a :class:`Synced` was made, so a later gate can re-associate from the raw samples.
-
-    a, b: the raw streams, b already shifted into a's clock. method, max_dt_ns: as in :func:`associate`.
-    """
-
-    a: PoseStream
-    b: PoseStream
-    method: str
-    max_dt_ns: int
+Floats = NDArray[np.float64]
+Ints = NDArray[np.int64]
 
 
 @dataclass(frozen=True, eq=False)
 class Synced:
-    """Both streams at common stamps (a's stamps, in a's clock).
+    """Both streams at common stamps (in a's clock).
 
     Attributes
     ----------
     stamps_ns: int64[N] stamps [ns] in a's clock.
-    T_a: (N, 4, 4) poses ``T_wa_a`` of sensor a at the stamps.
-    T_b: (N, 4, 4) poses ``T_wb_b`` of sensor b at the stamps (interpolated or nearest).
-    dt_ns: int64[N] the gap used: the largest distance [ns] from a stamp to a b sample used.
+    xyz_a, quat_a: (N, 3) positions [m] and (N, 4) x-y-z-w quaternions of ``T_wa_a`` at the stamps.
+    xyz_b, quat_b: the same of ``T_wb_b`` (interpolated or nearest where b is not the reference).
+    dt_ns: int64[N] the gap used: the largest distance [ns] from a stamp to a sample of the
+        interpolated stream used (0 where the reference's samples are used as they are).
     segment: int64[N] non-decreasing tracking segment of each sample (0 unless the pose-jump gate
-        accepted a new tracking level); motions are only formed within a segment.
-    source: the raw streams and settings it was associated from (``None`` when built directly).
+        found that a stream re-localised); motions are only formed within a segment.
+    reference: which stream's samples set the stamps: ``"a"`` or ``"b"``.
+    step_ns: (a, b) median sample step [ns] of each stream as read (0: fewer than 2 samples).
     """
 
-    stamps_ns: np.ndarray
-    T_a: np.ndarray
-    T_b: np.ndarray
-    dt_ns: np.ndarray
-    segment: np.ndarray = field(default=None)  # type: ignore[assignment]
-    source: Association | None = field(default=None, repr=False)
+    stamps_ns: Ints
+    xyz_a: Floats
+    quat_a: Floats
+    xyz_b: Floats
+    quat_b: Floats
+    dt_ns: Ints
+    segment: Ints = field(default=None)  # type: ignore[arg-type]  # filled in by __post_init__
+    reference: str = "a"
+    step_ns: tuple[int, int] = (0, 0)
 
     def __post_init__(self) -> None:
         if self.segment is None:
             object.__setattr__(self, "segment", np.zeros(len(self.stamps_ns), dtype=np.int64))
 
+    @classmethod
+    def from_matrices(cls, stamps_ns: Ints, T_a: Floats, T_b: Floats, dt_ns: Ints, segment: Ints | None = None,
+                      **kw: Any) -> Synced:
+        """Build from (N, 4, 4) poses ``T_wa_a`` and ``T_wb_b``."""
+        (xyz_a, quat_a), (xyz_b, quat_b) = se3.to_xyz_quat(np.asarray(T_a)), se3.to_xyz_quat(np.asarray(T_b))
+        stamps = np.asarray(stamps_ns, dtype=np.int64)
+        return cls(stamps, xyz_a, quat_a, xyz_b, quat_b, np.asarray(dt_ns, dtype=np.int64),
+                   np.zeros(len(stamps), dtype=np.int64) if segment is None else segment, **kw)
+
     def __len__(self) -> int:
         return len(self.stamps_ns)
 
-    def select(self, mask_or_index: np.ndarray) -> Synced:
+    @property
+    def T_a(self) -> Floats:
+        """(N, 4, 4) poses ``T_wa_a`` (built on each access: keep the result if used repeatedly)."""
+        return se3.from_xyz_quat(self.xyz_a, self.quat_a).reshape(-1, 4, 4)
+
+    @property
+    def T_b(self) -> Floats:
+        """(N, 4, 4) poses ``T_wb_b`` (built on each access)."""
+        return se3.from_xyz_quat(self.xyz_b, self.quat_b).reshape(-1, 4, 4)
+
+    @property
+    def rates_hz(self) -> tuple[float, float]:
+        """Rate [Hz] of streams a and b (from their median steps; 0 when unknown)."""
+        return tuple(1e9 / s if s > 0 else 0.0 for s in self.step_ns)  # type: ignore[return-value]
+
+    def select(self, mask_or_index: NDArray[Any]) -> Synced:
         """The samples selected by a boolean mask or an index array."""
         m = mask_or_index
-        return Synced(self.stamps_ns[m], self.T_a[m], self.T_b[m], self.dt_ns[m], self.segment[m], self.source)
+        return Synced(self.stamps_ns[m], self.xyz_a[m], self.quat_a[m], self.xyz_b[m], self.quat_b[m],
+                      self.dt_ns[m], self.segment[m], self.reference, self.step_ns)
+
+    def describe(self) -> dict[str, Any]:
+        """For the result: which stream set the sample times, and each stream's rate [Hz]."""
+        rate_a, rate_b = self.rates_hz
+        return {"reference": self.reference, "rate_a_hz": round(rate_a, 4), "rate_b_hz": round(rate_b, 4)}
 
 
-def _slerp(q_lo: np.ndarray, q_hi: np.ndarray, frac: np.ndarray) -> Rotation:
+def median_step_ns(stream: PoseStream) -> int:
+    """Median interval [ns] between consecutive stamps (0 for fewer than 2 samples)."""
+    return int(np.median(np.diff(stream.stamps_ns))) if len(stream) > 1 else 0
+
+
+def default_max_dt_ns(step_ns: int) -> int:
+    """The default timestamp gate [ns] for an interpolated stream whose median step is ``step_ns``."""
+    return max(_MIN_MAX_DT_NS, int(_MAX_DT_STEPS * step_ns))
+
+
+def rates_text(step_ns: tuple[int, int]) -> str:
+    """``"a 100 Hz, b 1 Hz"`` from the median steps [ns] of a and b."""
+    def rate(step: int) -> str:
+        hz = 1e9 / step if step > 0 else 0.0
+        return "a single sample" if step <= 0 else f"{hz:.0f} Hz" if hz >= 10 else f"{hz:.2g} Hz"
+
+    return ", ".join(f"{name} {rate(step)}" for name, step in zip("ab", step_ns, strict=True))
+
+
+def _slerp(q_lo: Floats, q_hi: Floats, frac: Floats) -> Floats:
     """Per-row SLERP between x-y-z-w quaternions ``q_lo`` and ``q_hi`` at fractions ``frac`` ∈ [0, 1]."""
     r_lo = Rotation.from_quat(q_lo)
     step = (r_lo.inv() * Rotation.from_quat(q_hi)).as_rotvec()
-    return r_lo * Rotation.from_rotvec(step * frac[:, None])
+    return (r_lo * Rotation.from_rotvec(step * frac[:, None])).as_quat()
 
 
-def _lookup(stream: PoseStream, query: np.ndarray, method: str, segment: np.ndarray | None
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _lookup(stream: PoseStream, query: Ints, method: str, segment: Ints | None
+            ) -> tuple[NDArray[np.bool_], Ints, Floats, Floats, Ints]:
     """:func:`interpolate`, also returning the index of a sample used (for its segment).
 
     With ``segment`` (int64 per stream sample), ``interpolate`` never bridges two segments:
     such queries count as outside. Returns ``(inside, used, xyz, quat_xyzw, gap_ns)``.
     """
-    if method not in METHODS:
-        raise HandEyeError(f"unknown association method {method!r}", "sync", f"use one of {', '.join(METHODS)}")
     stamps = stream.stamps_ns
     n = len(stamps)
     after = np.searchsorted(stamps, query, side="right")   # first sample strictly after the query
     lo = after - 1
     exact = (lo >= 0) & (stamps[np.clip(lo, 0, n - 1)] == query)
     inside = exact | ((lo >= 0) & (after < n))
-    if segment is not None and method == "interpolate":
+    if segment is not None and method != "nearest":
         bridge = np.flatnonzero(inside & ~exact)     # lo + 1 < n here
         inside[bridge] = segment[lo[bridge]] == segment[lo[bridge] + 1]
     lo, q, exact = lo[inside], query[inside], exact[inside]
@@ -111,12 +167,11 @@ def _lookup(stream: PoseStream, query: np.ndarray, method: str, segment: np.ndar
         return inside, pick, stream.xyz[pick], stream.quat_xyzw[pick], np.minimum(d_lo, d_hi)
     frac = np.where(exact, 0.0, d_lo / np.maximum(stamps[hi] - stamps[lo], 1))
     xyz = stream.xyz[lo] + frac[:, None] * (stream.xyz[hi] - stream.xyz[lo])
-    quat = _slerp(stream.quat_xyzw[lo], stream.quat_xyzw[hi], frac).as_quat()
-    return inside, lo, xyz, quat, np.maximum(d_lo, d_hi)
+    return inside, lo, xyz, _slerp(stream.quat_xyzw[lo], stream.quat_xyzw[hi], frac), np.maximum(d_lo, d_hi)
 
 
-def interpolate(stream: PoseStream, query_ns: np.ndarray, *, method: str = "interpolate"
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def interpolate(stream: PoseStream, query_ns: NDArray[np.int64], *, method: str = "interpolate"
+                ) -> tuple[NDArray[np.bool_], Floats, Floats, Ints]:
     """Sample ``stream`` at the stamps ``query_ns`` (int64 ns, same clock as the stream).
 
     ``"interpolate"``: linear position and SLERP between the bracketing samples; the gap is the
@@ -130,77 +185,77 @@ def interpolate(stream: PoseStream, query_ns: np.ndarray, *, method: str = "inte
     return inside, xyz, quat, gap
 
 
-def associate_raw(a: PoseStream, b: PoseStream, method: str, max_dt_ns: int,
-                  segment_a: np.ndarray | None = None, segment_b: np.ndarray | None = None
-                  ) -> tuple[Synced, np.ndarray]:
-    """Associate b (already in a's clock) to a's stamps without any checks; may return no sample.
-
-    ``segment_a`` / ``segment_b``: optional non-decreasing tracking segments per raw sample; a
-    sample's segment in the result is their sum (it grows whenever either does), and ``interpolate``
-    never bridges a segment boundary of b. Returns ``(Synced, inside)`` with ``inside`` the bool
-    mask over a's samples that b's span covers (the rest were dropped as outside the span).
-    """
-    inside, used, xyz, quat, gap = _lookup(b, a.stamps_ns, method, segment_b)
-    keep = gap <= max_dt_ns
-    idx = np.flatnonzero(inside)[keep]
-    segment = np.zeros(len(idx), dtype=np.int64)
-    if segment_a is not None:
-        segment += segment_a[idx]
-    if segment_b is not None:
-        segment += segment_b[used[keep]]
-    T_b = se3.from_xyz_quat(xyz[keep], quat[keep]).reshape(-1, 4, 4)
-    synced = Synced(a.stamps_ns[idx], se3.from_xyz_quat(a.xyz[idx], a.quat_xyzw[idx]).reshape(-1, 4, 4), T_b,
-                    gap[keep].astype(np.int64), segment, Association(a, b, method, int(max_dt_ns)))
-    return synced, inside
+def _check(a: PoseStream, b: PoseStream, method: str, time_offset_ns: int) -> None:
+    if method not in METHODS:
+        raise ConfigError(f"unknown association method {method!r}", "--sync", f"use one of {', '.join(METHODS)}")
+    for name, stream in (("a", a), ("b", b)):
+        if len(stream) == 0:
+            raise DataError(f"pose stream {name} is empty", stream.source or f"stream {name}",
+                            "check the topic / frames selected for both streams")
+    if a.stamps_ns[-1] < b.stamps_ns[0] or b.stamps_ns[-1] < a.stamps_ns[0]:
+        span = {n: f"{s.stamps_ns[0] / 1e9:.3f}–{s.stamps_ns[-1] / 1e9:.3f} s" for n, s in (("a", a), ("b", b))}
+        raise DataError(
+            "the two pose streams do not overlap in time",
+            f"a spans {span['a']}, b spans {span['b']} after a time offset of {time_offset_ns / 1e9:.6f} s",
+            "use --time-offset auto to estimate the clock offset, or give a fixed --time-offset")
 
 
-def _span(stream: PoseStream) -> str:
-    return f"{stream.stamps_ns[0] / 1e9:.3f}–{stream.stamps_ns[-1] / 1e9:.3f} s"
-
-
-def associate(a: PoseStream, b: PoseStream, *, method: str = "interpolate", max_dt_ns: int = 100_000_000,
-              time_offset_ns: int = 0) -> tuple[Synced, dict]:
-    """Sample stream b at stream a's stamps, keeping only samples that pass the timestamp gate.
+def associate(a: PoseStream, b: PoseStream, *, method: str = "auto", max_dt_ns: int | None = None,
+              time_offset_ns: int = 0, segment_a: Ints | None = None, segment_b: Ints | None = None
+              ) -> tuple[Synced, dict[str, int]]:
+    """Both streams at the reference stream's stamps, keeping only samples that pass the timestamp gate.
 
     Parameters
     ----------
     a, b: poses ``T_wa_a(t)`` and ``T_wb_b(t)``; stamps int64 ns, sorted.
-    method: ``"interpolate"`` (linear position + SLERP between the bracketing b samples) or
-        ``"nearest"`` (the closest b sample).
-    max_dt_ns: the timestamp gate [ns]: a sample is kept only when every b sample used lies within
-        this distance of the a stamp (the paper's 0.1 s).
+    method: ``"auto"``, ``"interpolate"`` or ``"nearest"`` (see the module docstring).
+    max_dt_ns: the timestamp gate [ns] on the interpolated stream's samples; ``None``: the default
+        :func:`default_max_dt_ns` of the interpolated stream's median step.
     time_offset_ns: how far b's clock is ahead of a's [ns]: b's sample stamped ``s`` belongs to
         a's time ``s - time_offset_ns`` (the convention of ``simulation.Rig.time_offset_ns``).
+    segment_a, segment_b: optional non-decreasing tracking segments per raw sample (from a
+        pose-jump gate on the raw streams); a sample's segment is their sum, and the interpolated
+        stream is never interpolated across a segment boundary.
 
     Returns
     -------
-    (Synced at a's stamps, counts ``{"read_a", "read_b", "synced", "dropped_outside_span",
-    "dropped_timestamp_gate"}``).
+    (Synced, counts ``{"read_a", "read_b", "synced", "dropped_outside_span", "dropped_timestamp_gate"}``):
+    the two dropped counts are of the reference stream's samples.
 
     Raises
     ------
-    HandEyeError: for an empty stream, an unknown method, streams that do not overlap in time,
-        or when no sample passes the gate.
+    ConfigError for an unknown method; DataError for an empty stream, streams that do not
+    overlap in time, or when no sample passes the gate (naming the flags that relax it).
     """
-    for name, stream in (("a", a), ("b", b)):
-        if len(stream) == 0:
-            raise HandEyeError(f"pose stream {name} is empty", stream.source or f"stream {name}",
-                               "check the topic / frames selected for both streams")
     b = b.shifted(-int(time_offset_ns))
-    if a.stamps_ns[-1] < b.stamps_ns[0] or b.stamps_ns[-1] < a.stamps_ns[0]:
-        raise HandEyeError(
-            "the two pose streams do not overlap in time",
-            f"a spans {_span(a)}, b spans {_span(b)} after a time offset of {time_offset_ns / 1e9:.6f} s",
-            "use --time-offset auto to estimate the clock offset, or give a fixed --time-offset")
-    synced, inside = associate_raw(a, b, method, max_dt_ns)
+    _check(a, b, method, time_offset_ns)
+    steps = (median_step_ns(a), median_step_ns(b))
+    reference = "b" if method == "auto" and steps[1] > steps[0] else "a"
+    (ref, seg_ref), (other, seg_other) = ((b, segment_b), (a, segment_a)) if reference == "b" else \
+        ((a, segment_a), (b, segment_b))
+    gate_ns = default_max_dt_ns(median_step_ns(other)) if max_dt_ns is None else int(max_dt_ns)
+    inside, used, xyz, quat, gap = _lookup(other, ref.stamps_ns, "nearest" if method == "nearest" else "interpolate",
+                                           seg_other)
+    keep = gap <= gate_ns
+    idx = np.flatnonzero(inside)[keep]
+    segment = np.zeros(len(idx), dtype=np.int64)
+    if seg_ref is not None:
+        segment += seg_ref[idx]
+    if seg_other is not None:
+        segment += seg_other[used[keep]]
+    poses = ((ref.xyz[idx], ref.quat_xyzw[idx]), (xyz[keep], quat[keep]))
+    (xyz_a, quat_a), (xyz_b, quat_b) = poses if reference == "a" else poses[::-1]
+    synced = Synced(ref.stamps_ns[idx], xyz_a, quat_a, xyz_b, quat_b, gap[keep].astype(np.int64), segment,
+                    reference, steps)
     counts = {"read_a": len(a), "read_b": len(b), "synced": len(synced),
-              "dropped_outside_span": int(len(a) - inside.sum()),
+              "dropped_outside_span": int(len(ref) - inside.sum()),
               "dropped_timestamp_gate": int(inside.sum() - len(synced))}
     if len(synced) == 0:
-        raise HandEyeError(
+        o = "b" if reference == "a" else "a"
+        raise DataError(
             "no sample passed the timestamp gate",
-            f"max_dt {max_dt_ns / 1e9:.3f} s; {counts['dropped_timestamp_gate']} samples of a too far from "
-            f"b's, {counts['dropped_outside_span']} outside b's span",
-            "raise max_dt, use nearest association for a slow stream b, or fix the time offset "
-            "(--time-offset auto)")
+            f"{rates_text(steps)}; max_dt {gate_ns / 1e9:.3f} s; {counts['dropped_timestamp_gate']} samples of "
+            f"{reference} too far from {o}'s, {counts['dropped_outside_span']} outside {o}'s span",
+            "let the slower stream set the sample times with --sync auto, widen --max-dt, or fix the clock offset "
+            "with --time-offset auto")
     return synced, counts
