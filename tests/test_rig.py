@@ -117,7 +117,8 @@ def test_joint_at_least_as_accurate_as_best_pairwise_chain() -> None:
     """Over several simulated rigs whose sensors lose tracking at different times (cam0 2–9 s,
     cam1 9–15 s, lidar 15–21 s of 30 s), the joint estimate's RMS error per sensor is no larger
     than that of the best pairwise chain (the chain of pairwise-only results from the reference
-    with the smallest RMS error) by more than 5 %, and better than the direct pair. Error: rotation
+    with the smallest RMS error) by more than 5 %, and, for a sensor that lost tracking, better than
+    its direct pair with the reference. Error: rotation
     [rad] + α · translation [m] with the cost's α = 1/m. Since the pairwise solves choose and weigh
     their pairs by a noise model (--pairs auto), the best chain is sometimes up to ~3 % better than
     the joint estimate, which weighs whole pairs of streams (benchmarks/rig.py prints both cases)."""
@@ -134,7 +135,8 @@ def test_joint_at_least_as_accurate_as_best_pairwise_chain() -> None:
     for k in range(1, 4):
         best = min(_rms(v) for v in chains[k].values())
         assert _rms(joint[k]) <= 1.05 * best, (k, _rms(joint[k]), best)
-        assert _rms(joint[k]) < _rms(chains[k][(0, k)])              # strictly better than the direct pair
+        if gaps[k]:          # a sensor that lost tracking: the other streams bridge its gap
+            assert _rms(joint[k]) < _rms(chains[k][(0, k)])          # strictly better than the direct pair
 
 
 def _combined(err: tuple[float, float]) -> float:
