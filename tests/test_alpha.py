@@ -32,13 +32,14 @@ def test_choice_reports_the_evidence():
     A, B = motion_pairs(80, X, rng, "random", SIGMA_R, SIGMA_T)
     choice = auto_alpha(A, B)
     assert choice.method == "sandwich" and choice.alpha in DEFAULT_GRID
-    i = choice.index
-    ratio = np.maximum(choice.rotation_rms_deg / choice.rotation_rms_deg.min(),
-                       choice.translation_rms_m / choice.translation_rms_m.min())
-    assert ratio[i] == pytest.approx(ratio.min())
     d = choice.as_dict()
-    assert d["alpha"] == choice.alpha and 0 < d["predicted_rotation_rms_deg"] < 0.5
-    assert 0 < d["predicted_translation_rms_m"] < 0.05
+    assert d["alpha"] == choice.alpha
+    # The predicted RMS errors at the chosen α against the real errors over fresh noise (Monte Carlo).
+    errors = np.array([extrinsic_error(solve(*motion_pairs(80, X, rng, "random", SIGMA_R, SIGMA_T),
+                                             alpha=choice.alpha).matrix, X) for _ in range(40)])
+    rms_rot, rms_trans = np.sqrt(np.mean(errors ** 2, axis=0))
+    assert 0.5 < d["predicted_rotation_rms_deg"] / rms_rot < 2.0, (d, rms_rot)
+    assert 0.5 < d["predicted_translation_rms_m"] / rms_trans < 2.0, (d, rms_trans)
 
 
 def test_residual_ratio_follows_the_noise_ratio():

@@ -74,6 +74,9 @@ def test_swapping_the_streams_gives_the_inverse(capsys, rig):
     X_ba = np.array(yaml.safe_load(run(capsys, "calibrate", rig["b"], rig["a"], "-q")[1])["matrix"])
     rot, trans = pose_error(X_ba, se3.inverse(X_ab))
     assert rot < 0.05 and trans < 0.003
+    for estimate in (X_ab, se3.inverse(X_ba)):              # each against the truth, not only each other
+        rot, trans = pose_error(estimate, rig["X"])
+        assert rot < 0.1 and trans < 0.005
 
 
 def test_invert_b_undoes_an_inverted_stream(capsys, rig, tmp_path):

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from handeye_cli.errors import HandEyeError
 from handeye_cli.output.report import render_report, world_alignment, write_report
@@ -60,11 +61,17 @@ def _images(text: str) -> list[str]:
     return re.findall(r"<img\b[^>]*\bsrc=['\"]([^'\"]*)['\"]", text)
 
 
-def test_report_is_self_contained_and_states_the_result(report, full_doc):
+def test_report_is_self_contained_and_states_the_result(report, full_doc, rig):
     text = report.read_text(encoding="utf-8")
     assert text.startswith("<!DOCTYPE html>")
     for v in [*full_doc["translation"], *full_doc["quaternion_xyzw"], *np.ravel(full_doc["matrix"])]:
         assert f"{v:.6f}" in text
+    # The stated numbers against the simulation's truth (scipy's quaternion, w ≥ 0), not only the document.
+    X = rig[0]
+    q = Rotation.from_matrix(X[:3, :3]).as_quat()
+    shown = np.array([float(v) for v in re.findall(r"-?\d+\.\d{6}\b", text)])
+    for v in [*X[:3, 3], *(q if q[3] >= 0 else -q)]:
+        assert np.abs(shown - v).min() < 2e-3, v
     assert "dqopt" in text and str(full_doc["pairs_used"]) in text
     assert "2 warning(s)" in text and "second warning" in text
     assert "spread &lt; 0.4° &amp; more" in text                      # escaped, not raw HTML
