@@ -33,8 +33,9 @@ def test_sample_calibrates_to_the_truth(capsys, monkeypatch, command):
     assert code == 0, err
     doc = json.loads(out)
     X, truth = np.array(doc["matrix"]), np.array(TRUTH["matrix"])
-    assert np.rad2deg(se3.rotation_angle(X[:3, :3].T @ truth[:3, :3])) < 0.05
-    assert np.linalg.norm(X[:3, 3] - truth[:3, 3]) < 0.002          # 0.2° / 2 mm pose noise
+    # Measured 0.0091° / 0.40 mm on every sample (0.2° / 2 mm pose noise); the README's figures, within them.
+    assert np.rad2deg(se3.rotation_angle(X[:3, :3].T @ truth[:3, :3])) < 0.015
+    assert np.linalg.norm(X[:3, 3] - truth[:3, 3]) < 0.0005
     assert doc["samples"]["dropped_pose_jump"] >= 3                    # the injected tracking jumps
     if "--frames-a" in argv:
         assert doc["frames"] == {"a": "cam0", "b": "cam1"}
