@@ -14,7 +14,6 @@
 from __future__ import annotations
 
 import argparse
-import itertools
 import sys
 import tempfile
 import time
@@ -54,19 +53,9 @@ def errors(X: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 
 def chains(res, k: int) -> dict[tuple[int, ...], np.ndarray]:
-    from handeye_cli import se3
+    from handeye_cli.rig.graph import chains as chain_transforms
 
-    rel = {(e.j, e.k): e.matrix for e in res.edges}
-    rel.update({(b, a): se3.inverse(X) for (a, b), X in list(rel.items())})
-    others = [i for i in range(1, len(res.names)) if i != k]
-    out = {}
-    for r in range(len(others) + 1):
-        for mid in itertools.permutations(others, r):
-            path, X = (0, *mid, k), np.eye(4)
-            for a, b in itertools.pairwise(path):
-                X = X @ rel[(a, b)]
-            out[path] = X
-    return out
+    return chain_transforms({(e.j, e.k): e.matrix for e in res.edges}, len(res.names), k)
 
 
 def accuracy(seeds: int, gaps: bool) -> None:

@@ -94,11 +94,13 @@ def integer(*, low: int = 0) -> Parser:
 
 
 def choice(*names: str) -> Parser:
+    """Parser of one of ``names`` (case-insensitive); the names also become the flag's click.Choice."""
     def parse(value: Any, where: str) -> str:
         word = _words(value)
         if word not in names:
             raise ConfigError(f"bad value {value!r}", where, f"choose one of {', '.join(names)}")
         return word
+    parse.names = names          # type: ignore[attr-defined]  # read by option() for the click.Choice
     return parse
 
 
@@ -195,10 +197,10 @@ class OptionInfo:
     choices: tuple[str, ...] = ()
 
 
-def option(default: Any, parse: Parser, help: str, metavar: str | None = None,
-           choices: tuple[str, ...] = ()) -> Any:
-    """A dataclass field carrying its :class:`OptionInfo`."""
-    return field(default=default, metadata={"info": OptionInfo(parse, help, metavar, choices)})
+def option(default: Any, parse: Parser, help: str, metavar: str | None = None) -> Any:
+    """A dataclass field carrying its :class:`OptionInfo` (a :func:`choice` parser gives the choices)."""
+    info = OptionInfo(parse, help, metavar, tuple(getattr(parse, "names", ())))
+    return field(default=default, metadata={"info": info})
 
 
 @dataclass(frozen=True)
@@ -206,8 +208,7 @@ class ReadOptions:
     """How the streams are read: time stamps, and streams recorded as ``T_sensor_world``."""
 
     time_source: str = option("header", choice("header", "log"),
-                              "Stamps: header (header.stamp) or log (the recorder's log time).",
-                              choices=("header", "log"))
+                              "Stamps: header (header.stamp) or log (the recorder's log time).")
     invert_a: bool | None = option(None, optional_flag, "Invert stream a first: it records T_sensor_world (e.g. "
                                    "a camera observing a fixed target). Unset: not inverted, and a stream that "
                                    "clearly fits only inverted refuses the result.")
@@ -217,7 +218,7 @@ class ReadOptions:
     wxyz_b: bool = option(False, flag, "Stream b's text file stores quaternions w first.")
     time_unit: str = option("auto", choice("auto", "s", "ms", "us", "ns"), "Unit of the stamps in TUM/CSV files: "
                             "auto picks epoch stamps by magnitude and time since start by the median step, with "
-                            "a warning.", choices=("auto", "s", "ms", "us", "ns"))
+                            "a warning.")
     csv_columns: Mapping[str, str] | None = option(None, columns, "Generic CSV columns: t=COL,x=COL,…,qw=COL "
                                                    "(keys t, t_unit, x, y, z, qx, qy, qz, qw).", "KEY=COL,…")
 
@@ -228,8 +229,7 @@ class SyncOptions:
 
     sync: str = option("auto", choice("auto", "interpolate", "nearest"),
                        "Association: auto (the faster stream interpolated at the slower one's stamps), interpolate "
-                       "(b at a's stamps, linear + SLERP) or nearest (b's closest sample to a's stamps).",
-                       choices=("auto", "interpolate", "nearest"))
+                       "(b at a's stamps, linear + SLERP) or nearest (b's closest sample to a's stamps).")
     max_dt: float | str = option("auto", number(unit="seconds", word="auto"),
                                  "Timestamp gate [s]: a sample is kept only if the interpolated stream's samples it "
                                  "uses are this close; auto: max(0.1 s, 2.5 median steps of that stream).",
@@ -253,8 +253,7 @@ class GateOptions:
 
     gate: str = option("auto", choice("auto", "paper", "off"),
                        "Pose-jump gate: auto (a and b must move alike, at any rate), paper (the paper's per-step "
-                       "limits --max-jump/--max-jump-deg, meant for ~5 Hz streams) or off.",
-                       choices=("auto", "paper", "off"))
+                       "limits --max-jump/--max-jump-deg, meant for ~5 Hz streams) or off.")
     max_jump: float | None = option(0.10, number(unit="metres", word="off"), "Limit of --gate paper: translation [m] "
                                     "between consecutive samples, or off (with --max-jump-deg off: no gate).",
                                     "METRES|off")
@@ -287,7 +286,7 @@ class PairOptions:
     max_pairs: int = option(2000, integer(low=1), "Cap on the number of pairs, spread over the recording.", "N")
     stations: str = option("auto", choice("auto", "off"), "Station captures (sparse poses, or dwells of both "
                            "sensors): auto detects them and pairs the averaged stations all with all, without the "
-                           "pose-jump gate; off treats every capture as continuous tracking.", choices=("auto", "off"))
+                           "pose-jump gate; off treats every capture as continuous tracking.")
     seed: int = option(0, integer(), "Seed of random:N and of the bootstrap.", "N")
 
 
@@ -296,7 +295,7 @@ class SolverOptions:
     """The solver and its cost (paper eqs 8, 26)."""
 
     method: str = option("dqopt", choice(*METHODS), "Solver: dqopt is the global optimum (paper §3.2.1); the others "
-                         "are the paper's approximations and Daniilidis' method.", choices=tuple(METHODS))
+                         "are the paper's approximations and Daniilidis' method.")
     alpha: float | str = option("auto", number(unit="1/m", word="auto"),
                                 "Weight of translational residuals [1/m] (eq 8), or auto (maximum likelihood "
                                 "under the recording's noise model).", "NUMBER|auto")

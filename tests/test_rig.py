@@ -3,7 +3,6 @@ with different rates, noise, drift and clock offsets, loop closures, the bad-str
 the bootstrap and the graph synchronisation."""
 from __future__ import annotations
 
-import itertools
 from dataclasses import replace
 
 import numpy as np
@@ -14,7 +13,7 @@ from handeye_cli import se3
 from handeye_cli.errors import ConfigError
 from handeye_cli.options import Options
 from handeye_cli.rig import RigOptions, calibrate_rig
-from handeye_cli.rig.graph import synchronise
+from handeye_cli.rig.graph import chains, synchronise
 from handeye_cli.rig.simulate import SimSensor, simulate_streams
 from handeye_cli.simulation import _smooth_trajectory, random_transform
 from handeye_cli.streams import PoseStream
@@ -100,17 +99,7 @@ def test_joint_fits_pairs_almost_as_well_as_pairwise_only(noisy_rig) -> None:
 def _chain_errors(res, truth: list[np.ndarray], k: int) -> dict[tuple[int, ...], tuple[float, float]]:
     """Error of every simple chain of pairwise-only results from the reference (0) to sensor k."""
     rel = {(e.j, e.k): e.matrix for e in res.edges}
-    rel.update({(b, a): se3.inverse(X) for (a, b), X in list(rel.items())})
-    others = [i for i in range(1, len(res.names)) if i != k]
-    out = {}
-    for r in range(len(others) + 1):
-        for mid in itertools.permutations(others, r):
-            path = (0, *mid, k)
-            X = np.eye(4)
-            for a, b in itertools.pairwise(path):
-                X = X @ rel[(a, b)]
-            out[path] = pose_error(X, truth[k])
-    return out
+    return {path: pose_error(X, truth[k]) for path, X in chains(rel, len(res.names), k).items()}
 
 
 def test_joint_at_least_as_accurate_as_best_pairwise_chain() -> None:

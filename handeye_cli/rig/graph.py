@@ -15,7 +15,7 @@ frame (``T_ref_ref = I``), consistent by construction: ``T_j_k = T_ref_j⁻¹ T_
 from __future__ import annotations
 
 from dataclasses import dataclass
-from itertools import combinations
+from itertools import combinations, pairwise, permutations
 
 import numpy as np
 from numpy.typing import NDArray
@@ -141,3 +141,20 @@ def consistency(n: int, closures: list[Closure], alpha: float) -> Consistency:
         if keep.any() and large and value * SUSPECT_RATIO <= score and value < best:
             suspect, best = s, value
     return Consistency(score, tuple(without), suspect)
+
+
+def chains(relative: dict[tuple[int, int], Array], n: int, k: int, reference: int = 0) -> dict[tuple[int, ...], Array]:
+    """Every simple chain of pairwise results from ``reference`` to sensor ``k``: the path of
+    sensors → the composed ``T_reference_k``. ``relative[(j, k)]`` is ``T_j_k`` (either direction
+    suffices; the inverse is filled in)."""
+    rel = dict(relative)
+    rel.update({(b, a): se3.inverse(X) for (a, b), X in relative.items() if (b, a) not in relative})
+    others = [i for i in range(n) if i not in (reference, k)]
+    out: dict[tuple[int, ...], Array] = {}
+    for r in range(len(others) + 1):
+        for mid in permutations(others, r):
+            path, X = (reference, *mid, k), np.eye(4)
+            for a, b in pairwise(path):
+                X = X @ rel[(a, b)]
+            out[path] = X
+    return out
