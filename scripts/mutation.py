@@ -45,7 +45,10 @@ class Mutant:
 
 MUTANTS = (
     # The four the issue found alive (issue 12 item 6).
-    Mutant("result quaternion in w-x-y-z order", "handeye_cli/solvers/__init__.py",
+    Mutant("result quaternion in w-x-y-z order", "handeye_cli/output/document.py",
+           "t, q = solution.translation, solution.quaternion_xyzw",
+           "t, q = solution.translation, solution.quaternion_xyzw[[3, 0, 1, 2]]"),
+    Mutant("Solution.quaternion_xyzw in w-x-y-z order", "handeye_cli/solvers/__init__.py",
            "q, _ = dualquat.from_transforms(self.matrix)\n        return q",
            "q, _ = dualquat.from_transforms(self.matrix)\n        return q[[3, 0, 1, 2]]"),
     Mutant("paper gate: degrees passed as radians", "handeye_cli/options.py",
@@ -99,8 +102,7 @@ MUTANTS = (
     Mutant("gates: glitch runs kept (accept_after ignored)", "handeye_cli/stages/gates.py",
            "keep = np.bincount(run)[run] >= accept_after", "keep = np.bincount(run)[run] >= 1"),
     Mutant("paper gate: translation limit ignored", "handeye_cli/stages/gates.py",
-           "return (np.linalg.norm(xyz[j] - xyz[i], axis=1) > max_t) | (",
-           "return (np.linalg.norm(xyz[j] - xyz[i], axis=1) > np.inf) | ("),
+           "(np.linalg.norm(xyz[j] - xyz[i], axis=1) > max_t)", "(np.linalg.norm(xyz[j] - xyz[i], axis=1) > np.inf)"),
     Mutant("paper gate: quaternion sign not folded", "handeye_cli/stages/gates.py",
            'np.abs(np.einsum("ij,ij->i", quat[i], quat[j])) < cos_half)',
            'np.einsum("ij,ij->i", quat[i], quat[j]) < cos_half)'),
