@@ -19,6 +19,7 @@ from scipy.spatial.transform import Rotation
 from handeye_cli.analysis import bootstrap
 from handeye_cli.simulation import Rig, motion_pairs, random_transform, simulate_rig
 from handeye_cli.solvers import solve
+from handeye_cli.stages.sync import associate
 from handeye_cli.stages.timeoffset import estimate_time_offset
 from handeye_cli.streams import PoseStream
 
@@ -130,3 +131,20 @@ def test_time_offset_std_is_calibrated_across_seeds():
         z.append((est.offset_ns - offset) / est.std_ns)
     rms = float(np.sqrt(np.mean(np.square(z))))
     assert 0.5 < rms < 2.0, (rms, z)
+
+
+# 5. The timestamp gate is inclusive: a sample exactly --max-dt from its interpolation samples is kept ------------
+
+def test_timestamp_gate_keeps_a_sample_exactly_at_max_dt():
+    s = 1_000_000_000
+    t0 = 1_700_000_000 * s
+
+    def still(stamps: list[int]) -> PoseStream:
+        n = len(stamps)
+        return PoseStream(np.array(stamps, dtype=np.int64) + t0, np.zeros((n, 3)), np.tile([0.0, 0, 0, 1], (n, 1)))
+
+    b = still([0, s, 2 * s, 4 * s, 5 * s])              # 3 s missing: 2.5 s and 3.5 s lie 1.5 s from one side
+    a = still([s // 2, 9 * s // 4, 5 * s // 2, 7 * s // 2])      # 2.25 s lies 1.75 s from 4 s
+    synced, counts = associate(a, b, method="interpolate", max_dt_ns=3 * s // 2)
+    assert (synced.stamps_ns - t0).tolist() == [s // 2, 5 * s // 2, 7 * s // 2]
+    assert counts["dropped_timestamp_gate"] == 1
