@@ -19,6 +19,7 @@ from scipy.spatial.transform import Rotation
 from handeye_cli.analysis import bootstrap
 from handeye_cli.simulation import Rig, motion_pairs, random_transform, simulate_rig
 from handeye_cli.solvers import solve
+from handeye_cli.stages.gates import paper_gate
 from handeye_cli.stages.sync import associate
 from handeye_cli.stages.timeoffset import estimate_time_offset
 from handeye_cli.streams import PoseStream
@@ -148,3 +149,18 @@ def test_timestamp_gate_keeps_a_sample_exactly_at_max_dt():
     synced, counts = associate(a, b, method="interpolate", max_dt_ns=3 * s // 2)
     assert (synced.stamps_ns - t0).tolist() == [s // 2, 5 * s // 2, 7 * s // 2]
     assert counts["dropped_timestamp_gate"] == 1
+
+
+# 6. A re-localisation behind dropped glitch samples still starts a new tracking segment --------------------------
+
+@pytest.mark.parametrize("shift_m", [0.0, 0.5])
+def test_relocalisation_across_dropped_glitches_starts_a_segment(shift_m):
+    n = 100
+    xyz = np.c_[0.001 * np.arange(n), np.zeros((n, 2))]          # 1 mm per sample
+    xyz[52:, 1] += shift_m                                       # the tracking re-localises by shift_m …
+    xyz[50:52, 2] = [1.0, 2.0]                                   # … behind two glitch samples
+    stream = PoseStream(np.arange(n, dtype=np.int64) * 200_000_000, xyz, np.tile([0.0, 0, 0, 1], (n, 1)))
+    keep, segment, accepted = paper_gate(stream)
+    assert np.flatnonzero(~keep).tolist() == [50, 51]
+    new = int(shift_m > 0)                                       # 0.5 m > 10 cm across the gap: a new segment
+    assert accepted == new and segment[keep].tolist() == [0] * 50 + [new] * 48
