@@ -23,7 +23,8 @@ from .params import apply, flags, options_from_cli, output_options
 __all__ = ["rig"]
 
 # The calibrate options that apply to every pair of a rig (the a/b-specific ones do not).
-RIG_OPTIONS = ("time_source", "csv_columns", "sync", "max_dt", "max_time_offset", "max_jump", "max_jump_deg",
+RIG_OPTIONS = ("time_source", "time_unit", "csv_columns", "sync", "max_dt", "max_time_offset", "gate", "max_jump",
+               "max_jump_deg", "stations",
                "pairs", "min_rotation", "keyframe_rotation", "keyframe_translation", "max_pairs", "seed",
                "method", "alpha", "min_pairs", "robust", "bootstrap", "strict")
 
