@@ -144,7 +144,8 @@ def _kalibr(doc: dict[str, Any], frames: list[Frame]) -> str:
     names = ", ".join(f"frame '{name}' is cam{i}" for i, (name, _) in enumerate(cams))
     head = (f"# {_comment(doc, frames)}\n# Kalibr names: {names}, frame '{imu}' is imu0; "
             "T_cam_imu maps points from imu0 to camN, T_imu_cam is its inverse.\n")
-    return head + yaml.safe_dump(body, sort_keys=False, default_flow_style=None, width=200)
+    text: str = yaml.safe_dump(body, sort_keys=False, default_flow_style=None, width=200)
+    return head + text
 
 
 _WRITERS: dict[str, Callable[[dict[str, Any], list[Frame]], str]] = {
