@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -76,7 +77,7 @@ class PoseStream:
         return len(self.stamps_ns)
 
     @classmethod
-    def from_matrices(cls, stamps_ns: np.ndarray, T: np.ndarray, **kw) -> PoseStream:
+    def from_matrices(cls, stamps_ns: np.ndarray, T: np.ndarray, **kw: Any) -> PoseStream:
         """Build a stream from (N, 4, 4) transforms ``T_frame_child``."""
         xyz, quat = se3.to_xyz_quat(np.asarray(T).reshape(-1, 4, 4))
         return cls(stamps_ns, xyz, quat, **kw)

@@ -120,11 +120,13 @@ FILES = {
     "rig.mcap": {"format": "MCAP (ROS 2 CDR)",
                  "a": side("/cam0/pose", POSE, ("world", "cam0")), "b": side("/cam1/pose", POSE, ("odom", "cam1"))},
     "rig_ros1.bag": {"format": "ROS 1 bag (LZ4 chunks)",
-                     "a": side("/cam0/odom", ODOM, ("world", "cam0")), "b": side("/cam1/pose", POSE_COV, ("odom", "cam1"))},
+                     "a": side("/cam0/odom", ODOM, ("world", "cam0")),
+                     "b": side("/cam1/pose", POSE_COV, ("odom", "cam1"))},
     "rig_ros2": {"format": "ROS 2 bag directory (sqlite3)",
                  "a": side("/cam0/transform", TRANSFORM, None), "b": side("/cam1/odom", ODOM, None)},
     "rig_json.mcap": {"format": "MCAP (Foxglove JSON channels)",
-                      "a": side("/cam0/pose", FOX_POSE, ("world", "cam0")), "b": side("/cam1/pose", FOX_POSES, ("odom", "cam1"))},
+                      "a": side("/cam0/pose", FOX_POSE, ("world", "cam0")),
+                      "b": side("/cam1/pose", FOX_POSES, ("odom", "cam1"))},
 }
 TEXT_FILES = {
     "TUM": ("rig_a.tum", "rig_b.tum"),

@@ -41,9 +41,9 @@ def _quaternion(R: np.ndarray) -> np.ndarray:
         if i == 3:
             q[idx] = [*(skew / s), s / 4]
         else:
-            j, l = (i + 1) % 3, (i + 2) % 3
+            j, n = (i + 1) % 3, (i + 2) % 3
             v = np.empty(3, dtype=R.dtype)
-            v[i], v[j], v[l] = s / 4, (m[j, i] + m[i, j]) / s, (m[l, i] + m[i, l]) / s
+            v[i], v[j], v[n] = s / 4, (m[j, i] + m[i, j]) / s, (m[n, i] + m[i, n]) / s
             q[idx] = [*v, skew[i] / s]
     q /= np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
     return np.where(q[..., 3:] < 0, -q, q)

@@ -13,7 +13,7 @@ from handeye_cli.errors import ConfigError, DataError
 from handeye_cli.simulation import Rig, random_transform
 from handeye_cli.simulation.rates import Jumps, simulate_rates
 from handeye_cli.stages import gates
-from handeye_cli.stages.gates import pose_jump_gate, paper_gate, sync_and_gate
+from handeye_cli.stages.gates import paper_gate, pose_jump_gate, sync_and_gate
 from handeye_cli.stages.pairs import make_pairs
 from handeye_cli.stages.sync import associate
 from handeye_cli.streams import PoseStream

@@ -49,7 +49,8 @@ def test_eye_in_hand(noise):
 
 @pytest.mark.parametrize("noise", [0.0, 1.0])
 def test_eye_to_hand(noise):
-    """Camera fixed, target on the gripper: a = T_base_gripper inverted, b = T_camera_target inverted → T_base_camera."""
+    """Camera fixed, target on the gripper: a = T_base_gripper inverted, b = T_camera_target inverted
+    → T_base_camera."""
     rng = np.random.default_rng(2)
     Y = se3.from_xyz_quat(np.array([1.2, 0.3, 0.9]), np.array([0.6, -0.6, 0.3, 0.4]))      # T_base_camera
     Z = se3.from_xyz_quat(np.array([0.0, 0.0, 0.1]), np.array([0.0, 0.0, 0.0, 1.0]))       # T_gripper_target

@@ -100,7 +100,9 @@ def li(A: Array, B: Array, w: Array) -> tuple[Array, Array]:
 def station_residuals(A: Array, B: Array, X: Array, Y: Array) -> tuple[Array, Array]:
     """Per-station residuals of ``A_i X = Y B_i``: rotation angle [rad] and translation [m] (frame wa)."""
     D = se3.inverse(Y @ B) @ A @ X
-    return se3.rotation_angle(D), np.linalg.norm((A @ X)[:, :3, 3] - (Y @ B)[:, :3, 3], axis=1)
+    angles: Array = np.asarray(se3.rotation_angle(D), dtype=np.float64)
+    distances: Array = np.linalg.norm((A @ X)[:, :3, 3] - (Y @ B)[:, :3, 3], axis=1)
+    return angles, distances
 
 
 def _refine(A: Array, B: Array, X0: Array, Y0: Array, w: Array, alpha: float) -> tuple[Array, Array, float]:

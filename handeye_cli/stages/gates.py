@@ -79,7 +79,9 @@ def _scale(residual: Floats, window: int) -> Floats:
     m = residual.shape[1]
     blocks = max(m // window, 1)
     med = np.median(residual[:, : blocks * (m // blocks)].reshape(3, blocks, -1), axis=2)
-    return np.maximum(med[:, np.minimum(np.arange(m) // (m // blocks), blocks - 1)], np.array(_FLOORS)[:, None])
+    scale: Floats = np.maximum(med[:, np.minimum(np.arange(m) // (m // blocks), blocks - 1)],
+                               np.array(_FLOORS)[:, None])
+    return scale
 
 
 def robust_scores(synced: Synced, window: int = WINDOW) -> Floats:
@@ -87,7 +89,8 @@ def robust_scores(synced: Synced, window: int = WINDOW) -> Floats:
     ``auto`` gate compares with ``THRESHOLD``); for benchmarks and diagnostics."""
     steps = np.arange(len(synced) - 1)
     residual = _residuals(synced, steps, steps + 1)
-    return (residual / _scale(residual, window)).max(axis=0)
+    scores: Floats = (residual / _scale(residual, window)).max(axis=0)
+    return scores
 
 
 def _resolve(broken: Mask, accept_after: int, bridge_breaks: Callable[[Ints, Ints], Mask]
@@ -182,8 +185,9 @@ def paper_gate(stream: PoseStream, *, max_translation_m: float | None = 0.10,
     xyz, quat = stream.xyz, stream.quat_xyzw
 
     def breaks(i: Ints, j: Ints) -> Mask:
-        return (np.linalg.norm(xyz[j] - xyz[i], axis=1) > max_t) | (
+        broken: Mask = (np.linalg.norm(xyz[j] - xyz[i], axis=1) > max_t) | (
             np.abs(np.einsum("ij,ij->i", quat[i], quat[j])) < cos_half)
+        return broken
 
     steps = np.arange(max(len(stream) - 1, 0))
     return _resolve(breaks(steps, steps + 1), accept_after, breaks)

@@ -38,6 +38,7 @@ count) and a refinement on the steps (measured on a 4-minute hand-held rig with 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy import ndimage, optimize, signal
@@ -108,7 +109,8 @@ def _bad_steps(stream: PoseStream) -> np.ndarray:
     rot = Rotation.from_quat(stream.quat_xyzw)
     rate = (rot[:-1].inv() * rot[1:]).magnitude() / np.maximum(dt, 1) * 1e9
     local = ndimage.median_filter(rate, size=11, mode="nearest")
-    return (dt > max(_MAX_GAP_NS, _GAP_STEPS * np.median(dt))) | (rate > 5 * local + 1.0)
+    bad: np.ndarray = (dt > max(_MAX_GAP_NS, _GAP_STEPS * np.median(dt))) | (rate > 5 * local + 1.0)
+    return bad
 
 
 def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float) -> _Signal:
@@ -355,7 +357,7 @@ class _StepRefiner:
     def refine(self, offset_ns: float, span_ns: float) -> tuple[int, float]:
         """(offset [ns], 1-σ [ns]): Brent's method within ±``span_ns`` of ``offset_ns``, first on the
         robust cost, then, without the outlying steps there, on the mean within a tenth of the span."""
-        kw: dict = {"method": "bounded", "options": {"xatol": 1e3}}
+        kw: dict[str, Any] = {"method": "bounded", "options": {"xatol": 1e3}}
         rough = float(optimize.minimize_scalar(self.robust_cost, bounds=(offset_ns - span_ns, offset_ns + span_ns),
                                                **kw).x)
         self.drop_outliers(rough)
