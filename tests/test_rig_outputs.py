@@ -14,6 +14,7 @@ from handeye_cli import se3
 from handeye_cli.cli import main
 from handeye_cli.io.nominal import read_nominal
 from handeye_cli.output.formats import render_format
+from handeye_cli.rig.verdicts import rig_verdicts
 
 RIG4 = ROOT / "sample_data" / "rig4.mcap"
 TRUTH = yaml.safe_load((ROOT / "sample_data" / "rig4_truth.yaml").read_text())
@@ -130,3 +131,18 @@ def test_against_a_nominal_without_the_sensors_is_refused_before_the_work(calibr
     assert code == 2 and out == "" and err.count("\n") == 1
     assert "cam1, lidar, imu not in the nominal" in err and "--stream FRAME=SOURCE" in err
     assert len(calibrated) == n_before
+
+
+def test_rig_verdict_judges_significance_from_the_bootstrap_intervals(rig_doc, tmp_path) -> None:
+    """A nominal 2 cm away is drift when outside the sensor's interval, and only out of tolerance inside a wide one."""
+    nominal = read_nominal(_nominal_urdf(tmp_path / "robot.urdf", moved="lidar"))
+    lidar = next(t for t in rig_doc["transforms"] if t["child"] == "lidar")
+    t = np.array(lidar["translation"])
+    narrow = {"rotation_interval_deg": [[-0.1] * 3, [0.1] * 3], "translation_interval_m": [t - 0.001, t + 0.001]}
+    wide = {"rotation_interval_deg": [[-1.0] * 3, [1.0] * 3], "translation_interval_m": [t - 0.05, t + 0.05]}
+    for spread, drift in ((narrow, True), (wide, False)):
+        doc = {**rig_doc, "uncertainty": {"sensors": {"lidar": {k: np.asarray(v).tolist() for k, v in spread.items()}}}}
+        verdicts = rig_verdicts(doc, nominal, 0.5, 0.01)
+        assert verdicts["lidar"].drift is drift and verdicts["lidar"].translation_out
+        assert verdicts["lidar"].translation_significant is drift
+        assert verdicts["cam1"].rotation_significant is None and not verdicts["cam1"].drift

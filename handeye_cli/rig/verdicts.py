@@ -4,7 +4,8 @@ The sensors' names are the nominal's frame names: sensor k's verdict compares th
 (pose of frame k in the reference's frame, maps points from k to ref; metres) with the nominal's
 chain of fixed transforms from frame ref to frame k (:meth:`handeye_cli.io.nominal.Nominal.transform`),
 by :func:`handeye_cli.analysis.verdict.compare` (rotation angle [deg], translation distance [m]).
-The rig's bootstrap gives standard deviations, not intervals, so significance is not judged here.
+With ``--bootstrap N`` the rig document holds each sensor's 95 % intervals (``uncertainty.sensors.K``),
+and the verdict judges significance from them as ``calibrate --against`` does.
 """
 from __future__ import annotations
 
@@ -36,6 +37,7 @@ def rig_verdicts(doc: dict[str, Any], nominal: Nominal, max_rotation_deg: float,
     frames = transforms_of(doc)
     check_sensor_names([doc["reference"], *(f.child for f in frames)], nominal)
     where = {"source": nominal.source, "kind": nominal.kind}
+    spread = (doc.get("uncertainty") or {}).get("sensors", {})
     return {f.child: compare(f.matrix, nominal.transform(f.parent, f.child), max_rotation_deg, max_translation_m,
-                             nominal=where)
+                             uncertainty=spread.get(f.child), nominal=where)
             for f in frames}
