@@ -62,14 +62,22 @@ def build(path: Path, seconds: float, image_hz: float = 0.0, image_mb: float = 1
 
 
 def run_process(args: list[str]) -> tuple[float, float]:
-    """(wall time [s], peak RSS [MB]) of one fresh process."""
+    """(wall time [s], peak RSS [MB]) of one fresh process; the peak is its VmHWM, polled from
+    /proc while it runs (rusage of reaped children would give the largest child so far)."""
     t0 = time.perf_counter()
     proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
+    peak_kb = 0
+    while proc.poll() is None:
+        try:
+            status = Path(f"/proc/{proc.pid}/status").read_text()
+            peak_kb = max(peak_kb, int(status.split("VmHWM:")[1].split()[0]))
+        except (OSError, IndexError, ValueError):
+            pass
+        time.sleep(0.02)
     seconds = time.perf_counter() - t0
-    if os.waitstatus_to_exitcode(status) != 0:
+    if proc.returncode != 0:
         raise SystemExit(f"{' '.join(args)} failed: {proc.stderr.read().decode()[-2000:] if proc.stderr else ''}")
-    return seconds, usage.ru_maxrss / 1024
+    return seconds, peak_kb / 1024
 
 
 def limit(path: Path) -> tuple[float, float, float]:
@@ -100,7 +108,7 @@ def stage_times(path: Path) -> dict[str, float]:
     a, b = read_streams(StreamSpec(str(path), "/a/pose"), StreamSpec(str(path), "/b/pose"), opts)
     times["read"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    _, pairs, _ = pairs_of(a, b, opts, 0)
+    pairs = pairs_of(a, b, opts, 0)[1]
     times["sync + gates + pairs"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     solve(pairs.A, pairs.B)

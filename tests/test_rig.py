@@ -161,8 +161,13 @@ def test_bootstrap_uncertainty(noisy_rig) -> None:
         assert np.all(u.rotation_std_deg[k] > 0) and np.all(u.translation_std_m[k] > 0)
         rot, trans = pose_error(boot.matrices[k], T[k])
         assert rot < 6 * np.linalg.norm(u.rotation_std_deg[k]) + 0.02
+        lo, hi = u.rotation_interval_deg[k]                       # 95 % bounds of Log(R* R̂ᵀ), around 0
+        assert np.all(lo < 0) and np.all(hi > 0) and np.all(hi - lo < 6 * u.rotation_std_deg[k])
+        lo, hi = u.translation_interval_m[k]                      # 95 % bounds of the translation itself
+        assert np.all(lo < boot.matrices[k][:3, 3]) and np.all(boot.matrices[k][:3, 3] < hi)
     sensors = boot.document()["uncertainty"]["sensors"]
     assert set(sensors) == {"cam1", "lidar", "wheels"}
+    assert np.array(sensors["lidar"]["translation_interval_m"]).shape == (2, 3)
 
 
 def test_inversion_flag_per_stream(noisy_rig) -> None:

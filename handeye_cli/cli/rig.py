@@ -14,16 +14,20 @@ import click
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..analysis.verdict import Verdict
 from ..config import presets
 from ..errors import ConfigError
+from ..io.nominal import read_nominal
 from ..output.writers import check_writable, output_format
-from .common import CONTEXT, StrictFailure, emit
+from .check import verdict_options
+from .common import CONTEXT, Drifted, StrictFailure, emit
 from .params import apply, flags, options_from_cli, output_options
 
 __all__ = ["rig"]
 
 # The calibrate options that apply to every pair of a rig (the a/b-specific ones do not).
-RIG_OPTIONS = ("time_source", "csv_columns", "sync", "max_dt", "max_time_offset", "max_jump", "max_jump_deg",
+RIG_OPTIONS = ("time_source", "time_unit", "csv_columns", "sync", "max_dt", "max_time_offset", "gate", "max_jump",
+               "max_jump_deg", "stations",
                "pairs", "min_rotation", "keyframe_rotation", "keyframe_translation", "max_pairs", "seed",
                "method", "alpha", "min_pairs", "robust", "bootstrap", "strict")
 
@@ -52,6 +56,11 @@ def _summary(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _drift_message(verdicts: dict[str, Verdict]) -> str:
+    """One line naming every drifted sensor and its verdict."""
+    return "; ".join(f"sensor {name} {v.summary()}" for name, v in verdicts.items() if v.drift)
+
+
 @click.command("rig", context_settings=CONTEXT)
 @click.argument("log", required=False)
 @click.option("--stream", "streams", multiple=True, required=True, metavar="NAME=SOURCE",
@@ -67,6 +76,7 @@ def _summary(doc: dict[str, Any]) -> str:
 @apply(flags(*RIG_OPTIONS),
        click.option("--config", "config_file", type=click.Path(), help="YAML file of options applied to every pair."),
        click.option("--preset", type=click.Choice(presets()), help="Preset of options applied to every pair."))
+@verdict_options
 @output_options
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
 def rig(log: str | None, **p: Any) -> None:
@@ -85,21 +95,39 @@ def rig(log: str | None, **p: Any) -> None:
           --stream lidar=/lidar/odom --stream imu=tf:odom,imu_link
       handeye rig log.mcap --stream cam0=/cam0/pose --stream wheels=wheels.tum --reference cam0 \\
           --time-offset wheels=0.05 --bootstrap 200 -o rig.yaml
+      handeye rig log.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose --format urdf -o rig.urdf
+      handeye rig log.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose --against robot.urdf  # exit 1: moved
+
+    With --against NOMINAL (a URDF, launch file, static_transform_publisher lines, a handeye result)
+    every sensor gets a verdict: T_ref_k against the nominal's transform between the frames named as
+    the reference and sensor k; the document lists them under 'verdicts' and the exit code is 1 when
+    any sensor drifted.
     """
     from ..rig import RigOptions, calibrate_rig_files, parse_stream
+    from ..rig.verdicts import check_sensor_names, rig_verdicts
 
     options = options_from_cli(p)
     specs = [parse_stream(s) for s in p["streams"]]
     check_writable(p["output"], "-o")
     fmt = output_format(p["output"], p["fmt"])
+    nominal = read_nominal(p["against"]) if p["against"] else None      # a bad nominal fails before the work
+    if nominal is not None:
+        check_sensor_names([s.name for s in specs], nominal)
     opts = RigOptions(reference=p["reference"], time_offsets=_named(p["offsets"], "--time-offset"),
                       invert=tuple(p["invert"]), block_s=p["block_s"], options=options)
     result = calibrate_rig_files(log, specs, opts, quiet=p["quiet"])
     doc = result.document()
+    verdicts = {} if nominal is None else rig_verdicts(doc, nominal, p["max_rotation_deg"], p["max_translation_m"])
+    if verdicts:
+        doc["verdicts"] = {name: v.as_dict() for name, v in verdicts.items()}
     emit(doc, p["output"], fmt)
     if not p["quiet"]:
         click.echo(_summary(doc), err=True, nl=False)
     for w in doc["warnings"]:
         click.echo(f"warning: {w}", err=True)
+    if any(v.drift for v in verdicts.values()):
+        raise Drifted(_drift_message(verdicts))
+    if verdicts and not p["quiet"]:
+        click.echo(f"every sensor within tolerance of the nominal {p['against']}", err=True)
     if doc["warnings"] and options.analysis.strict:
         raise StrictFailure(f"{len(doc['warnings'])} warning(s) under --strict (the result was still written)")

@@ -1,17 +1,20 @@
-"""The result in the formats ROS users paste in: YAML/JSON, a URDF fixed joint, ROS 1 and ROS 2
-static transform publisher launch files, a ``static_transform_publisher`` command line, Kalibr YAML.
+"""The result in the formats ROS users paste in: YAML/JSON, a URDF, ROS 1 and ROS 2 static transform
+publisher launch files, ``static_transform_publisher`` command lines, Kalibr YAML.
 
-Every writer states ``T_a_b`` — the pose of frame b (``frames.b``) in frame a (``frames.a``),
-mapping points from b to a — with numbers at full precision (``repr``), so reading the output
-back with :func:`handeye_cli.io.nominal.read_nominal` gives the same transform to 1e-9:
+A document states one or more transforms ``T_parent_child`` — the pose of the child frame in the parent
+frame, mapping points from child to parent: a calibrate result its ``T_a_b`` (``matrix``, ``frames``), a
+rig result every ``T_ref_k`` (``transforms``). Every writer takes that list (one entry for a calibrate
+result) and writes the numbers at full precision (``repr``), so reading the output back with
+:func:`handeye_cli.io.nominal.read_nominal` gives the same transforms to 1e-9:
 
-* ``urdf``: ``<joint type="fixed">`` with parent a, child b, ``<origin xyz rpy>`` (rpy: fixed-axis
-  roll x, pitch y, yaw z, ``R = Rz·Ry·Rx`` — accurate to ~1e-9 except within ~1e-4 rad of pitch ±90°);
-* ``ros1-launch``: ``tf2_ros static_transform_publisher`` node, ``args="x y z qx qy qz qw a b"``;
-* ``ros2-launch``: a Python launch file with the node's ``--x … --frame-id a --child-frame-id b``;
-* ``tf-static``: the ``ros2 run tf2_ros static_transform_publisher …`` command line;
-* ``kalibr``: ``cam0.T_cam_imu`` = ``T_a_b`` (a is Kalibr's camera, b its IMU) and
-  ``cam0.T_imu_cam``, the inverse (as OpenVINS names it).
+* ``urdf``: one ``<joint type="fixed">`` per transform, ``<origin xyz rpy>`` (rpy: fixed-axis roll x,
+  pitch y, yaw z, ``R = Rz·Ry·Rx`` — accurate to ~1e-9 except within ~1e-4 rad of pitch ±90°);
+* ``ros1-launch``: one ``tf2_ros static_transform_publisher`` node per transform, ``args="x y z qx qy qz qw
+  parent child"``;
+* ``ros2-launch``: a Python launch file, one node per transform, ``--x … --frame-id P --child-frame-id C``;
+* ``tf-static``: one ``ros2 run tf2_ros static_transform_publisher …`` command line per transform;
+* ``kalibr``: ``camN.T_cam_imu`` and ``camN.T_imu_cam``, its inverse (as OpenVINS names it); for a
+  calibrate result frame a is cam0 and b imu0, for a rig the reference is imu0 and the sensors cam0, cam1…
 
 Quaternions are x-y-z-w, translations metres.
 """
@@ -21,6 +24,7 @@ import json
 import re
 import shlex
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 from xml.sax.saxutils import quoteattr
 
@@ -33,95 +37,128 @@ from .. import __version__, se3
 from ..errors import ConfigError
 from .document import render
 
-__all__ = ["ALL_FORMATS", "render_format"]
+__all__ = ["ALL_FORMATS", "Frame", "render_format", "transforms_of"]
+
+Array = NDArray[np.float64]
 
 
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """One transform a writer states: ``matrix`` = ``T_parent_child`` (4x4, metres)."""
 
-def _parts(doc: dict[str, Any]) -> tuple[NDArray[np.float64], str, str]:
-    """``T_a_b`` and the names of frames a and b."""
+    parent: str
+    child: str
+    matrix: Array
+
+
+def transforms_of(doc: dict[str, Any]) -> list[Frame]:
+    """The transforms a document states: a rig document's ``transforms`` (every ``T_ref_k``, from
+    ``translation`` + ``quaternion_xyzw``), else the single ``T_a_b`` of ``matrix`` and ``frames``."""
+    if "transforms" in doc:
+        return [Frame(str(t["parent"]), str(t["child"]),
+                      se3.from_xyz_quat(np.asarray(t["translation"], dtype=float),
+                                        np.asarray(t["quaternion_xyzw"], dtype=float)))
+                for t in doc["transforms"]]
     frames = doc.get("frames") or {}
-    return np.asarray(doc["matrix"], dtype=float), str(frames.get("a", "a")), str(frames.get("b", "b"))
+    return [Frame(str(frames.get("a", "a")), str(frames.get("b", "b")), np.asarray(doc["matrix"], dtype=float))]
 
 
-def _num(values: NDArray[np.float64]) -> list[str]:
+def _num(values: Array) -> list[str]:
     return [repr(float(v)) for v in values]
 
 
-def _comment(doc: dict[str, Any], a: str, b: str) -> str:
-    return (f"T_{a}_{b}: the pose of frame '{b}' in frame '{a}' (maps points from {b} to {a}); handeye "
-            f"{doc.get('version', __version__)}, method {doc.get('method', '?')}, {doc.get('pairs_used', '?')} pairs")
+def _comment(doc: dict[str, Any], frames: list[Frame]) -> str:
+    head = (f"handeye {doc.get('version', __version__)}, method {doc.get('method', '?')}, "
+            f"{doc.get('pairs_used', '?')} pairs" if "transforms" not in doc else
+            f"handeye {doc.get('version', __version__)} rig, reference {doc.get('reference', frames[0].parent)}")
+    names = ", ".join(f"T_{f.parent}_{f.child}" for f in frames)
+    return f"{names}: the pose of each child frame in its parent frame (maps points from child to parent); {head}"
 
 
-def _node_name(a: str, b: str) -> str:
-    return re.sub(r"\W", "_", f"handeye_{a}_to_{b}")
+def _xml_comment(text: str) -> str:
+    return text.replace("--", "- -")
 
 
-def _xyz_quat(T: NDArray[np.float64]) -> list[str]:
+def _node_name(f: Frame) -> str:
+    return re.sub(r"\W", "_", f"handeye_{f.parent}_to_{f.child}")
+
+
+def _xyz_quat(T: Array) -> list[str]:
     t, q = se3.to_xyz_quat(T)
     return _num(np.r_[t, q])
 
 
-def _flag_args(T: NDArray[np.float64], a: str, b: str) -> list[str]:
+def _flag_args(f: Frame) -> list[str]:
     args = []
-    for flag, value in zip(("x", "y", "z", "qx", "qy", "qz", "qw"), _xyz_quat(T), strict=True):
+    for flag, value in zip(("x", "y", "z", "qx", "qy", "qz", "qw"), _xyz_quat(f.matrix), strict=True):
         args += [f"--{flag}", value]
-    return [*args, "--frame-id", a, "--child-frame-id", b]
+    return [*args, "--frame-id", f.parent, "--child-frame-id", f.child]
 
 
-def _urdf(doc: dict[str, Any]) -> str:
-    T, a, b = _parts(doc)
-    rpy = Rotation.from_matrix(T[:3, :3]).as_euler("xyz")
-    return (f'<?xml version="1.0"?>\n<!-- {_comment(doc, a, b).replace("--", "- -")} -->\n'
-            f'<robot name="handeye_extrinsic">\n  <link name={quoteattr(a)}/>\n  <link name={quoteattr(b)}/>\n'
-            f'  <joint name={quoteattr(f"{a}_to_{b}")} type="fixed">\n'
-            f"    <parent link={quoteattr(a)}/>\n    <child link={quoteattr(b)}/>\n"
-            f'    <origin xyz="{" ".join(_num(T[:3, 3]))}" rpy="{" ".join(_num(rpy))}"/>\n'
-            "  </joint>\n</robot>\n")
+def _urdf(doc: dict[str, Any], frames: list[Frame]) -> str:
+    """One fixed joint per transform; the links in order of appearance (a rig's reference is the root)."""
+    links = "".join(f"  <link name={quoteattr(name)}/>\n"
+                    for name in dict.fromkeys(name for f in frames for name in (f.parent, f.child)))
+    joints = "".join(
+        f"  <joint name={quoteattr(f'{f.parent}_to_{f.child}')} type=\"fixed\">\n"
+        f"    <parent link={quoteattr(f.parent)}/>\n    <child link={quoteattr(f.child)}/>\n"
+        f'    <origin xyz="{" ".join(_num(f.matrix[:3, 3]))}" '
+        f'rpy="{" ".join(_num(Rotation.from_matrix(f.matrix[:3, :3]).as_euler("xyz")))}"/>\n  </joint>\n'
+        for f in frames)
+    return (f'<?xml version="1.0"?>\n<!-- {_xml_comment(_comment(doc, frames))} -->\n'
+            f'<robot name="handeye_extrinsic">\n{links}{joints}</robot>\n')
 
 
-def _ros1_launch(doc: dict[str, Any]) -> str:
-    T, a, b = _parts(doc)
-    args = " ".join([*_xyz_quat(T), a, b])
-    return (f"<launch>\n  <!-- {_comment(doc, a, b).replace('--', '- -')} -->\n"
-            f'  <node pkg="tf2_ros" type="static_transform_publisher" name="{_node_name(a, b)}"\n'
-            f"        args={quoteattr(args)}/>\n</launch>\n")
+def _ros1_launch(doc: dict[str, Any], frames: list[Frame]) -> str:
+    nodes = "".join(f'  <node pkg="tf2_ros" type="static_transform_publisher" name="{_node_name(f)}"\n'
+                    f"        args={quoteattr(' '.join([*_xyz_quat(f.matrix), f.parent, f.child]))}/>\n"
+                    for f in frames)
+    return f"<launch>\n  <!-- {_xml_comment(_comment(doc, frames))} -->\n{nodes}</launch>\n"
 
 
-def _ros2_launch(doc: dict[str, Any]) -> str:
-    T, a, b = _parts(doc)
-    args = ", ".join(json.dumps(v) for v in _flag_args(T, a, b))
-    return (f'"""{_comment(doc, a, b)}."""\nfrom launch import LaunchDescription\n'
+def _ros2_launch(doc: dict[str, Any], frames: list[Frame]) -> str:
+    nodes = "".join("        Node(\n            package=\"tf2_ros\",\n"
+                    "            executable=\"static_transform_publisher\",\n"
+                    f"            name=\"{_node_name(f)}\",\n"
+                    f"            arguments=[{', '.join(json.dumps(v) for v in _flag_args(f))}],\n        ),\n"
+                    for f in frames)
+    return (f'"""{_comment(doc, frames)}."""\nfrom launch import LaunchDescription\n'
             "from launch_ros.actions import Node\n\n\ndef generate_launch_description():\n"
-            "    return LaunchDescription([\n        Node(\n            package=\"tf2_ros\",\n"
-            "            executable=\"static_transform_publisher\",\n"
-            f"            name=\"{_node_name(a, b)}\",\n            arguments=[{args}],\n        ),\n    ])\n")
+            f"    return LaunchDescription([\n{nodes}    ])\n")
 
 
-def _tf_static(doc: dict[str, Any]) -> str:
-    T, a, b = _parts(doc)
-    words = ["ros2", "run", "tf2_ros", "static_transform_publisher", *_flag_args(T, a, b)]
-    return f"# {_comment(doc, a, b)}\n{' '.join(shlex.quote(w) for w in words)}\n"
+def _tf_static(doc: dict[str, Any], frames: list[Frame]) -> str:
+    lines = "".join(" ".join(shlex.quote(w) for w in ["ros2", "run", "tf2_ros", "static_transform_publisher",
+                                                       *_flag_args(f)]) + "\n" for f in frames)
+    return f"# {_comment(doc, frames)}\n{lines}"
 
 
-def _kalibr(doc: dict[str, Any]) -> str:
-    T, a, b = _parts(doc)
-    body = {"cam0": {"T_cam_imu": T.tolist(), "T_imu_cam": se3.inverse(T).tolist()}}
-    head = (f"# {_comment(doc, a, b)}\n# Kalibr names: frame '{a}' is cam0, frame '{b}' is imu0; "
-            "T_cam_imu maps points from imu0 to cam0, T_imu_cam is its inverse.\n")
-    return head + yaml.safe_dump(body, sort_keys=False, default_flow_style=None, width=200)
+def _kalibr(doc: dict[str, Any], frames: list[Frame]) -> str:
+    """Kalibr has one IMU and cameras ``camN`` with ``T_cam_imu`` (and ``T_imu_cam``, its inverse).
+    A single result ``T_a_b``: a is cam0, b is imu0. A rig: the reference is imu0, sensor k is camN
+    (``T_cam_imu`` = ``T_k_ref``)."""
+    rig = "transforms" in doc
+    imu = frames[0].parent if rig else frames[0].child
+    cams = [(f.child, se3.inverse(f.matrix)) if rig else (f.parent, f.matrix) for f in frames]
+    body = {f"cam{i}": {"T_cam_imu": T.tolist(), "T_imu_cam": se3.inverse(T).tolist()} for i, (_, T) in enumerate(cams)}
+    names = ", ".join(f"frame '{name}' is cam{i}" for i, (name, _) in enumerate(cams))
+    head = (f"# {_comment(doc, frames)}\n# Kalibr names: {names}, frame '{imu}' is imu0; "
+            "T_cam_imu maps points from imu0 to camN, T_imu_cam is its inverse.\n")
+    text: str = yaml.safe_dump(body, sort_keys=False, default_flow_style=None, width=200)
+    return head + text
 
 
-_WRITERS: dict[str, Callable[[dict[str, Any]], str]] = {"urdf": _urdf, "ros1-launch": _ros1_launch,
-                                              "ros2-launch": _ros2_launch, "tf-static": _tf_static,
-                                              "kalibr": _kalibr}
+_WRITERS: dict[str, Callable[[dict[str, Any], list[Frame]], str]] = {
+    "urdf": _urdf, "ros1-launch": _ros1_launch, "ros2-launch": _ros2_launch, "tf-static": _tf_static, "kalibr": _kalibr}
 ALL_FORMATS = ("yaml", "json", *_WRITERS)
 
 
 def render_format(doc: dict[str, Any], fmt: str) -> str:
-    """The result document ``doc`` (needs ``matrix`` = ``T_a_b`` and ``frames``) as text in ``fmt``,
-    one of :data:`ALL_FORMATS`. Raises ConfigError for an unknown format."""
+    """The result document as text in ``fmt``, one of :data:`ALL_FORMATS`: a calibrate result (``matrix`` =
+    ``T_a_b`` and ``frames``) or a rig result (``transforms``: every ``T_ref_k``), see :func:`transforms_of`.
+    Raises ConfigError for an unknown format."""
     if fmt in ("yaml", "json"):
         return render(doc, fmt)
     if fmt not in _WRITERS:
         raise ConfigError(f"unknown output format {fmt!r}", "--format", f"use one of {', '.join(ALL_FORMATS)}")
-    return _WRITERS[fmt](doc)
+    return _WRITERS[fmt](doc, transforms_of(doc))

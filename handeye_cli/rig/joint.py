@@ -119,10 +119,15 @@ def refine(problem: JointProblem, T0: Array) -> Array:
 @dataclass(frozen=True, eq=False)
 class RigUncertainty:
     """Bootstrap spread of every ``T_ref_k``: ``rotation_std_deg`` (n, 3) per axis of
-    ``Log(R* R̂ᵀ)`` (frame ref) and ``translation_std_m`` (n, 3); ``replicates``, ``block_s`` [s], ``seed``."""
+    ``Log(R* R̂ᵀ)`` (frame ref) and ``translation_std_m`` (n, 3); ``rotation_interval_deg`` (n, 2, 3)
+    lower/upper 95 % percentile bounds of ``Log(R* R̂ᵀ)`` [deg] and ``translation_interval_m`` (n, 2, 3)
+    those of the translation [m] (as :class:`handeye_cli.analysis.bootstrap.Bootstrap` has them for one
+    extrinsic); ``replicates``, ``block_s`` [s], ``seed``."""
 
     rotation_std_deg: Array
     translation_std_m: Array
+    rotation_interval_deg: Array
+    translation_interval_m: Array
     replicates: int
     block_s: float
     seed: int
@@ -150,4 +155,8 @@ def bootstrap_rig(problem: JointProblem, T_hat: Array, motions: list[Motions],
         T = refine(rep, T_hat)
         rot[r] = Rotation.from_matrix(T[:, :3, :3] @ np.swapaxes(T_hat[:, :3, :3], 1, 2)).as_rotvec(degrees=True)
         trans[r] = T[:, :3, 3] - T_hat[:, :3, 3]
-    return RigUncertainty(rot.std(axis=0, ddof=1), trans.std(axis=0, ddof=1), replicates, block_s, seed)
+    pct = [2.5, 97.5]
+    return RigUncertainty(rot.std(axis=0, ddof=1), trans.std(axis=0, ddof=1),
+                          np.swapaxes(np.percentile(rot, pct, axis=0), 0, 1),
+                          np.swapaxes(np.percentile(trans + T_hat[:, :3, 3], pct, axis=0), 0, 1),
+                          replicates, block_s, seed)

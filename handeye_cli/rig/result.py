@@ -95,7 +95,9 @@ class RigResult:
         return {"method": "block bootstrap over the shared samples, joint re-solve", "replicates": u.replicates,
                 "block_seconds": u.block_s, "seed": u.seed,
                 "sensors": {name: {"rotation_std_deg": u.rotation_std_deg[i].tolist(),
-                                   "translation_std_m": u.translation_std_m[i].tolist()}
+                                   "translation_std_m": u.translation_std_m[i].tolist(),
+                                   "rotation_interval_deg": u.rotation_interval_deg[i].tolist(),
+                                   "translation_interval_m": u.translation_interval_m[i].tolist()}
                             for i, name in enumerate(self.names) if i != self.reference}}
 
     def document(self) -> dict[str, Any]:

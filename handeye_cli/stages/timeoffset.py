@@ -29,7 +29,7 @@ Method
 Slow streams. ω of a stream sampled seconds apart is an interpolation artefact, so the slower
 stream's own steps are used instead (:class:`_StepRefiner`): the rotation vector of its motion
 between consecutive samples equals, through ``R_a_b``, that of the faster stream between the same
-instants. Below 10 Hz the estimate of step 3 is refined on these steps; below 4 Hz steps 1–3 are
+instants. Below ~6.7 Hz the estimate of step 3 is refined on these steps; below 4 Hz steps 1–3 are
 replaced by a scan of every allowed offset (0.25 s grid, median residual, so tracking jumps do not
 count) and a refinement on the steps (measured on a 4-minute hand-held rig with tracking jumps,
 100 Hz against 2–0.5 Hz in both orders: |error| < 0.07 ms, where ω alone erred by 3–90 ms at
@@ -57,7 +57,8 @@ _MIN_OVERLAP = 1 / 3          # least overlap, as a fraction of the shorter sign
 _MAX_GAP_NS = 500_000_000     # data gaps longer than this and than _GAP_STEPS median steps invalidate the grid
 _GAP_STEPS = 2.5              # points across them (a slow stream's every step is not a gap)
 _MIN_SPAN_NS = 2_000_000_000  # shortest stream [ns] whose rotation can be correlated
-_STEP_REFINE_NS = 100_000_000  # a stream slower than 10 Hz: ω estimate refined on its own steps (_StepRefiner)
+_STEP_REFINE_NS = 150_000_000  # slower than ~6.7 Hz: ω estimate refined on its own steps (_StepRefiner); at 10 Hz
+#                               the ω refinement is better (a 10 Hz odometry stream: 22 ms bias on its steps)
 _STEP_SCAN_NS = 250_000_000    # slower than 4 Hz: ω is too coarse to correlate, the steps are scanned instead
 _SCAN_NS = 250_000_000         # grid spacing of that scan [ns]: the robust cost is unimodal within ±this
 _SCAN_STEPS = 200              # steps the scan evaluates (evenly spread)

@@ -1,0 +1,148 @@
+"""``handeye rig`` outputs (URDF, launch files, tf-static lines, Kalibr) and ``--against`` verdicts, through the CLI
+on sample_data/rig4.mcap. The rig is calibrated once; later runs reuse that result (the CLI path is the same)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import yaml
+from _util import ROOT, run
+
+from handeye_cli import rig as rig_module
+from handeye_cli import se3
+from handeye_cli.cli import main
+from handeye_cli.io.nominal import read_nominal
+from handeye_cli.output.formats import render_format
+from handeye_cli.rig.verdicts import rig_verdicts
+
+RIG4 = ROOT / "sample_data" / "rig4.mcap"
+TRUTH = yaml.safe_load((ROOT / "sample_data" / "rig4_truth.yaml").read_text())
+STREAMS = ["--stream", "cam0=/cam0/pose", "--stream", "cam1=/cam1/pose", "--stream", "lidar=/lidar/odom",
+           "--stream", "imu=tf:odom,imu_link"]
+SENSORS = ["cam1", "lidar", "imu"]
+SUFFIX = {"urdf": ".urdf", "ros1-launch": ".launch", "ros2-launch": ".launch.py", "tf-static": ".sh",
+          "kalibr": ".kalibr.yaml"}
+
+
+@pytest.fixture(scope="module")
+def calibrated():
+    """The rig4 calibration, computed once (through the CLI) and returned by every later run."""
+    results = []
+    real = rig_module.calibrate_rig_files
+
+    def once(*args, **kwargs):
+        if not results:
+            results.append(real(*args, **kwargs))
+        return results[0]
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(rig_module, "calibrate_rig_files", once)
+        yield results
+
+
+@pytest.fixture(scope="module")
+def rig_doc(calibrated, tmp_path_factory) -> dict:
+    out = tmp_path_factory.mktemp("rig4") / "rig.json"
+    with pytest.raises(SystemExit) as e:
+        main(["rig", str(RIG4), *STREAMS, "-o", str(out), "-q"])
+    assert e.value.code == 0 and len(calibrated) == 1
+    return json.loads(out.read_text())
+
+
+def _joint(doc: dict) -> dict[str, np.ndarray]:
+    return {t["child"]: se3.from_xyz_quat(np.array(t["translation"]), np.array(t["quaternion_xyzw"]))
+            for t in doc["transforms"]}
+
+
+def _truth() -> dict[str, np.ndarray]:
+    return {s["name"]: se3.from_xyz_quat(np.array(s["translation"]), np.array(s["quaternion_xyzw"]))
+            for s in TRUTH["sensors"]}
+
+
+# Kalibr YAML is chosen by --format only (a .yaml name means the rig document).
+CASES = [(fmt, by_name) for fmt in SUFFIX for by_name in (False, True) if not (by_name and fmt == "kalibr")]
+
+
+@pytest.mark.parametrize(("fmt", "by_name"), CASES)
+def test_every_rig_format_reads_back_to_1e9(rig_doc, tmp_path, capsys, fmt: str, by_name: bool) -> None:
+    """Each format, chosen by --format or by the -o name, holds every T_ref_k (read back as a nominal)."""
+    path = tmp_path / f"rig{SUFFIX[fmt]}"
+    code, out, err = run(capsys, "rig", RIG4, *STREAMS, "-o", path, "-q", *([] if by_name else ["--format", fmt]))
+    assert code == 0 and out == "", err
+    nominal = read_nominal(path)
+    assert nominal.kind == fmt
+    joint = _joint(rig_doc)
+    for i, name in enumerate(SENSORS):
+        N = nominal.transform("imu0", f"cam{i}") if fmt == "kalibr" else nominal.transform("cam0", name)
+        assert np.abs(N - joint[name]).max() < 1e-9, (fmt, name)
+    if fmt == "urdf":       # one fixed joint per sensor, the reference the root link
+        assert {(e.parent, e.child) for e in nominal.edges} == {("cam0", name) for name in SENSORS}
+    if fmt != "kalibr":     # the sensors' chains compose through the reference
+        assert np.abs(nominal.transform("cam1", "imu") - se3.inverse(joint["cam1"]) @ joint["imu"]).max() < 1e-9
+
+
+def _nominal_urdf(path, moved: str | None = None) -> str:
+    """The truth as a URDF hanging every sensor from a base_link (so cam0 → k is a chain of two joints);
+    sensor ``moved`` shifted 2 cm along its x axis."""
+    T_base_cam0 = se3.from_xyz_quat(np.array([0.3, -0.1, 0.8]), np.array([0.1, 0.2, -0.3, 0.9]))
+    transforms = []
+    for name, T in _truth().items():
+        if name == moved:
+            T = T @ se3.from_xyz_quat(np.array([0.02, 0.0, 0.0]), np.array([0.0, 0.0, 0.0, 1.0]))
+        t, q = se3.to_xyz_quat(T_base_cam0 @ T)
+        transforms.append({"parent": "base_link", "child": name, "translation": t.tolist(),
+                           "quaternion_xyzw": q.tolist()})
+    path.write_text(render_format({"transforms": transforms, "reference": "base_link"}, "urdf"))
+    return str(path)
+
+
+TOLERANCE = ["--max-rotation-deg", "0.5", "--max-translation-m", "0.01"]
+
+
+def test_against_the_true_rig_exits_0(rig_doc, tmp_path, capsys) -> None:
+    nominal = _nominal_urdf(tmp_path / "robot.urdf")
+    code, out, err = run(capsys, "rig", RIG4, *STREAMS, "--against", nominal, *TOLERANCE, "--format", "json")
+    assert code == 0, err
+    verdicts = json.loads(out)["verdicts"]
+    assert set(verdicts) == set(SENSORS)
+    for name, v in verdicts.items():
+        assert not v["drift"] and v["translation_m"] < 0.01 and v["rotation_deg"] < 0.5, (name, v)
+        assert v["nominal"]["kind"] == "urdf" and v["max_translation_m"] == 0.01
+    assert "within tolerance" in err
+
+
+def test_a_sensor_moved_2cm_exits_1_and_is_named(rig_doc, tmp_path, capsys) -> None:
+    nominal = _nominal_urdf(tmp_path / "robot.urdf", moved="lidar")
+    result = tmp_path / "rig.yaml"
+    code, out, err = run(capsys, "rig", RIG4, *STREAMS, "--against", nominal, *TOLERANCE, "-o", result, "-q")
+    assert code == 1 and out == ""
+    assert err.startswith("drift: sensor lidar DRIFT") and "cam1" not in err and "sensor imu" not in err
+    verdicts = yaml.safe_load(result.read_text())["verdicts"]       # the result is still written
+    assert [name for name, v in verdicts.items() if v["drift"]] == ["lidar"]
+    assert 0.015 < verdicts["lidar"]["translation_m"] < 0.025 and verdicts["lidar"]["translation_out_of_tolerance"]
+
+
+def test_against_a_nominal_without_the_sensors_is_refused_before_the_work(calibrated, tmp_path, capsys) -> None:
+    path = tmp_path / "other.urdf"
+    path.write_text(render_format({"matrix": np.eye(4).tolist(), "frames": {"a": "base", "b": "cam0"}}, "urdf"))
+    n_before = len(calibrated)
+    code, out, err = run(capsys, "rig", RIG4, *STREAMS, "--against", path)
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert "cam1, lidar, imu not in the nominal" in err and "--stream FRAME=SOURCE" in err
+    assert len(calibrated) == n_before
+
+
+def test_rig_verdict_judges_significance_from_the_bootstrap_intervals(rig_doc, tmp_path) -> None:
+    """A nominal 2 cm away is drift when outside the sensor's interval, and only out of tolerance inside a wide one."""
+    nominal = read_nominal(_nominal_urdf(tmp_path / "robot.urdf", moved="lidar"))
+    lidar = next(t for t in rig_doc["transforms"] if t["child"] == "lidar")
+    t = np.array(lidar["translation"])
+    narrow = {"rotation_interval_deg": [[-0.1] * 3, [0.1] * 3], "translation_interval_m": [t - 0.001, t + 0.001]}
+    wide = {"rotation_interval_deg": [[-1.0] * 3, [1.0] * 3], "translation_interval_m": [t - 0.05, t + 0.05]}
+    for spread, drift in ((narrow, True), (wide, False)):
+        doc = {**rig_doc, "uncertainty": {"sensors": {"lidar": {k: np.asarray(v).tolist() for k, v in spread.items()}}}}
+        verdicts = rig_verdicts(doc, nominal, 0.5, 0.01)
+        assert verdicts["lidar"].drift is drift and verdicts["lidar"].translation_out
+        assert verdicts["lidar"].translation_significant is drift
+        assert verdicts["cam1"].rotation_significant is None and not verdicts["cam1"].drift
