@@ -17,7 +17,7 @@ from handeye_cli.simulation import Rig, motion_pairs, random_transform, simulate
 def test_version_and_help(capsys):
     code, out, _ = run(capsys, "--version")
     assert code == 0 and "0.1.0" in out
-    for cmd in ("solve", "calibrate", "inspect"):
+    for cmd in ("solve", "calibrate", "inspect", "batch", "check", "report", "rig", "compare"):
         code, out, _ = run(capsys, cmd, "--help")
         assert code == 0 and "Example" in out and f"handeye {cmd}" in out
 
