@@ -108,7 +108,7 @@ def stage_times(path: Path) -> dict[str, float]:
     a, b = read_streams(StreamSpec(str(path), "/a/pose"), StreamSpec(str(path), "/b/pose"), opts)
     times["read"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    pairs = pairs_of(a, b, opts, 0)[1]
+    pairs = pairs_of(a, b, opts, 0, None)[1]
     times["sync + gates + pairs"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     solve(pairs.A, pairs.B)

@@ -192,15 +192,17 @@ def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, d
     return int(round(float(value) * 1e9)), {"seconds": float(value), "method": "fixed"}, []
 
 
-def _prior(options: Options) -> Prior | None:
+def read_prior(options: Options) -> Prior | None:
+    """The prior of the options (``prior`` file, ``prior_weights``: paper eq 26), or None."""
     s = options.solver
     return None if s.prior is None else Prior(read_extrinsic(s.prior), *s.prior_weights)
 
 
-def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options,
-             offset_ns: int) -> tuple[Synced, Pairs, SampleCounts, Stations | None, Selection | None]:
+def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options, offset_ns: int,
+             prior: Prior | None) -> tuple[Synced, Pairs, SampleCounts, Stations | None, Selection | None]:
     """Sync, gates and pair formation: (kept samples, pairs, counts of every stage, stations, and for
-    the ``auto`` strategy the selection: weights, α and noise model).
+    the ``auto`` strategy the selection: weights, α and noise model). ``prior`` is the options'
+    prior, read once by the caller (:func:`read_prior`).
 
     A station capture (see :mod:`~handeye_cli.stages.stations`) skips sync and the pose-jump gate:
     its averaged stations are the samples, paired all with all."""
@@ -220,7 +222,7 @@ def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options,
         strategy, stage_counts = p.pairs, [gate_counts]
     selection = None
     if strategy == "auto":
-        selection = select_pairs(kept, max_pairs=p.max_pairs, method=options.solver.method, prior=_prior(options))
+        selection = select_pairs(kept, max_pairs=p.max_pairs, method=options.solver.method, prior=prior)
         pairs, pair_counts = selection.pairs, selection.counts(len(kept))
     else:
         pairs, pair_counts = make_pairs(kept, strategy, keyframe_rotation_rad=np.deg2rad(p.keyframe_rotation),
@@ -300,8 +302,8 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
         stream_b = replace(stream_b, xyz=stream_b.xyz * float(opts.solver.scale))
     offset_ns, offset_report, offset_warnings = _time_offset(stream_a, stream_b, opts)
     warnings = [*stream_a.warnings, *stream_b.warnings, *offset_warnings]       # readers' warnings name their file
-    kept, pairs, samples, stations, selection = pairs_of(stream_a, stream_b, opts, offset_ns)
-    prior = _prior(opts)
+    prior = read_prior(opts)                                   # the prior file is read once
+    kept, pairs, samples, stations, selection = pairs_of(stream_a, stream_b, opts, offset_ns, prior)
     diagnostics: dict[str, Any] = {"time_offset": offset_report}
     if stations is not None:
         diagnostics["stations"] = stations.as_dict()

@@ -7,10 +7,10 @@ import click
 
 from ..analysis.alpha import noise_model_alpha
 from ..config import load_options
-from ..io.pairfile import read_extrinsic, read_pairs
+from ..io.pairfile import read_pairs
 from ..output.document import result_document
 from ..output.writers import check_writable, output_format
-from ..solvers import Prior
+from ..pipeline import read_prior
 from ..solvers import solve as solve_pairs
 from .common import CONTEXT, emit
 from .params import flags, output_options
@@ -32,11 +32,12 @@ def solve(pairs_file: str, output: str | None, fmt: str | None, **given: Any) ->
     Example:
       handeye solve sample_data/pairs.csv --method dqopt --alpha 1
     """
-    s = load_options(**given).solver
+    options = load_options(**given)
+    s = options.solver
     check_writable(output, "-o")
     fmt = output_format(output, fmt)
     A, B, weights = read_pairs(pairs_file)
-    prior = None if s.prior is None else Prior(read_extrinsic(s.prior), *s.prior_weights)
+    prior = read_prior(options)
     alpha = (noise_model_alpha(A, B, prior=prior, weights=weights).alpha if s.alpha == "auto"
              else float(s.alpha))          # auto: ML under a noise model fitted to the pairs' residuals
     sol = solve_pairs(A, B, method=s.method, alpha=alpha, prior=prior, weights=weights)
