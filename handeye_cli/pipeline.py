@@ -34,7 +34,7 @@ from .analysis.alpha import noise_model_alpha
 from .analysis.diagnosis import data_warning, too_few_pairs
 from .analysis.inversion import InversionVerdict, check_inversion
 from .config import load_options
-from .errors import ConfigError
+from .errors import ConfigError, HandEyeError
 from .io.pairfile import read_extrinsic
 from .options import Options, ReadOptions
 from .output.document import result_document
@@ -195,7 +195,13 @@ def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, d
 def read_prior(options: Options) -> Prior | None:
     """The prior of the options (``prior`` file, ``prior_weights``: paper eq 26), or None."""
     s = options.solver
-    return None if s.prior is None else Prior(read_extrinsic(s.prior), *s.prior_weights)
+    if s.prior is None:
+        return None
+    try:
+        T = read_extrinsic(s.prior)
+    except HandEyeError as e:                 # name the flag that chose the file
+        raise type(e)(e.what, e.where, f"{e.fix} given with --prior" if e.fix else "check --prior") from None
+    return Prior(T, *s.prior_weights)
 
 
 def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options, offset_ns: int,
