@@ -27,16 +27,31 @@ def test_noise_free_pairs_give_the_exact_scale():
     assert pose_error(est.matrix, X)[1] < 1e-9
 
 
-def test_scale_of_an_arm_capture_within_0_1_percent_and_its_std():
-    c = simulate_arm(15, seed=4)                   # dwelling stations, 1 mm / 0.1° camera noise
+def _arm_scale(seed: int, dh_error: float):
+    c = simulate_arm(15, seed=seed, dh_error=dh_error)   # dwelling stations, 1 mm / 0.1° camera noise
     b = monocular(c.camera.inverted(), SCALE)
     st = detect_stations(c.robot, b)
     pairs, _ = make_pairs(st.synced, "all")
-    est = solve_with_scale(pairs.A, pairs.B, samples=(pairs.i, pairs.j))
+    return c, solve_with_scale(pairs.A, pairs.B, samples=(pairs.i, pairs.j))
+
+
+def test_scale_of_an_arm_capture_within_0_1_percent_and_its_std():
+    c, est = _arm_scale(4, 1.0)                    # with the simulation's kinematic (DH) errors
     assert abs(est.scale / SCALE - 1) < 1e-3
     assert abs(est.scale - SCALE) < 4 * est.scale_std and est.scale_std < 1e-3 * SCALE   # honest and small
     rot, trans = pose_error(est.matrix, c.truth)
     assert rot < 0.05 and trans < 0.002
+
+
+def test_scale_std_matches_the_spread_over_captures():
+    """Exact kinematics: every capture's scale within 0.1 % and within 3 of its own std; the errors'
+    RMS in stds near 1 (the jackknife over stations, not the pairs-as-independent figure)."""
+    z = []
+    for seed in range(5):
+        _, est = _arm_scale(seed, 0.0)
+        assert abs(est.scale / SCALE - 1) < 1e-3
+        z.append((est.scale - SCALE) / est.scale_std)
+    assert np.all(np.abs(z) < 3) and 0.3 < np.sqrt(np.mean(np.square(z))) < 1.7, z
 
 
 def test_no_translation_cannot_determine_a_scale():
