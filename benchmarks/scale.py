@@ -14,7 +14,10 @@ interleaved). For each log it prints, all measured in this run:
 * in-process stage timers (read, sync, gate, pairs, solve) of the default pipeline;
 * the ratio of the longest to the shortest log's calibrate time, beside the ratio of their lengths.
 
-    python benchmarks/scale.py [--minutes 10 60] [--image-seconds 80 --image-hz 20 --image-mb 1]
+    python benchmarks/scale.py [--minutes 10 60] [--image-seconds 80 --image-hz 20 --image-mb 1] [--keep DIR]
+
+``--keep DIR`` builds the logs in DIR and keeps them: a later run with the same DIR and the same
+lengths reuses them (the name of each log holds its parameters).
 """
 from __future__ import annotations
 
@@ -37,7 +40,7 @@ DIAGNOSTICS = ["--bootstrap", "200", "--robust", "--alpha", "auto"]
 
 def build(path: Path, seconds: float, image_hz: float = 0.0, image_mb: float = 1.0) -> None:
     """A rig log: /a/pose 100 Hz, /b/pose 30 Hz (PoseStamped), /tf 100 Hz, optional images."""
-    from _logs import POSE, ROS2_STORE, Channel, pose_channel, records, write_mcap
+    from _logs import POSE, image_channel, pose_channel, records, write_mcap
 
     from handeye_cli import se3
     from handeye_cli.simulation import Rig, simulate_rig
@@ -49,16 +52,18 @@ def build(path: Path, seconds: float, image_hz: float = 0.0, image_mb: float = 1
                 pose_channel("/b/pose", POSE, records(b, "odom", "")),
                 pose_channel("/tf", "tf2_msgs/msg/TFMessage", records(a, "world", "base_link"))]
     if image_hz:
-        T = ROS2_STORE.types
-        n_bytes = int(image_mb * 1e6)
-        image = T["sensor_msgs/msg/Image"](
-            header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id="cam"),
-            height=1000, width=n_bytes // 1000, encoding="mono8", is_bigendian=0, step=n_bytes // 1000,
-            data=np.random.default_rng(0).integers(0, 255, n_bytes // 1000 * 1000, dtype=np.uint8))
-        raw = bytes(ROS2_STORE.serialize_cdr(image, "sensor_msgs/msg/Image"))
-        t = np.arange(a.stamps_ns[0], a.stamps_ns[-1], int(1e9 / image_hz), dtype=np.int64)
-        channels.append(Channel("/camera/image", "sensor_msgs/msg/Image", [(int(ti), raw) for ti in t]))
+        channels.append(image_channel("/camera/image", int(a.stamps_ns[0]), int(a.stamps_ns[-1]), image_hz,
+                                      int(image_mb * 1e6)))
     write_mcap(path, channels, chunk_size=4 * 1024 * 1024)
+
+
+def built(path: Path, seconds: float, image_hz: float = 0.0, image_mb: float = 1.0) -> None:
+    """:func:`build` unless ``path`` exists (a kept log); written beside it, then renamed, so an
+    interrupted build leaves no log to reuse."""
+    if not path.exists():
+        part = path.with_suffix(".part")
+        build(part, seconds, image_hz, image_mb)
+        part.rename(path)
 
 
 def run_process(args: list[str]) -> tuple[float, float]:
@@ -139,19 +144,22 @@ def main() -> None:
     ap.add_argument("--image-seconds", type=float, default=80.0)
     ap.add_argument("--image-hz", type=float, default=20.0)
     ap.add_argument("--image-mb", type=float, default=1.0)
+    ap.add_argument("--keep", type=Path, help="build the logs here, keep them and reuse the ones already there")
     args = ap.parse_args()
     print(f"python {sys.version.split()[0]}, {os.cpu_count()} cores")
     times = {}
     with tempfile.TemporaryDirectory(prefix="handeye-scale-") as tmp:
-        d = Path(tmp)
+        d = args.keep or Path(tmp)
+        d.mkdir(parents=True, exist_ok=True)
         for minutes in args.minutes:
             path = d / f"poses_{minutes:g}min.mcap"
-            build(path, 60 * minutes)
+            built(path, 60 * minutes)
             times[minutes] = measure(path, f"{minutes:g}-min pose log (100 + 30 Hz PoseStamped, /tf 100 Hz)", d)
-            path.unlink()
+            if not args.keep:
+                path.unlink()
         if args.image_seconds > 0:
-            path = d / "images.mcap"
-            build(path, args.image_seconds, args.image_hz, args.image_mb)
+            path = d / f"images_{args.image_seconds:g}s_{args.image_hz:g}hz_{args.image_mb:g}mb.mcap"
+            built(path, args.image_seconds, args.image_hz, args.image_mb)
             measure(path, f"{args.image_seconds:g}-s log with {args.image_hz:g} Hz images of {args.image_mb:g} MB", d)
     if len(times) > 1:
         lo, hi = min(times), max(times)
