@@ -79,11 +79,20 @@ class Run(NamedTuple):
     rss: float
 
 
+def measured_code() -> Path:
+    """The checkout whose handeye_cli this process imports (PYTHONPATH, else the installed one)."""
+    import handeye_cli
+
+    return Path(handeye_cli.__file__).resolve().parent.parent
+
+
 def run_process(args: list[str]) -> Run:
-    """One fresh process; the peak is its VmHWM, polled from /proc while it runs (rusage of reaped
-    children would give the largest child so far); the CPU time is its own rusage (wait4)."""
+    """One fresh process, run in the checkout of :func:`measured_code` so that it imports the same
+    handeye_cli as this one (``python -m`` puts the working directory first on the path); the peak
+    is its VmHWM, polled from /proc while it runs (rusage of reaped children would give the largest
+    child so far); the CPU time is its own rusage (wait4)."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=measured_code())
     peak_kb = 0
     while True:
         pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
@@ -177,10 +186,10 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=2, help="runs of each timing, the fastest kept")
     ap.add_argument("--keep", type=Path, help="build the logs here, keep them and reuse the ones already there")
     args = ap.parse_args()
-    print(f"python {sys.version.split()[0]}, {os.cpu_count()} cores")
+    print(f"python {sys.version.split()[0]}, {os.cpu_count()} cores, handeye_cli of {measured_code()}")
     times = {}
     with tempfile.TemporaryDirectory(prefix="handeye-scale-") as tmp:
-        d = args.keep or Path(tmp)
+        d = (args.keep or Path(tmp)).resolve()
         d.mkdir(parents=True, exist_ok=True)
         for minutes in args.minutes:
             path = d / f"poses_{minutes:g}min.mcap"
