@@ -39,7 +39,7 @@ FAST_TYPES = frozenset(t for t, s in SPECS.items() if s.cdr_child is not None) |
     t for t, (_, element) in LISTS.items() if SPECS[element].cdr_child)
 _U64 = struct.Struct("<Q")
 _MSG_HEADER = 31        # opcode 1 + length 8 + channel 2 + sequence 4 + log time 8 + publish time 8
-_BATCH = 1 << 16        # messages of a topic decoded together: fewer numpy calls, bounded temporaries
+_BATCH = 1 << 13        # messages of a topic decoded together: few numpy calls, small temporaries
 
 
 class _Decline(Exception):
