@@ -74,6 +74,25 @@ def pose_channel(topic: str, msgtype: str, recs: Sequence[Record], log_offset_ns
     return Channel(topic, msgtype, [(r[0] + log_offset_ns, [r]) for r in recs])
 
 
+def image_channel(topic: str, start_ns: int, end_ns: int, rate_hz: float, n_bytes: int, *,
+                  distinct: bool = False) -> Channel:
+    """``sensor_msgs/msg/Image`` (mono8, 1000 bytes a row) of ``n_bytes`` [B] of random pixels
+    every 1/``rate_hz`` [s] in [start_ns, end_ns) [ns]: one image repeated, or ``distinct`` ones."""
+    T, rng, width = ROS2_STORE.types, np.random.default_rng(0), 1000
+    rows = max(n_bytes // width, 1)
+
+    def image() -> bytes:
+        msg = T["sensor_msgs/msg/Image"](
+            header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id="cam"),
+            height=rows, width=width, encoding="mono8", is_bigendian=0, step=width,
+            data=rng.integers(0, 255, rows * width, dtype=np.uint8))
+        return bytes(ROS2_STORE.serialize_cdr(msg, "sensor_msgs/msg/Image"))
+
+    stamps = np.arange(start_ns, end_ns, int(1e9 / rate_hz), dtype=np.int64)
+    same = None if distinct else image()
+    return Channel(topic, "sensor_msgs/msg/Image", [(int(t), same or image()) for t in stamps])
+
+
 # --- message construction -------------------------------------------------------------------
 def ros_message(store: Typestore, msgtype: str, recs: Sequence[Record]) -> Any:
     """A rosbags message object of ``msgtype`` (ROS_POSE_TYPES) holding ``recs``."""

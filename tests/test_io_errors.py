@@ -117,9 +117,11 @@ def test_truncated_json_mcap(tmp_path, recs):
     fails(lambda: read_stream(path, topic="/p"), "cannot read file", "j.mcap", "mcap recover")
 
 
-@pytest.mark.parametrize("compression", ["zstd", "lz4"])
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
 @pytest.mark.parametrize("msgtype", [POSE, "foxglove.PoseInFrame"])
 def test_corrupt_chunk(tmp_path, compression, msgtype):
+    """Bytes flipped inside a chunk whose wanted messages run to its end: its CRC (or the
+    decompressor) catches it, whichever path reads it."""
     a, _ = simulate_rig(Rig(np.eye(4)), duration_s=20.0, rate_a=30.0, seed=5)
     path = write_mcap(tmp_path / "c.mcap", [pose_channel("/p", msgtype, records(a))], compression=compression,
                       chunk_size=20_000)

@@ -14,6 +14,7 @@ from _logs import (
     TF,
     TRANSFORM,
     Channel,
+    image_channel,
     pose_channel,
     records,
     write_mcap,
@@ -85,19 +86,65 @@ def test_every_pose_type(tmp_path, rig, msgtype, time_source):
 
 
 def test_chunk_decompressed_only_as_far_as_needed(tmp_path, rig, monkeypatch):
-    """/early ends early in the (only) chunk: the zstd stream stops after its last message."""
+    """/early ends early in the (only) chunk: the zstd stream stops after its last message, and
+    the reader never holds more of the chunk than that."""
     import handeye_cli.io.mcap_fast as mcap_fast
     a, b = rig
     early = records(a, "w", "")[: len(a) // 6]
     path = write_mcap(tmp_path / "e.mcap", [pose_channel("/early", POSE, early),
                                             pose_channel("/all", POSE, records(b, "w", ""))])
-    lengths = []
-    real = mcap_fast._chunk_data
-    monkeypatch.setattr(mcap_fast, "_chunk_data", lambda f, index, last: lengths.append(
-        (len(out := real(f, index, last)), index.uncompressed_size)) or out)
+    held = []
+    real = mcap_fast._Chunks.read
+
+    def read(self, index, wanted):
+        out = real(self, index, wanted)
+        held.append((len(out[1]), len(self._raw), index.uncompressed_size))
+        return out
+
+    monkeypatch.setattr(mcap_fast._Chunks, "read", read)
     (fast,), (slow,) = both_paths(path, [("/early", None)])
     assert_identical(fast, slow)
-    assert len(fast) == len(early) and lengths and all(n < total * 0.6 for n, total in lengths)
+    assert len(fast) == len(early) and held and all(max(n, buf) < total * 0.6 for n, buf, total in held)
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+@pytest.mark.parametrize("image_bytes, distinct", [(20_000, False), (60_000, True)])
+def test_image_heavy_log(tmp_path, rig, compression, image_bytes, distinct):
+    """Poses, /tf and images interleaved, chunks of 50 kB that each end in an image: 20 kB images
+    (the last pose about 2/3 into its chunk: zstd decompresses the whole frame in one pass) or 60 kB
+    ones (a chunk is a few poses and one image: zstd streams only through the last pose). Both
+    paths agree on every pose topic and TF pair, with header stamps and with log times."""
+    a, b = rig
+    path = write_mcap(tmp_path / "i.mcap", [
+        pose_channel("/a/pose", POSE, records(a, "world", "")), pose_channel("/b/pose", POSE, records(b, "odom", "")),
+        pose_channel("/tf", TF, records(a, "world", "base_link")),
+        image_channel("/camera/image", int(a.stamps_ns[0]), int(a.stamps_ns[-1]), 20.0, image_bytes,
+                      distinct=distinct)], compression=compression, chunk_size=50_000)
+    requests = [("/a/pose", None), ("/b/pose", None), (None, ("world", "base_link"))]
+    for time_source in ("header", "log"):
+        for fast, slow in zip(*both_paths(path, requests, time_source), strict=True):
+            assert len(fast) >= len(b)
+            assert_identical(fast, slow)
+
+
+@pytest.mark.parametrize("msgtype", [POSE, ODOM, TF])
+def test_decoded_in_batches(tmp_path, rig, msgtype, monkeypatch):
+    """Batches smaller than a chunk (and ending inside one), frame ids of varying length: the
+    same arrays as one batch (which test_frame_ids_of_varying_length compares with the generic reader)."""
+    import handeye_cli.io.mcap_fast as mcap_fast
+    recs = [(r[0], "m" * (1 + i % 2), "c" * (1 + i % 3), *r[3:]) for i, r in enumerate(records(rig[0]))]
+    path = write_mcap(tmp_path / "b.mcap", [pose_channel("/p", msgtype, recs[:40]),
+                                            pose_channel("/q", msgtype, recs[40:])], chunk_size=3000)
+    with McapSource(path) as src:
+        whole = src.read_fast(["/p", "/q"], "header")
+        monkeypatch.setattr(mcap_fast, "_BATCH", 7)
+        batched = src.read_fast(["/p", "/q"], "header")
+    assert set(whole) == set(batched) == {"/p", "/q"}
+    for topic, poses in whole.items():
+        np.testing.assert_array_equal(poses.stamps, batched[topic].stamps)
+        np.testing.assert_array_equal(poses.values, batched[topic].values)
+        np.testing.assert_array_equal(poses.pair, batched[topic].pair)
+        assert poses.pair_names == batched[topic].pair_names and len(poses.pair_names) == (2 if msgtype == POSE else 6)
 
 
 @pytest.mark.parametrize("msgtype", [POSE, ODOM])

@@ -1,6 +1,7 @@
 """Shared reader plumbing: turning decoder failures into HandEyeErrors, building a PoseStream."""
 from __future__ import annotations
 
+import functools
 import importlib
 import json
 import struct
@@ -11,16 +12,11 @@ from typing import Any
 
 import numpy as np
 from mcap.exceptions import McapError
-from rosbags.highlevel import AnyReaderError
-from rosbags.rosbag1 import ReaderError as Bag1ReaderError
-from rosbags.rosbag2 import ReaderError as Bag2ReaderError
-from rosbags.serde import SerdeError
-from rosbags.typesys import TypesysError
 
 from ..errors import DataError, HandEyeError, ReadError
 from ..streams import PoseStream
 
-__all__ = ["DECODE_ERRORS", "unreadable", "PoseBuffer", "make_stream"]
+__all__ = ["decode_errors", "unreadable", "PoseBuffer", "make_stream"]
 
 
 def _optional_error(module: str) -> tuple[type[BaseException], ...]:
@@ -32,14 +28,22 @@ def _optional_error(module: str) -> tuple[type[BaseException], ...]:
         return ()
 
 
-_ZSTD_ERRORS = sum(map(_optional_error, ("zstandard", "compression.zstd", "backports.zstd")), ())
+@functools.cache
+def decode_errors() -> tuple[type[BaseException], ...]:
+    """What mcap, rosbags, json and the decoders raise on truncated or corrupt input (lz4 raises a
+    bare RuntimeError on a corrupt chunk). A function, so that rosbags is imported by the readers
+    that use it or on the way to an error, not by every run (an MCAP read by the fast path never
+    needs it; importing it costs about 0.05 s of CPU)."""
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Bag1ReaderError
+    from rosbags.rosbag2 import ReaderError as Bag2ReaderError
+    from rosbags.serde import SerdeError
+    from rosbags.typesys import TypesysError
 
-DECODE_ERRORS: tuple[type[BaseException], ...] = (
-    McapError, struct.error, OSError, EOFError, AnyReaderError, Bag1ReaderError, Bag2ReaderError,
-    SerdeError, TypesysError, KeyError, IndexError, UnicodeDecodeError, json.JSONDecodeError,
-    RuntimeError, *_ZSTD_ERRORS)
-"""What mcap, rosbags, json and the decoders raise on truncated or corrupt input (lz4 raises a
-bare RuntimeError on a corrupt chunk)."""
+    zstd_errors = sum(map(_optional_error, ("zstandard", "compression.zstd", "backports.zstd")), ())
+    return (McapError, struct.error, OSError, EOFError, AnyReaderError, Bag1ReaderError, Bag2ReaderError,
+            SerdeError, TypesysError, KeyError, IndexError, UnicodeDecodeError, json.JSONDecodeError,
+            RuntimeError, *zstd_errors)
 
 
 @contextmanager
@@ -50,7 +54,7 @@ def unreadable(where: str, fix: str = "check that the file is complete and of a 
         yield
     except HandEyeError:
         raise
-    except DECODE_ERRORS as exc:
+    except decode_errors() as exc:
         detail = str(exc) or type(exc).__name__
         raise ReadError(f"cannot read file: {type(exc).__name__}: {detail}", where, fix) from exc
 

@@ -2,8 +2,9 @@
 
 For each chunk (from the summary's ChunkIndex records) holding a wanted channel: its MessageIndex
 records give the offsets of the wanted messages inside the uncompressed chunk; the chunk is
-decompressed (``zstandard`` streaming, stopping after the last wanted message; ``lz4``; or
-none) and the messages' CDR payloads are decoded at computed offsets, vectorised over the chunk:
+decompressed only through the last wanted message (zstd; lz4 and uncompressed chunks whole) —
+see :class:`_Chunks` — and the wanted messages' CDR payloads are copied out. Each topic's payloads
+are decoded :data:`_BATCH` messages at a time at computed offsets, vectorised:
 ``PoseStamped``, ``PoseWithCovarianceStamped`` (header, then 7 doubles), ``TransformStamped``,
 ``Odometry`` (header, child_frame_id, 7 doubles) and ``TFMessage`` (a sequence of
 TransformStamped, handled one element index at a time). Strings (frame ids) vary in length, so
@@ -17,6 +18,7 @@ encapsulation header.
 """
 from __future__ import annotations
 
+import contextlib
 import struct
 import zlib
 from collections.abc import Sequence
@@ -35,13 +37,16 @@ __all__ = ["FastPoses", "FastTopics", "read_fast", "FAST_TYPES"]
 
 FAST_TYPES = frozenset(t for t, s in SPECS.items() if s.cdr_child is not None) | frozenset(
     t for t, (_, element) in LISTS.items() if SPECS[element].cdr_child)
-_R = {n: np.arange(n) for n in (4, 56)}
 _U64 = struct.Struct("<Q")
 _MSG_HEADER = 31        # opcode 1 + length 8 + channel 2 + sequence 4 + log time 8 + publish time 8
+_BATCH = 1 << 13        # messages of a topic decoded together: few numpy calls, small temporaries
 
 
 class _Decline(Exception):
     """The fast path cannot decode this exactly; the generic reader takes over."""
+
+
+_UNDECODABLE = (_Decline, IndexError, ValueError)    # a topic's payloads are not what the layout says
 
 
 @dataclass(frozen=True)
@@ -74,12 +79,19 @@ FastTopics = dict[str, FastPoses]
 
 
 # --- CDR at computed offsets ------------------------------------------------------------------
+def _at(u: NDArray[np.uint8], at: NDArray[np.int64], n: int) -> NDArray[np.uint8]:
+    """The ``n`` bytes at each offset ``at`` as rows (N, n) (IndexError past the end of ``u``):
+    indexes rows of a strided view of every n-byte window, not N x n bytes one by one."""
+    windows: NDArray[np.uint8] = np.ndarray((len(u) - n + 1, n), np.uint8, u, 0, (1, 1))
+    return windows[at]
+
+
 def _u32(u: NDArray[np.uint8], at: NDArray[np.int64]) -> NDArray[np.int64]:
-    return np.asarray(u[at[:, None] + _R[4]].view("<u4")[:, 0], dtype=np.int64)
+    return np.asarray(_at(u, at, 4).view("<u4")[:, 0], dtype=np.int64)
 
 
 def _i32(u: NDArray[np.uint8], at: NDArray[np.int64]) -> NDArray[np.int64]:
-    return np.asarray(u[at[:, None] + _R[4]].view("<i4")[:, 0], dtype=np.int64)
+    return np.asarray(_at(u, at, 4).view("<i4")[:, 0], dtype=np.int64)
 
 
 def _align(pos: NDArray[np.int64], base: NDArray[np.int64], k: int) -> NDArray[np.int64]:
@@ -116,7 +128,7 @@ def _transform(u: NDArray[np.uint8], at: NDArray[np.int64], base: NDArray[np.int
         cs, cl, pos = _string(u, _align(pos, base, 4), end)
     pos = _align(pos, base, 8)
     _check(pos + 56, end)
-    values = u[pos[:, None] + _R[56]].view("<f8")
+    values = _at(u, pos, 56).view("<f8")
     return stamp, fs, fl, cs, cl, values, pos + 56
 
 
@@ -145,7 +157,7 @@ def _names(u: NDArray[np.uint8], start: Ints, length: Ints) -> tuple[NDArray[np.
         return np.zeros(len(start), np.intp), [""]
     cols = np.arange(width)
     if (length == width).all():         # the usual case: one frame id throughout, checked byte by byte
-        mat = u[start[:, None] + cols]
+        mat = _at(u, start, width)
         if (mat == mat[0]).all():
             try:
                 return np.zeros(len(start), np.intp), [bytes(mat[0]).decode()]
@@ -160,7 +172,7 @@ def _names(u: NDArray[np.uint8], start: Ints, length: Ints) -> tuple[NDArray[np.
 
 
 # --- chunks and message indexes ---------------------------------------------------------------
-def _message_index(blob: bytes, wanted: set[int]) -> list[tuple[int, NDArray[np.uint64]]]:
+def _message_index(blob: memoryview, wanted: set[int]) -> list[tuple[int, NDArray[np.uint64]]]:
     """(channel id, (log_time, offset) pairs) of the MessageIndex records in ``blob`` for ``wanted``."""
     out, i = [], 0
     while i + 9 <= len(blob):
@@ -175,58 +187,150 @@ def _message_index(blob: bytes, wanted: set[int]) -> list[tuple[int, NDArray[np.
     return out
 
 
-def _read_to(reader: Any, size: int, raw: bytes) -> bytes:
-    """``raw`` extended from the streaming ``reader`` to at least ``size`` bytes (fewer at the end)."""
-    while len(raw) < size:
-        more = reader.read(size - len(raw))
-        if not more:
-            break
-        raw += more
-    return raw
+class _Chunks:
+    """Chunk records of one open file, read into buffers reused from chunk to chunk: memory holds
+    one compressed chunk and its decompressed records through the last wanted message, whatever
+    the file's size.
 
+    Chunk record: opcode 0x06, uint64 length, start / end time, uint64 uncompressed size, uint32
+    CRC of the uncompressed records, compression string, uint64 size of the records, the records;
+    its MessageIndex records follow it directly. A zstd frame cannot be entered in the middle, so
+    the prefix through the last wanted message is the least to decompress; what follows it
+    (typically images) is decompressed only where doing the whole frame in one pass is cheaper
+    (:meth:`_zstd`). The CRC covers the whole chunk: it is checked when the wanted messages run to
+    the chunk's end, and not otherwise, where it would cost decompressing and hashing every byte
+    of the other topics (more than all the rest of the read on an image-heavy log; ``mcap``'s
+    reader checks no CRC by default). A damaged zstd or lz4 stream usually fails to decompress,
+    which leaves the file to the generic reader.
+    """
 
-def _chunk_data(f: Any, index: Any, last: int) -> NDArray[np.uint8]:
-    """The uncompressed records of the chunk at ``index``, at least through the message record at
-    offset ``last``. A zstd chunk whose wanted messages end early is decompressed only that far
-    (streaming); otherwise the whole chunk is decompressed and its CRC checked."""
-    f.seek(index.chunk_start_offset + 9 + 8 + 8 + 8)
-    crc = int.from_bytes(f.read(4), "little")
-    n = int.from_bytes(f.read(4), "little")
-    compression = f.read(n).decode()
-    size = int.from_bytes(f.read(8), "little")
-    data = f.read(size)
-    total = index.uncompressed_size
-    if len(data) != size:
-        raise _Decline("chunk cut off")
-    if compression == "zstd" and last < total // 2:
-        with zstandard.ZstdDecompressor().stream_reader(data) as r:
-            raw = _read_to(r, last + 9, b"")
-            if len(raw) < last + 9:
-                raise _Decline("index beyond chunk")
-            return np.frombuffer(_read_to(r, last + 9 + _U64.unpack_from(raw, last + 1)[0], raw), np.uint8)
-    if compression == "":
-        raw = data
-    elif compression == "zstd":
-        raw = zstandard.ZstdDecompressor().decompress(data, max_output_size=total)
-    elif compression == "lz4":
-        raw = lz4.frame.decompress(data)
-    else:
-        raise _Decline(f"compression {compression!r}")
-    if crc and zlib.crc32(raw) != crc:
-        raise _Decline("chunk CRC mismatch")
-    return np.frombuffer(raw, np.uint8)
+    def __init__(self, f: Any) -> None:
+        self._f = f
+        self._record = bytearray()      # chunk record + its message index, as in the file
+        self._raw = bytearray()         # decompressed zstd records
+
+    @staticmethod
+    def _grown(buf: bytearray, size: int, keep: int = 0) -> bytearray:
+        """``buf``, or a new buffer of ``size`` bytes [B] holding its first ``keep`` bytes if it is smaller."""
+        if len(buf) >= size:
+            return buf
+        new = bytearray(size)
+        new[:keep] = memoryview(buf)[:keep]
+        return new
+
+    def read(self, index: Any, wanted: set[int]) -> tuple[list[tuple[int, NDArray[np.uint64]]], NDArray[np.uint8]]:
+        """(MessageIndex entries of the ``wanted`` channels, the chunk's uncompressed records through
+        its last wanted message) of the chunk at ``index``; ``[]`` and no records if none is wanted.
+        The records are a view of a reused buffer, valid until the next call."""
+        size = index.chunk_length + index.message_index_length
+        self._record = self._grown(self._record, size)
+        view = memoryview(self._record)[:size]
+        self._f.seek(index.chunk_start_offset)
+        if self._f.readinto(view) != size:
+            raise _Decline("chunk cut off")
+        entries = _message_index(view[index.chunk_length:], wanted)
+        if not entries:
+            return [], np.zeros(0, np.uint8)
+        if view[0] != 0x06:
+            raise _Decline("chunk index does not point at a chunk")
+        crc = int.from_bytes(view[33:37], "little")
+        n = int.from_bytes(view[37:41], "little")
+        compression = bytes(view[41:41 + n]).decode()
+        data = view[49 + n:49 + n + _U64.unpack_from(view, 41 + n)[0]]
+        last = max(int(e[:, 1].max()) for _, e in entries)
+        if compression == "zstd":
+            raw = self._zstd(data, last, index.uncompressed_size)
+        elif compression == "lz4":
+            raw = memoryview(lz4.frame.decompress(data))
+        elif compression == "":
+            raw = data
+        else:
+            raise _Decline(f"compression {compression!r}")
+        if len(raw) < last + 9:
+            raise _Decline("message index beyond the chunk's records")
+        stop = last + 9 + _U64.unpack_from(raw, last + 1)[0]
+        if stop > len(raw):
+            raise _Decline("message beyond the chunk's records")
+        if stop == index.uncompressed_size and crc and zlib.crc32(raw[:stop]) != crc:
+            raise _Decline("chunk CRC mismatch")
+        return entries, np.frombuffer(raw[:stop], np.uint8)
+
+    def _zstd(self, data: memoryview, last: int, total: int) -> memoryview:
+        """The decompressed records of the zstd frame ``data`` (``total`` bytes [B] uncompressed)
+        through the message record at offset ``last`` [B] (all of them if the frame ends first).
+
+        A record in the first half of the frame is streamed to; one in the second half has the
+        whole frame decompressed in one pass instead: zstd then writes straight into the buffer,
+        not through its window buffer, which is faster per byte (twice as fast on repetitive data
+        such as the images of benchmarks/scale.py), so the whole beats a prefix of over half.
+        """
+        with zstandard.ZstdDecompressor().stream_reader(data, read_size=len(data)) as reader:
+            if 2 * last >= total:
+                self._raw = self._grown(self._raw, total)
+                return memoryview(self._raw)[:self._fill(reader, 0, total)]
+            self._raw = self._grown(self._raw, last + _MSG_HEADER)
+            done = self._fill(reader, 0, last + 9)
+            if done == last + 9:
+                stop = last + 9 + _U64.unpack_from(self._raw, last + 1)[0]
+                self._raw = self._grown(self._raw, stop, done)
+                done = self._fill(reader, done, stop)
+        return memoryview(self._raw)[:done]
+
+    def _fill(self, reader: Any, start: int, stop: int) -> int:
+        """Decompressed bytes ``[start, stop)`` read from ``reader`` into the buffer; the offset
+        reached [B] (``stop``, or less at the end of the frame)."""
+        view = memoryview(self._raw)
+        while start < stop and (got := reader.readinto(view[start:stop])):
+            start += got
+        return start
 
 
 class _Collect:
-    """One topic's decoded chunks, joined at the end; (frame, child) pairs numbered across chunks."""
+    """One topic: its messages' CDR payloads, gathered from chunk after chunk and decoded
+    :data:`_BATCH` at a time; (frame, child) pairs numbered across batches."""
 
-    def __init__(self) -> None:
-        self.stamps: list[NDArray[np.int64]] = []
+    def __init__(self, msgtype: str, log: bool) -> None:
+        self.msgtype, self.log = msgtype, log
+        self.payloads: list[NDArray[np.uint8]] = []     # gathered, not yet decoded
+        self.starts: list[Ints] = []                    # payload offsets in their concatenation [B]
+        self.ends: list[Ints] = []
+        self.times: list[Ints] = []                     # log times [ns]
+        self.queued, self.queued_bytes = 0, 0
+        self.stamps: list[Ints] = []
         self.values: list[NDArray[np.float64]] = []
         self.pairs: list[NDArray[np.intp]] = []
         self.names: dict[tuple[str, str], int] = {}
 
-    def add(self, u: NDArray[np.uint8], parts: list[tuple[Any, ...]], log_times: NDArray[np.int64], log: bool) -> None:
+    def feed(self, u: NDArray[np.uint8], off: Ints, log_times: Ints) -> None:
+        """Queue the payloads of the Message records at offsets ``off`` [B] (ascending) of ``u``."""
+        if (off + _MSG_HEADER > len(u)).any() or (u[off] != 0x05).any():
+            raise _Decline("message index does not point at messages")
+        n = _at(u, off + 1, 8).view("<u8")[:, 0].astype(np.int64) - (_MSG_HEADER - 9)
+        if (n < 4).any() or (off + _MSG_HEADER + n > len(u)).any():
+            raise _Decline("message record shorter than its header or past its chunk")
+        first = np.cumsum(n) - n                # where each payload goes among the gathered bytes
+        if (n == n[0]).all():                   # the usual case: one frame id throughout
+            gathered = _at(u, off + _MSG_HEADER, int(n[0])).ravel()
+        else:
+            gathered = u[np.repeat(off + _MSG_HEADER - first, n) + np.arange(int(n.sum()))]
+        self.payloads.append(gathered)
+        self.starts.append(self.queued_bytes + first)
+        self.ends.append(self.queued_bytes + first + n)
+        self.times.append(log_times)
+        self.queued += len(off)
+        self.queued_bytes += len(gathered)
+        if self.queued >= _BATCH:
+            self.decode()
+
+    def decode(self) -> None:
+        """Decode the queued payloads."""
+        if not self.queued:
+            return
+        u = np.concatenate(self.payloads)
+        log_times = np.concatenate(self.times)
+        parts = _decode(u, np.concatenate(self.starts), np.concatenate(self.ends), self.msgtype)
+        self.payloads, self.starts, self.ends, self.times = [], [], [], []
+        self.queued = self.queued_bytes = 0
         msg = np.concatenate([p[0] for p in parts])
         elem = np.concatenate([np.full(len(p[0]), k) for k, p in enumerate(parts)])
         order = np.lexsort((elem, msg))          # message order, then element order within a message
@@ -237,10 +341,11 @@ class _Collect:
         local = [self.names.setdefault((fnames[a], cnames[b]), len(self.names))
                  for a, b in zip(*np.divmod(np.arange(len(fnames) * len(cnames)), len(cnames)), strict=True)]
         self.pairs.append(np.asarray(local, np.intp)[fcode * len(cnames) + ccode])
-        self.stamps.append(log_times[msg[order]] if log else stamp)
+        self.stamps.append(log_times[msg[order]] if self.log else stamp)
         self.values.append(values)
 
     def result(self) -> FastPoses:
+        self.decode()
         pair = np.concatenate(self.pairs)
         ids, first = np.unique(pair, return_index=True)
         used = ids[np.argsort(first)].tolist()             # pairs in order of first appearance
@@ -258,35 +363,29 @@ def read_fast(path: Path, chunks: Sequence[Any], channels: dict[int, tuple[str, 
     wanted = {cid: tt for cid, tt in channels.items() if tt[1] in FAST_TYPES}
     types = {topic: {t for tp, t in wanted.values() if tp == topic} for topic, _ in wanted.values()}
     wanted = {cid: tt for cid, tt in wanted.items() if len(types[tt[0]]) == 1}
+    msgtypes = dict(wanted.values())
     collect: dict[str, _Collect] = {}
     declined: set[str] = set()
     with open(path, "rb") as f:
+        chunk_reader = _Chunks(f)
         for index in chunks:
             cids = set(index.message_index_offsets) & set(wanted)
             if not cids:
                 continue
-            f.seek(index.chunk_start_offset + index.chunk_length)
             try:
-                entries = _message_index(f.read(index.message_index_length), cids)
-                if not entries:
-                    continue
-                u = _chunk_data(f, index, max(int(e[:, 1].max()) for _, e in entries))
+                entries, u = chunk_reader.read(index, cids)
             except (_Decline, zstandard.ZstdError, RuntimeError, struct.error, ValueError):
                 return {}
             for topic in {wanted[c][0] for c, _ in entries} - declined:
                 rows = np.concatenate([e for c, e in entries if wanted[c][0] == topic])
-                rows = rows[np.argsort(rows[:, 1], kind="stable")]
-                off = rows[:, 1].astype(np.int64)
+                rows = rows[np.argsort(rows[:, 1], kind="stable")].astype(np.int64)
                 try:
-                    if (off + _MSG_HEADER > len(u)).any() or (u[off] != 0x05).any():
-                        raise _Decline("message index does not point at messages")
-                    length = u[off[:, None] + np.arange(1, 9)].view("<u8")[:, 0].astype(np.int64)
-                    end = off + 9 + length
-                    _check(end, np.full_like(end, len(u)))
-                    parts = _decode(u, off + _MSG_HEADER, end, wanted[next(iter(
-                        c for c in cids if wanted[c][0] == topic))][1])
-                    collect.setdefault(topic, _Collect()).add(u, parts, rows[:, 0].astype(np.int64), log_time)
-                except (_Decline, IndexError):
+                    collect.setdefault(topic, _Collect(msgtypes[topic], log_time)).feed(u, rows[:, 1], rows[:, 0])
+                except _UNDECODABLE:
                     declined.add(topic)
-                    collect.pop(topic, None)
-    return {topic: c.result() for topic, c in collect.items() if topic not in declined}
+                    del collect[topic]
+    out = {}
+    for topic, c in collect.items():
+        with contextlib.suppress(*_UNDECODABLE):
+            out[topic] = c.result()
+    return out

@@ -20,21 +20,22 @@ import json
 from collections import Counter
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import lz4.frame  # type: ignore[import-untyped]
 import zstandard
 from mcap.reader import make_reader
 from mcap.records import Channel, Footer, Message, Schema
 from mcap.stream_reader import StreamReader
-from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
 
 from ..errors import ReadError
-from .common import DECODE_ERRORS, unreadable
+from .common import decode_errors, unreadable
 from .mcap_fast import FastTopics, read_fast
 from .messages import normalize_type, pose_decoder
-from .rosbag_reader import BagSource
 from .source import Decoder, TopicInfo
+
+if TYPE_CHECKING:
+    from .rosbag_reader import BagSource
 
 __all__ = ["McapSource"]
 
@@ -67,7 +68,7 @@ class McapSource:
                 reader = make_reader(f)
                 profile = reader.get_header().profile
                 summary = reader.get_summary()
-        except DECODE_ERRORS:
+        except decode_errors():
             summary = None
         if summary is not None and summary.statistics is not None:
             self._schemas, self._channels = summary.schemas, summary.channels
@@ -93,7 +94,7 @@ class McapSource:
                     if isinstance(record, Footer):
                         return
                     end_of_last = f.tell()
-            except DECODE_ERRORS:
+            except decode_errors():
                 self.truncated = True
                 f.seek(end_of_last)
                 yield from _salvage_chunk(f.read())
@@ -153,6 +154,8 @@ class McapSource:
             return read_fast(self._path, self._chunks, wanted, log_time=time_source == "log")
 
     def _decoder(self, channel: Any) -> Decoder:
+        from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
+
         schema = self._schemas.get(channel.schema_id)
         name = self._schema_name(channel)
         enc = channel.message_encoding
@@ -175,6 +178,8 @@ class McapSource:
 
     def read(self, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes, Decoder]]:
         if self._ros2 and self._bag is None:
+            from .rosbag_reader import BagSource
+
             try:
                 self._bag = BagSource([self._path], "mcap")
             except ReadError:        # e.g. a schema rosbags cannot parse: use mcap below
@@ -210,5 +215,5 @@ def _salvage_chunk(tail: bytes) -> Iterator[Any]:
         elif compression:
             return
         yield from StreamReader(io.BytesIO(data), skip_magic=True).records
-    except DECODE_ERRORS:
+    except decode_errors():
         return

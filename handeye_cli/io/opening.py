@@ -18,8 +18,6 @@ import yaml
 
 from ..errors import ReadError
 from .mcap_reader import McapSource
-from .rosbag1_scan import Bag1Scan
-from .rosbag_reader import BagSource
 from .source import LogSource
 
 __all__ = ["open_log"]
@@ -70,12 +68,16 @@ def open_log(paths: list[Path], fmts: list[str]) -> Iterator[LogSource]:
     src: LogSource
     if fmt == "mcap":
         src = McapSource(path)
-    elif fmt == "rosbag1" and len(paths) == 1:
-        try:
-            src = BagSource(paths, fmt)
-        except ReadError as exc:
-            src = Bag1Scan(path, exc.what.removeprefix("cannot read file: "))
-    else:
-        src = BagSource([path] if fmt == "rosbag2" else paths, fmt)
+    else:           # rosbags, imported only here: an MCAP read by the fast path does without it
+        from .rosbag1_scan import Bag1Scan
+        from .rosbag_reader import BagSource
+
+        if fmt == "rosbag1" and len(paths) == 1:
+            try:
+                src = BagSource(paths, fmt)
+            except ReadError as exc:
+                src = Bag1Scan(path, exc.what.removeprefix("cannot read file: "))
+        else:
+            src = BagSource([path] if fmt == "rosbag2" else paths, fmt)
     with src:
         yield _with_note(src, note)

@@ -18,14 +18,14 @@ from rosbags.rosbag1.reader import Header, ReaderError, RecordType, decompressor
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from ..errors import ReadError
-from .common import DECODE_ERRORS
+from .common import decode_errors
 from .messages import normalize_type, pose_decoder
 from .source import Decoder, TopicInfo
 
 __all__ = ["Bag1Scan"]
 
 _MAGIC = b"#ROSBAG V2.0\n"
-_ERRORS: tuple[type[BaseException], ...] = (ReaderError, KeyError, *DECODE_ERRORS)
+_ERRORS: tuple[type[BaseException], ...] = (ReaderError, KeyError, *decode_errors())
 
 
 class Bag1Scan:
