@@ -14,7 +14,10 @@ interleaved). For each log it prints, all measured in this run:
 * in-process stage timers (read, sync, gate, pairs, solve) of the default pipeline;
 * the ratio of the longest to the shortest log's calibrate time, beside the ratio of their lengths.
 
-    python benchmarks/scale.py [--minutes 10 60] [--image-seconds 80 --image-hz 20 --image-mb 1]
+    python benchmarks/scale.py [--minutes 10 60] [--image-seconds 80 --image-hz 20 --image-mb 1] [--keep DIR]
+
+``--keep DIR`` builds the logs in DIR and keeps them; a later run with the same DIR reuses each
+log already there (its name says its length, rates and image settings) instead of building it.
 """
 from __future__ import annotations
 
@@ -139,19 +142,32 @@ def main() -> None:
     ap.add_argument("--image-seconds", type=float, default=80.0)
     ap.add_argument("--image-hz", type=float, default=20.0)
     ap.add_argument("--image-mb", type=float, default=1.0)
+    ap.add_argument("--keep", type=Path, metavar="DIR", help="build the logs in DIR, keep them, and reuse those there")
     args = ap.parse_args()
     print(f"python {sys.version.split()[0]}, {os.cpu_count()} cores")
     times = {}
     with tempfile.TemporaryDirectory(prefix="handeye-scale-") as tmp:
         d = Path(tmp)
+        logs = d if args.keep is None else args.keep
+        logs.mkdir(parents=True, exist_ok=True)
+
+        def log(name: str, seconds: float, *image: float) -> Path:
+            """The log ``name`` in the logs' directory, built unless kept from an earlier run."""
+            path = logs / name
+            if not path.exists():
+                part = path.with_name(name + ".part")        # an interrupted build leaves no log to reuse
+                build(part, seconds, *image)
+                part.replace(path)
+            return path
+
         for minutes in args.minutes:
-            path = d / f"poses_{minutes:g}min.mcap"
-            build(path, 60 * minutes)
+            path = log(f"poses_{minutes:g}min.mcap", 60 * minutes)
             times[minutes] = measure(path, f"{minutes:g}-min pose log (100 + 30 Hz PoseStamped, /tf 100 Hz)", d)
-            path.unlink()
+            if args.keep is None:
+                path.unlink()
         if args.image_seconds > 0:
-            path = d / "images.mcap"
-            build(path, args.image_seconds, args.image_hz, args.image_mb)
+            path = log(f"images_{args.image_seconds:g}s_{args.image_hz:g}hz_{args.image_mb:g}mb.mcap",
+                       args.image_seconds, args.image_hz, args.image_mb)
             measure(path, f"{args.image_seconds:g}-s log with {args.image_hz:g} Hz images of {args.image_mb:g} MB", d)
     if len(times) > 1:
         lo, hi = min(times), max(times)
