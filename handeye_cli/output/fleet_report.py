@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation
 
 from .. import __version__
 from ..errors import ReadError
-from .report import _CSS, _SCRIPT, _esc, _figure, _new_figure
+from .report import _CSS, _SCRIPT, _esc, _figure, _subplots
 from .writers import check_writable, write_output
 
 __all__ = ["read_records", "render_fleet_report", "write_fleet_report"]
@@ -77,8 +77,7 @@ def _pair_figure(name: str, records: list[dict[str, Any]]) -> str:
     times = [_when(r) for r in records]
     rot, trans, has_nominal = _deviations(records)
     drift = np.array([r["status"] == "drift" for r in records])
-    fig = _new_figure(10, 5.6)
-    axes = fig.subplots(2, 1, sharex=True)
+    fig, axes = _subplots(10, 5.6, 2, 1, margins=(0.8, 0.15, 1.1, 0.15), gaps=(0.0, 0.15), sharex=True)
     verdict = next((r["verdict"] for r in records if "verdict" in r), None)
     limits = (verdict["max_rotation_deg"], verdict["max_translation_m"] * 1000) if verdict else (None, None)
     for ax, values, unit, limit in zip(axes, (rot, trans), ("rotation deviation [deg]", "translation deviation [mm]"),
@@ -94,7 +93,7 @@ def _pair_figure(name: str, records: list[dict[str, Any]]) -> str:
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left", fontsize=8, ncol=6)
     axes[1].set_xlabel("log start (UTC)")
-    fig.autofmt_xdate()
+    fig.autofmt_xdate(bottom=fig.subplotpars.bottom)          # rotate the dates, keep the margin
     return _figure(fig, f"extrinsic of {name} over time", f"{_esc(name)}: {len(records)} log(s); deviation from the "
                    f"{'nominal, tolerance band in green' if has_nominal else 'median result (no nominal given)'}; "
                    "drifted logs marked by red lines.")

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .. import __version__, se3
+from .. import __version__
 from .._typing import BoolArray, FloatArray, IntArray
 from ..analysis.residuals import pair_residuals
 from ..errors import HandEyeError
@@ -135,21 +135,35 @@ def _table(value: Any) -> str:
 
 
 def _figure(fig: Figure, alt: str, caption: str) -> str:
-    """Render a matplotlib figure to a base64 PNG ``<figure>``."""
+    """Render a matplotlib figure to a base64 PNG ``<figure>`` (zlib level 3: smaller than the
+    default 6 on these plots, and faster)."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI)
+    fig.savefig(buf, format="png", dpi=DPI, pil_kwargs={"compress_level": 3})
     data = base64.b64encode(buf.getvalue()).decode("ascii")
     return (f"<figure><img alt='{_esc(alt)}' src='data:image/png;base64,{data}'>"
             f"<figcaption>{caption}</figcaption></figure>")
 
 
-def _new_figure(width: float, height: float) -> Figure:
+def _subplots(width: float, height: float, nrows: int, ncols: int, *, margins: tuple[float, float, float, float],
+              gaps: tuple[float, float] = (0.0, 0.0), **kwargs: Any) -> tuple[Figure, Any]:
+    """A ``width`` x ``height`` [in] figure and its ``nrows`` x ``ncols`` axes (``Figure.subplots``,
+    which takes ``kwargs``), placed by fixed ``margins`` (left, right, bottom, top) and ``gaps``
+    (between columns, between rows) [in] that leave room for tick labels, axis labels and titles.
+
+    No layout engine: constrained layout measured every text of a figure on each draw, about
+    40 % of the report's time."""
     try:
         from matplotlib.figure import Figure
     except ImportError:  # pragma: no cover - depends on the environment
         raise HandEyeError("matplotlib is not installed", "--report",
                            "install it: pip install 'handeye-cli[report]'") from None
-    return Figure(figsize=(width, height), layout="constrained")
+    left, right, bottom, top = margins
+    axes_w = (width - left - right - (ncols - 1) * gaps[0]) / ncols         # mean axes size [in]
+    axes_h = (height - bottom - top - (nrows - 1) * gaps[1]) / nrows
+    fig = Figure(figsize=(width, height))
+    grid = {"left": left / width, "right": 1.0 - right / width, "bottom": bottom / height, "top": 1.0 - top / height,
+            "wspace": gaps[0] / axes_w, "hspace": gaps[1] / axes_h}
+    return fig, fig.subplots(nrows, ncols, gridspec_kw=grid, **kwargs)
 
 
 def _thin(n: int) -> IntArray:
@@ -180,13 +194,25 @@ def world_alignment(synced: Synced, T_a_b: FloatArray) -> FloatArray:
     """
     if len(synced) == 0:
         raise ValueError("no synced samples to align the two worlds")
-    G = synced.T_a @ np.asarray(T_a_b, dtype=float) @ se3.inverse(synced.T_b)
-    U, _, Vt = np.linalg.svd(G[:, :3, :3].sum(axis=0))
+    X = np.asarray(T_a_b, dtype=float)
+    R_a = Rotation.from_quat(synced.quat_a)
+    R_g = R_a * Rotation.from_matrix(X[:3, :3]) * Rotation.from_quat(synced.quat_b).inv()    # rotations of T_wa_wb(t)
+    t_g = synced.xyz_a + R_a.apply(X[:3, 3]) - R_g.apply(synced.xyz_b)
+    U, _, Vt = np.linalg.svd(R_g.as_matrix().sum(axis=0))
     D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
     out = np.eye(4)
     out[:3, :3] = U @ D @ Vt
-    out[:3, 3] = np.median(G[:, :3, 3], axis=0)
+    out[:3, 3] = np.median(t_g, axis=0)
     return out
+
+
+def _a_as_b_places_it(T_wa_wb: FloatArray, X: FloatArray, xyz_b: FloatArray, quat_b: FloatArray) -> FloatArray:
+    """(N, 3) positions [m] in a's world of sensor a as b's poses ``T_wb_b`` (positions [m], x-y-z-w
+    quaternions) place it: the translations of ``T_wa_wb · T_wb_b · X⁻¹``."""
+    a_in_b = -X[:3, :3].T @ X[:3, 3]                                  # translation of X⁻¹ = T_b_a
+    in_world_b = Rotation.from_quat(quat_b).apply(a_in_b) + xyz_b
+    positions: FloatArray = in_world_b @ T_wa_wb[:3, :3].T + T_wa_wb[:3, 3]
+    return positions
 
 
 def _trajectory_section(calibration: Calibration, X: FloatArray) -> str:
@@ -194,28 +220,26 @@ def _trajectory_section(calibration: Calibration, X: FloatArray) -> str:
     if len(synced) == 0:
         return "<p class='note'>No synced samples: the trajectories cannot be aligned.</p>"
     G = world_alignment(synced, X)
-    X_inv = se3.inverse(X)
-    p_a = calibration.stream_a.xyz
-    p_b = (G @ calibration.stream_b.matrices() @ X_inv)[:, :3, 3]           # b's sensor a in a's world
+    stream_a, stream_b = calibration.stream_a, calibration.stream_b
+    ia, ib = _thin(len(stream_a)), _thin(len(stream_b))            # the plotted samples
+    p_a = stream_a.xyz[ia]
+    p_b = _a_as_b_places_it(G, X, stream_b.xyz[ib], stream_b.quat_xyzw[ib])
     # alignment error at the synced samples
-    sa = synced.T_a[:, :3, 3]
-    sb = (G @ synced.T_b @ X_inv)[:, :3, 3]
-    err = np.linalg.norm(sa - sb, axis=1)
+    err = np.linalg.norm(synced.xyz_a - _a_as_b_places_it(G, X, synced.xyz_b, synced.quat_b), axis=1)
     t0 = int(synced.stamps_ns[0])
     ts = (synced.stamps_ns - t0) / 1e9
 
-    fig = _new_figure(12.0, 4.0)
-    axes = fig.subplots(1, 3, width_ratios=[1, 1, 1.25])
-    ia, ib = _thin(len(p_a)), _thin(len(p_b))
+    fig, axes = _subplots(12.0, 4.0, 1, 3, margins=(0.65, 0.12, 0.5, 0.3), gaps=(0.85, 0.0),
+                          width_ratios=[1, 1, 1.25])
     for ax, (i, j, name) in zip(axes[:2], ((0, 1, "xy"), (0, 2, "xz")), strict=True):
-        ax.plot(p_a[ia, i], p_a[ia, j], "-", color=COLOR_A, lw=2.4, alpha=0.45, label="a")
-        ax.plot(p_b[ib, i], p_b[ib, j], "--", color=COLOR_B, lw=0.9, label="b · X⁻¹ in a's world")
+        ax.plot(p_a[:, i], p_a[:, j], "-", color=COLOR_A, lw=2.4, alpha=0.45, label="a")
+        ax.plot(p_b[:, i], p_b[:, j], "--", color=COLOR_B, lw=0.9, label="b · X⁻¹ in a's world")
         ax.set_xlabel(f"{name[0]} [m]")
         ax.set_ylabel(f"{name[1]} [m]")
         ax.set_title(f"{name} view (frame of world a)")
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(alpha=0.3)
-    axes[0].legend(loc="best", fontsize=8)
+    axes[0].legend(loc="lower right", fontsize=8)         # not "best": that tests every plotted point
     k = _thin(len(ts))
     axes[2].plot(ts[k], err[k], ".", ms=2, color=COLOR_A)
     axes[2].set_xlabel("time since first synced sample [s]")
@@ -252,8 +276,7 @@ def _residual_section(calibration: Calibration, document: dict[str, Any], X: Flo
     t0 = int(calibration.synced.stamps_ns[0]) if len(calibration.synced) else int(pairs.t_i_ns.min())
     t = (pairs.t_j_ns - t0) / 1e9
     bad = _rejected_mask(document, len(pairs))
-    fig = _new_figure(12.0, 4.6)
-    axes = fig.subplots(2, 1, sharex=True)
+    fig, axes = _subplots(12.0, 4.6, 2, 1, margins=(0.75, 0.12, 0.5, 0.3), gaps=(0.0, 0.12), sharex=True)
     for ax, values, label in ((axes[0], res.rotation_deg, "rotation [deg]"),
                               (axes[1], res.translation_m, "translation [m]")):
         k = _thin(len(t))
@@ -281,6 +304,16 @@ def _is_drop(key: str) -> bool:
     return "dropped" in key or "rejected" in key or key.startswith("jumps_")
 
 
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def _power_of_ten(x: float, _position: int) -> str:
+    """A log axis' tick label: ``10³`` in plain text (matplotlib's default is mathtext, whose parser
+    costs a tenth of a second on first use); empty between powers of ten."""
+    exponent = round(math.log10(x)) if x > 0 else 0
+    return "10" + str(exponent).translate(_SUPERSCRIPT) if x > 0 and math.isclose(x, 10.0 ** exponent) else ""
+
+
 def _samples_section(samples: Any) -> str:
     if not isinstance(samples, dict):
         return "<p class='note'>No per-stage counts in the result.</p>"
@@ -290,8 +323,8 @@ def _samples_section(samples: Any) -> str:
     drops = {k: v for k, v in counts.items() if _is_drop(k)}
     if not counts:
         return "<p class='note'>No per-stage counts in the result.</p>"
-    fig = _new_figure(12.0, max(2.4, 0.32 * max(len(kept), len(drops)) + 1.0))
-    axes = fig.subplots(1, 2)
+    fig, axes = _subplots(12.0, max(2.4, 0.32 * max(len(kept), len(drops)) + 1.0), 1, 2,
+                          margins=(1.45, 0.12, 0.4, 0.3), gaps=(1.75, 0.0))
     for ax, data, color, title, log in ((axes[0], kept, COLOR_A, "what each stage read / kept", True),
                                         (axes[1], drops, COLOR_BAD, "what each gate dropped", False)):
         if not data:
@@ -304,6 +337,7 @@ def _samples_section(samples: Any) -> str:
         ax.set_yticks(y, names, fontsize=8)
         if log:
             ax.set_xscale("log")
+            ax.xaxis.set_major_formatter(_power_of_ten)
         top = max(values.max(), 1.0)
         ax.set_xlim(right=top * (4.0 if log else 1.25))
         for yi, v in zip(y, values, strict=True):
@@ -322,8 +356,7 @@ def _bootstrap_section(deviations: FloatArray | None) -> str:
     d = deviations[np.isfinite(deviations).all(axis=1)]
     if len(d) == 0:
         return "<p class='note'>Bootstrap: no finite replicates.</p>"
-    fig = _new_figure(12.0, 5.0)
-    axes = fig.subplots(2, 3)
+    fig, axes = _subplots(12.0, 5.0, 2, 3, margins=(0.4, 0.12, 0.4, 0.25), gaps=(0.45, 0.7))
     labels = ("rotation", "translation")
     units = ("deg", "m")
     for r in range(2):
@@ -331,13 +364,15 @@ def _bootstrap_section(deviations: FloatArray | None) -> str:
             ax = axes[r, c]
             v = d[:, 3 * r + c]
             lo, hi = np.percentile(v, [2.5, 97.5])
-            ax.hist(v, bins=min(40, max(8, len(v) // 10)), color=(COLOR_A, COLOR_B)[r], alpha=0.85)
+            counts, edges = np.histogram(v, bins=min(40, max(8, len(v) // 10)))
+            ax.stairs(counts, edges, fill=True, color=(COLOR_A, COLOR_B)[r], alpha=0.85)   # one artist, not a bar each
             ax.axvline(lo, color="k", ls=":", lw=0.9)
             ax.axvline(hi, color="k", ls=":", lw=0.9)
             ax.set_title(f"{labels[r]} {axis}: σ = {np.std(v, ddof=1) if len(v) > 1 else 0.0:.3g} {units[r]}",
                          fontsize=9)
             ax.set_xlabel(f"deviation [{units[r]}]", fontsize=8)
             ax.tick_params(labelsize=7)
+            ax.locator_params(axis="x", nbins=5)              # long labels such as -0.0004 do not overlap
     std = d.std(axis=0, ddof=1) if len(d) > 1 else np.zeros(6)
     rows = "".join(f"<tr><th>{name}</th>" + "".join(f"<td class='num'>{s:.4g}</td>" for s in std[3 * r:3 * r + 3])
                    + "</tr>" for r, name in enumerate(("rotation σ [deg]", "translation σ [m]")))
