@@ -10,7 +10,8 @@ interleaved). For each log it prints, all measured in this run:
 * ``handeye calibrate`` as a user runs it (a fresh process): wall time, peak RSS, and the ratio
   to the limit;
 * the same with every diagnostic (``--bootstrap 200 --robust --alpha auto --report``) and its
-  ratio to the plain run;
+  ratio to the plain run, in wall time and in CPU time (user + system, which a loaded machine
+  does not inflate);
 * in-process stage timers (read, sync, gate, pairs, solve) of the default pipeline;
 * the ratio of the longest to the shortest log's calibrate time, beside the ratio of their lengths.
 
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -64,9 +66,12 @@ def build(path: Path, seconds: float, image_hz: float = 0.0, image_mb: float = 1
     write_mcap(path, channels, chunk_size=4 * 1024 * 1024)
 
 
-def run_process(args: list[str]) -> tuple[float, float]:
-    """(wall time [s], peak RSS [MB]) of one fresh process; the peak is its VmHWM, polled from
-    /proc while it runs (rusage of reaped children would give the largest child so far)."""
+def run_process(args: list[str]) -> tuple[float, float, float]:
+    """(wall time [s], peak RSS [MB], CPU time [s]) of one fresh process; the peak is its VmHWM, polled
+    from /proc while it runs (rusage of reaped children would give the largest child so far); the CPU
+    time (user + system) is the change in the reaped children's, which does not grow with the load of
+    other processes as the wall time does."""
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     peak_kb = 0
@@ -78,9 +83,10 @@ def run_process(args: list[str]) -> tuple[float, float]:
             pass
         time.sleep(0.02)
     seconds = time.perf_counter() - t0
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode != 0:
         raise SystemExit(f"{' '.join(args)} failed: {proc.stderr.read().decode()[-2000:] if proc.stderr else ''}")
-    return seconds, peak_kb / 1024
+    return seconds, peak_kb / 1024, cpu1.ru_utime + cpu1.ru_stime - cpu0.ru_utime - cpu0.ru_stime
 
 
 def limit(path: Path) -> tuple[float, float, float]:
@@ -89,7 +95,7 @@ def limit(path: Path) -> tuple[float, float, float]:
     from mcap.records import Chunk
     from mcap.stream_reader import StreamReader
 
-    startup, _ = run_process([sys.executable, "-c", "import numpy, scipy.linalg, scipy.spatial.transform"])
+    startup, _, _ = run_process([sys.executable, "-c", "import numpy, scipy.linalg, scipy.spatial.transform"])
     dctx = zstandard.ZstdDecompressor()
     t0 = time.perf_counter()
     with open(path, "rb") as f:
@@ -124,14 +130,15 @@ def measure(path: Path, label: str, report_dir: Path) -> float:
     size = path.stat().st_size / 1e6
     startup, decompress, floor = limit(path)
     cmd = [sys.executable, "-m", "handeye_cli", *CALIBRATE[:1], str(path), *CALIBRATE[1:]]
-    plain, rss = min((run_process(cmd) for _ in range(2)), key=lambda r: r[0])
-    diag, diag_rss = run_process([*cmd, *DIAGNOSTICS, "--report", str(report_dir / f"{path.stem}.html")])
+    plain, rss, cpu = min((run_process(cmd) for _ in range(2)), key=lambda r: r[0])
+    diag, diag_rss, diag_cpu = run_process([*cmd, *DIAGNOSTICS, "--report", str(report_dir / f"{path.stem}.html")])
     stages = stage_times(path)
     print(f"\n{label}: {size:.0f} MB")
     print(f"  limit: start-up {startup:.2f} s + decompress every chunk {decompress:.2f} s = {floor:.2f} s")
-    print(f"  calibrate           {plain:7.2f} s  peak RSS {rss:6.0f} MB  ratio to the limit {plain / floor:5.2f}x")
+    print(f"  calibrate           {plain:7.2f} s  peak RSS {rss:6.0f} MB  ratio to the limit {plain / floor:5.2f}x"
+          f"  (CPU {cpu:.2f} s)")
     print(f"  + every diagnostic  {diag:7.2f} s  peak RSS {diag_rss:6.0f} MB  ratio to the plain run "
-          f"{diag / plain:5.2f}x")
+          f"{diag / plain:5.2f}x  (CPU {diag_cpu:.2f} s, ratio {diag_cpu / cpu:.2f}x)")
     print("  stages (in-process): " + ", ".join(f"{k} {v:.2f} s" for k, v in stages.items()))
     return plain
 
