@@ -51,9 +51,11 @@ def test_a_nan_breaks_a_line_and_points_skip_it():
     (ax,) = chart.grid(1, 1, margins=(0.5, 0.1, 0.5, 0.1))
     ax.line([0, 1, np.nan, 3, 4], [0, 1, 2, 3, 4], "#111111")
     ax.points([0, np.nan, 2], [0, 1, 2], "#222222")
+    ax.hline(np.nan, "#333333")
     paths = {p.get("stroke"): p.get("d") for p in _paths(chart.svg())}
     assert paths["#111111"].count("M") == 2
     assert paths["#222222"].count("h0") == 2
+    assert "#333333" not in paths
 
 
 def test_equal_aspect_widens_the_shorter_range():
