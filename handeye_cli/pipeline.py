@@ -334,7 +334,8 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     boot = None
     if opts.analysis.bootstrap > 0:
         boot = bootstrap(A, B, opts.analysis.bootstrap, alpha=alpha, prior=prior, weights=weights,
-                         samples=ij, seed=opts.pairs.seed)
+                         samples=ij, seed=opts.pairs.seed,
+                         estimate=solution.matrix if opts.solver.method == "dqopt" else None)   # the same solve
         diagnostics["uncertainty"] = {"method": "bootstrap over pose samples", **boot.as_dict()}
     return Calibration(solution, stream_a, stream_b, kept, pairs, samples, opts, res, warnings=warnings,
                        diagnostics=diagnostics, inputs=dict(inputs or {}), weights=weights, robust=robust,

@@ -92,6 +92,17 @@ def test_zero_weight_pairs_are_not_resampled_and_seed_reproduces():
         bootstrap(A, B, 1)
 
 
+def test_the_callers_estimate_stands_for_the_solve_it_saves():
+    """The pipeline passes its own solve (all pairs, zero weights on the outliers) as the estimate."""
+    X, A, B = _data(8, 60)
+    w = np.r_[np.zeros(5), np.full(55, 2.0)]
+    est = solve(A, B, alpha=0.7, weights=w).matrix
+    own, given = (bootstrap(A, B, 30, alpha=0.7, weights=w, seed=1, estimate=e) for e in (None, est))
+    np.testing.assert_allclose(given.matrix, own.matrix, atol=1e-12)
+    np.testing.assert_allclose(given.rotation_deltas_deg, own.rotation_deltas_deg, atol=1e-9)
+    np.testing.assert_allclose(given.translations_m, own.translations_m, atol=1e-12)
+
+
 @pytest.mark.parametrize("scenario", ["random", "circle", "line"])
 def test_vectorised_dqopt_matches_the_project_dqopt(scenario):
     from handeye_cli.analysis.bootstrap import _solve_replicates, replicate_grams

@@ -117,4 +117,4 @@ def test_report_from_the_cli(capsys, tmp_path):
     code, _, err = run(capsys, "calibrate", fa, fb, "--bootstrap", "50", "--report", report, "-q")
     assert code == 0, err
     html = report.read_text()
-    assert html.count("data:image/png;base64,") == 4 and "Bootstrap" in html
+    assert html.count("data:image/svg+xml;base64,") == 4 and "Bootstrap" in html

@@ -8,6 +8,7 @@ import os
 import re
 import shutil
 import subprocess
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +21,7 @@ from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
 
 WARNING = "translation along z of frame a is unobservable: spread < 0.4° & more"
-PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+SVG_URI = "data:image/svg+xml;base64,"
 
 
 @pytest.fixture(scope="module")
@@ -80,8 +81,9 @@ def test_report_is_self_contained_and_states_the_result(report, full_doc, rig):
     images = _images(text)
     assert len(images) == 4 == text.count("<img")                     # trajectories, residuals, samples, bootstrap
     for src in images:
-        assert src.startswith("data:image/png;base64,")
-        assert base64.b64decode(src.split(",", 1)[1]).startswith(PNG_MAGIC)
+        assert src.startswith(SVG_URI)
+        svg = ET.fromstring(base64.b64decode(src[len(SVG_URI):]))       # well-formed XML
+        assert svg.tag == "{http://www.w3.org/2000/svg}svg" and float(svg.get("width", 0)) > 500
     assert not re.search(r"https?:", text, flags=re.I)
     assert not re.search(r"\b(?:src|href)\s*=\s*['\"](?!data:|#)", text)    # nothing fetched from anywhere
     assert "<link" not in text and "@import" not in text and "url(" not in text
@@ -152,7 +154,7 @@ def test_report_renders_in_headless_chromium(report, tmp_path):
     loaded = re.search(r"data-loaded=\"(\d+)\"", body.group(0))
     assert images and loaded, f"the page's load script did not run: {body.group(0)!r}"
     assert int(images.group(1)) == 4
-    assert int(loaded.group(1)) == 4, "not every embedded PNG decoded in the browser"
+    assert int(loaded.group(1)) == 4, "not every embedded image decoded in the browser"
 
     import matplotlib.image as mpimg
 

@@ -234,7 +234,7 @@ def _sample_counts(samples: tuple[IntArray, IntArray], use: IntArray, replicates
 def bootstrap(motions_a: FloatArray, motions_b: FloatArray, replicates: int = 1000, *,
               alpha: float = 1.0, prior: Prior | None = None, weights: FloatArray | None = None,
               samples: tuple[IntArray, IntArray] | None = None, seed: int = 0,
-              level: float = 0.95) -> BootstrapResult:
+              level: float = 0.95, estimate: FloatArray | None = None) -> BootstrapResult:
     """Pairs bootstrap (or samples bootstrap) of the DQOpt estimate of ``T_a_b``.
 
     Parameters
@@ -259,6 +259,9 @@ def bootstrap(motions_a: FloatArray, motions_b: FloatArray, replicates: int = 10
         Seed of the resampling (results are reproducible).
     level:
         Coverage of the percentile intervals.
+    estimate:
+        Optional (4, 4) full-data DQOpt estimate ``X̂ = T_a_b`` of these motions, weights, α and
+        prior, when the caller has solved it already (default: solved here).
 
     Returns
     -------
@@ -270,7 +273,8 @@ def bootstrap(motions_a: FloatArray, motions_b: FloatArray, replicates: int = 10
         raise ConfigError(f"{replicates} bootstrap replicates", "bootstrap", "ask for at least 2 (e.g. 1000)")
     use = np.flatnonzero(w > 0)
     A, B, w = A[use], B[use], w[use]
-    X_hat = solve(A, B, alpha=alpha, prior=prior, weights=w).matrix
+    X_hat = (solve(A, B, alpha=alpha, prior=prior, weights=w).matrix if estimate is None
+             else np.asarray(estimate, dtype=np.float64))
     rng = np.random.default_rng(seed)
     if samples is None:
         units = len(A)

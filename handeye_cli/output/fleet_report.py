@@ -1,7 +1,7 @@
 """The fleet-trend report (``handeye report verdicts.jsonl -o fleet.html``, ``handeye batch --report``).
 
-One self-contained HTML file, built like :mod:`handeye_cli.output.report` (inline CSS, matplotlib
-figures as base64 PNG, the same load script that counts decoded images): per sensor pair
+One self-contained HTML file, built like :mod:`handeye_cli.output.report` (inline CSS, the same
+load script that counts decoded images) with matplotlib figures as base64 PNG: per sensor pair
 (``frames.a``/``frames.b``), the extrinsic ``T_a_b`` of every log over log time (the first synced
 stamp, UTC) as its deviation from the nominal — rotation vector of ``R_X R_Nᵀ`` [deg] (frame a)
 and ``t_X − t_N`` [mm] — with the nominal at zero and the tolerance drawn as a band; without a
@@ -10,19 +10,25 @@ drifted logs and the table of failed ones.
 """
 from __future__ import annotations
 
+import base64
+import io
 import json
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from .. import __version__
-from ..errors import ReadError
-from .report import _CSS, _SCRIPT, _esc, _figure, _new_figure
+from ..errors import HandEyeError, ReadError
+from .report import _CSS, _SCRIPT, _esc
+from .svgplot import DPI
 from .writers import check_writable, write_output
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["read_records", "render_fleet_report", "write_fleet_report"]
 
@@ -71,14 +77,44 @@ def _deviations(records: list[dict[str, Any]]) -> tuple[NDArray[np.float64], NDA
     return rot, (X[:, :3, 3] - N_t) * 1000.0, bool(nominals)
 
 
+def _figure(fig: Figure, alt: str, caption: str) -> str:
+    """Render a matplotlib figure to a base64 PNG ``<figure>`` (zlib level 3: smaller than the
+    default 6 on these plots, and faster)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI, pil_kwargs={"compress_level": 3})
+    data = base64.b64encode(buf.getvalue()).decode("ascii")
+    return (f"<figure><img alt='{_esc(alt)}' src='data:image/png;base64,{data}'>"
+            f"<figcaption>{caption}</figcaption></figure>")
+
+
+def _subplots(width: float, height: float, nrows: int, ncols: int, *, margins: tuple[float, float, float, float],
+              gaps: tuple[float, float] = (0.0, 0.0), **kwargs: Any) -> tuple[Figure, Any]:
+    """A ``width`` x ``height`` [in] figure and its ``nrows`` x ``ncols`` axes (``Figure.subplots``,
+    which takes ``kwargs``), placed by fixed ``margins`` (left, right, bottom, top) and ``gaps``
+    (between columns, between rows) [in] that leave room for tick labels, axis labels and titles.
+
+    No layout engine: constrained layout measures every text of a figure on each draw."""
+    try:
+        from matplotlib.figure import Figure
+    except ImportError:  # pragma: no cover - depends on the environment
+        raise HandEyeError("matplotlib is not installed", "--report",
+                           "install it: pip install 'handeye-cli[report]'") from None
+    left, right, bottom, top = margins
+    axes_w = (width - left - right - (ncols - 1) * gaps[0]) / ncols         # mean axes size [in]
+    axes_h = (height - bottom - top - (nrows - 1) * gaps[1]) / nrows
+    fig = Figure(figsize=(width, height))
+    grid = {"left": left / width, "right": 1.0 - right / width, "bottom": bottom / height, "top": 1.0 - top / height,
+            "wspace": gaps[0] / axes_w, "hspace": gaps[1] / axes_h}
+    return fig, fig.subplots(nrows, ncols, gridspec_kw=grid, **kwargs)
+
+
 def _pair_figure(name: str, records: list[dict[str, Any]]) -> str:
     """Rotation and translation deviations over log time for one sensor pair."""
     records = sorted(records, key=lambda r: r["log_span_ns"][0])
     times = [_when(r) for r in records]
     rot, trans, has_nominal = _deviations(records)
     drift = np.array([r["status"] == "drift" for r in records])
-    fig = _new_figure(10, 5.6)
-    axes = fig.subplots(2, 1, sharex=True)
+    fig, axes = _subplots(10, 5.6, 2, 1, margins=(0.8, 0.15, 1.1, 0.15), gaps=(0.0, 0.15), sharex=True)
     verdict = next((r["verdict"] for r in records if "verdict" in r), None)
     limits = (verdict["max_rotation_deg"], verdict["max_translation_m"] * 1000) if verdict else (None, None)
     for ax, values, unit, limit in zip(axes, (rot, trans), ("rotation deviation [deg]", "translation deviation [mm]"),
@@ -94,7 +130,7 @@ def _pair_figure(name: str, records: list[dict[str, Any]]) -> str:
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left", fontsize=8, ncol=6)
     axes[1].set_xlabel("log start (UTC)")
-    fig.autofmt_xdate()
+    fig.autofmt_xdate(bottom=fig.subplotpars.bottom)          # rotate the dates, keep the margin
     return _figure(fig, f"extrinsic of {name} over time", f"{_esc(name)}: {len(records)} log(s); deviation from the "
                    f"{'nominal, tolerance band in green' if has_nominal else 'median result (no nominal given)'}; "
                    "drifted logs marked by red lines.")
