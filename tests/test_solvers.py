@@ -11,7 +11,8 @@ from scipy.spatial.transform import Rotation
 import handeye_cli
 from handeye_cli import se3
 from handeye_cli.simulation import motion_pairs, random_transform
-from handeye_cli.solvers import METHODS, Prior, solve
+from handeye_cli.solvers import METHODS, Prior, build_problem, dualquat, solve
+from handeye_cli.solvers.optimal import dqopt
 
 SIGMA_R, SIGMA_T = np.deg2rad(0.57), 0.01    # the paper's noise levels (appendix D.2)
 
@@ -230,3 +231,49 @@ def test_bad_input_raises_one_clear_error(bad, match):
         solve(a, b, **kw)
     assert isinstance(info.value, handeye_cli.HandEyeError)
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("with_prior", [False, True])
+def test_chunked_pass_equals_one_chunk(with_prior):
+    """Motions reduced chunk by chunk (TSQR over chunks of 1, 7 and 50 pairs, the last one partial)
+    give the problem of all rows at once to rounding, and its optimum the independent cost."""
+    rng = np.random.default_rng(21)
+    X = random_transform(rng)
+    A, B = motion_pairs(103, X, rng, sigma_r=SIGMA_R, sigma_t=SIGMA_T)
+    w = rng.uniform(0.1, 3, 103)
+    prior = (random_transform(rng), 0.5, 2.0) if with_prior else None
+    kw = {"alpha": 2.0, "prior": Prior(*prior) if prior else None, "weights": w}
+    whole = build_problem(A, B, chunk=len(A), **kw)
+    r_whole = dqopt(whole)
+    for chunk in (1, 7, 50):
+        part = build_problem(A, B, chunk=chunk, **kw)
+        assert part.rows == whole.rows == 4 * 103 + 4 * with_prior
+        np.testing.assert_allclose(part.form, whole.form, rtol=0, atol=1e-13 * np.abs(whole.form).max())
+        r = dqopt(part)
+        T = dualquat.to_transform(r.q, r.qd)
+        np.testing.assert_allclose(T, dualquat.to_transform(r_whole.q, r_whole.qd), atol=1e-12)
+        assert part.cost(r.q, r.qd) == pytest.approx(ref.cost(A, B, T, 2.0, w, prior), rel=1e-12)
+
+
+def test_chunked_pass_on_noise_free_motions_is_exact():
+    """Noise-free motions make M singular; chunks of 7 pairs still give the extrinsic exactly."""
+    rng = np.random.default_rng(22)
+    X = random_transform(rng)
+    A, B = motion_pairs(40, X, rng)
+    r = dqopt(build_problem(A, B, chunk=7))
+    assert r.singular_m
+    rot, trans = _error(dualquat.to_transform(r.q, r.qd), X)
+    assert rot < 1e-9 and trans < 1e-9
+
+
+def test_chunked_check_reports_the_first_bad_motion_of_a_before_b():
+    """A bad motion of b in an earlier chunk than one of a: the error still names a's, as an
+    unchunked check of a, then b, would."""
+    rng = np.random.default_rng(0)
+    A, B = motion_pairs(30, random_transform(rng), rng)
+    A[25, 0, 3], B[3, :3, :3] = np.inf, 2 * B[3, :3, :3]
+    with pytest.raises(handeye_cli.HandEyeError, match=r"motions_a\[25\] contains NaN or inf"):
+        build_problem(A, B, chunk=4)
+    A[25, 0, 3] = 0.0
+    with pytest.raises(handeye_cli.HandEyeError, match=r"motions_b\[3\] has a rotation block"):
+        build_problem(A, B, chunk=4)
