@@ -41,11 +41,17 @@ __all__ = ["Prior", "Problem", "build_problem", "checked_arrays", "motion_proble
            "validate_motions"]
 
 _G = np.diag([1.0, 1.0, 1.0, 0.0])
+_UPPER8 = np.triu(np.ones((8, 8)))
 _EPS = np.finfo(float).eps
 _LWORK, _IWORK = (int(v) for v in lapack.dgelsd_lwork(4, 3, 1, -1)[:2])      # workspace of the 4x3 lstsq
 _ROTATION_TOL = 1e-6        # a motion's rotation block: |RᵀR - I| and |det R - 1| at most this
 CHUNK = 4096
-"""Motions read, checked and reduced at once (cache-sized: its 4·CHUNK x 8 rows take 1 MB)."""
+"""Motion pairs read, checked and converted at once (their rows of scratch fit a cache of a few MB)."""
+# Pairs factorised per LAPACK call: their 1024 x 8 rows stay below the size from which OpenBLAS runs its
+# level-2 BLAS on several threads; on a busy 2-core machine a call that waits for a second thread was
+# measured 100 times slower.
+_QR_PAIRS = 256
+_QR_ROWS = 4 * _QR_PAIRS
 
 
 @dataclass(frozen=True)
@@ -57,16 +63,25 @@ class Prior:
     b: float = 1.0
 
 
-def _triangular_factor(J: FloatArray, overwrite: bool = False) -> FloatArray:
-    """The 8x8 R of the thin QR factorisation of ``J`` (n, 8) (zero rows below the n-th when n < 8).
-    ``overwrite`` lets LAPACK work in place on a Fortran-ordered ``J``."""
+def _triangular_factor(J: FloatArray, overwrite: bool = False, out: FloatArray | None = None) -> FloatArray:
+    """The 8x8 R of the thin QR factorisation of ``J`` (n, 8) (zero rows below the n-th when n < 8),
+    written into ``out`` if given. ``overwrite`` lets LAPACK work in place on a Fortran-ordered ``J``."""
     r, _, _, info = lapack.dgeqrf(J, overwrite_a=overwrite)
     if info:
         raise np.linalg.LinAlgError(f"QR factorisation failed (info {info})")
-    R = np.zeros((8, 8))
+    R = np.empty((8, 8)) if out is None else out
     k = min(len(J), 8)
-    R[:k] = np.triu(r[:k])
+    np.multiply(r[:k], _UPPER8[:k], out=R[:k])
+    R[k:] = 0.0
     return R
+
+
+def _stacked_factor(J: FloatArray) -> FloatArray:
+    """The R factor of stacked 8x8 R factors ``J`` (8k, 8), by a tree: blocks of at most ``_QR_ROWS`` rows
+    are factorised and their R factors stacked until one is left (a single one is returned as it is)."""
+    while len(J) > 8:
+        J = np.vstack([_triangular_factor(J[s:s + _QR_ROWS]) for s in range(0, len(J), _QR_ROWS)])
+    return J
 
 
 @dataclass(frozen=True, eq=False)
@@ -297,26 +312,32 @@ def checked_arrays(motions_a: FloatArray, motions_b: FloatArray,
     return A, B, w
 
 
-def _checked_chunks(A: FloatArray, B: FloatArray, chunk: int,
+def _checked_chunks(A: FloatArray, B: FloatArray, chunk: int, block: int = 1,
                     work: FloatArray | None = None) -> Iterator[tuple[int, int, FloatArray]]:
     """The motions in chunks of ``chunk`` pairs, each checked as it is read: ``(start, stop, X)`` with
-    ``X`` (12, 2m) the transforms of ``A[start:stop]`` then ``B[start:stop]`` batch-last (``X[4i + j]``
-    holds ``T_ij``; reused between chunks). A chunk with a non-finite entry or a rotation block off by
-    more than 1e-6 (:func:`~handeye_cli.se3.rotation_residuals`, as ``se3.is_rotation``) raises the
-    error for the first bad motion of all (:func:`_raise_first_bad`). ``work`` (16, 2·chunk) is
+    ``X`` (12, 2p) batch-last (``X[4i + j]`` holds ``T_ij``; reused between chunks): the transforms of
+    ``A[start:stop]``, identities up to p (``stop - start`` rounded up to a multiple of ``block``), then
+    those of ``B[start:stop]`` and identities again. A chunk with a non-finite entry or a rotation block
+    off by more than 1e-6 (:func:`~handeye_cli.se3.rotation_residuals`, as ``se3.is_rotation``) raises
+    the error for the first bad motion of all (:func:`_raise_first_bad`). ``work`` (16, 2p) is
     scratch; with it nothing is allocated per chunk."""
     n = len(A)
     Af, Bf = A.reshape(n, 16), B.reshape(n, 16)
-    buffer = np.empty((12, 2 * min(chunk, n)))
+    buffer = np.empty((12, 2 * -(-min(chunk, n) // block) * block))
     work = np.empty((16, buffer.shape[1])) if work is None else work
     for start in range(0, n, chunk):
         stop = min(start + chunk, n)
         m = stop - start
+        p = -(-m // block) * block
         a, b = Af[start:stop], Bf[start:stop]
-        X = buffer[:, :2 * m]
+        X = buffer[:, :2 * p]
         np.copyto(X[:, :m], a[:, :12].T)
-        np.copyto(X[:, m:], b[:, :12].T)
-        residuals = se3.rotation_residuals(X.reshape(3, 4, 2 * m)[:, :3], work[:, :2 * m])
+        np.copyto(X[:, p:p + m], b[:, :12].T)
+        if p > m:
+            for pad in (X[:, m:p], X[:, p + m:]):
+                pad[...] = 0.0
+                pad[0:11:5] = 1.0
+        residuals = se3.rotation_residuals(X.reshape(3, 4, 2 * p)[:, :3], work[:, :2 * p])
         np.abs(residuals, out=residuals)
         # a sum is finite only if every term is (a false alarm from overflow is cleared by the full check)
         if not (np.isfinite(a.sum() + b.sum()) and residuals.max() <= _ROTATION_TOL):
@@ -342,22 +363,30 @@ def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, chunk: int) -> F
     """The 8x8 R factor of the rows ``√w_i [E_i F_i]`` of all pairs, in one checked pass (TSQR).
 
     Per chunk, the pairs' dual quaternions give the blocks entry by entry, written as the columns of
-    a Fortran-ordered (4m, 8) matrix (rows in any order: R does not depend on it), which LAPACK
-    factorises in place; the chunks' R factors, stacked, are factorised once more."""
+    Fortran-ordered (4b, 8) matrices of b pairs each (rows in any order: R does not depend on it; the
+    identity pairs that pad the last matrix give zero rows), which LAPACK factorises in place; their
+    R factors, stacked, are factorised again (:func:`_stacked_factor`)."""
     sw = None if (w == 1.0).all() else np.sqrt(w)
     size = min(chunk, len(A))
-    factors = np.empty((8 * -(-len(A) // chunk), 8))
-    work, both, columns = np.empty((16, 2 * size)), np.empty((2, 4, 2 * size)), np.empty((2, 4, 4, size))
-    for k, (start, stop, X) in enumerate(_checked_chunks(A, B, chunk, work)):
-        m = stop - start
-        qq = dq._from_rows(X, both[:, :, :2 * m], work[:, :2 * m])   # [q; q'] of a, then of b
+    block = min(_QR_PAIRS, size)
+    blocks = -(-size // block)                                      # QR calls per chunk
+    factors = np.empty((8 * blocks * -(-len(A) // chunk), 8))
+    work, both = np.empty((16, 2 * blocks * block)), np.empty((2, 4, 2 * blocks * block))
+    columns = np.empty((blocks, 2, 4, 4, block))
+    k = 0
+    for start, stop, X in _checked_chunks(A, B, chunk, block, work):
+        m, p = stop - start, X.shape[1] // 2
+        qq = dq._from_rows(X, both[:, :, :2 * p], work[:, :2 * p])   # [q; q'] of a (p), then of b (p)
         if sw is not None:
             qq[:, :, :m] *= sw[start:stop]
-            qq[:, :, m:] *= sw[start:stop]
-        cols = columns if m == size else np.empty((2, 4, 4, m))
-        dq.difference_blocks(qq[:, :, :m], qq[:, :, m:], cols)
-        factors[8 * k:8 * k + 8] = _triangular_factor(cols.reshape(8, 4 * m).T, overwrite=True)
-    return _triangular_factor(factors)
+            qq[:, :, p:p + m] *= sw[start:stop]
+        nb = p // block
+        qa, qb = (qq[:, :, s:s + p].reshape(2, 4, nb, block).transpose(2, 0, 1, 3) for s in (0, p))
+        dq.difference_blocks(qa, qb, columns[:nb])
+        for cols in columns[:nb]:
+            _triangular_factor(cols.reshape(8, 4 * block).T, overwrite=True, out=factors[k:k + 8])
+            k += 8
+    return _stacked_factor(factors[:k])
 
 
 def motion_problem(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float = 1.0,
