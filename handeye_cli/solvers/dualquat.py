@@ -76,13 +76,10 @@ def _from_rows(X: FloatArray, out: FloatArray | None = None, work: FloatArray | 
     diagonal[:3] -= trace
     diagonal[:3] += 1.0
     np.add(trace, 1.0, out=diagonal[3])                        # 4w² = 1 + trace
-    for (i, j), a, b, sign in _K_OFF_DIAGONAL:
-        (np.add if sign == "+" else np.subtract)(X[a], X[b], out=K[i, j])
-        K[j, i] = K[i, j]
+    for (i, j), a, b, sign in _K_OFF_DIAGONAL:                 # into K[i, j] and K[j, i] at once
+        (np.add if sign == "+" else np.subtract)(X[a], X[b], out=work[4 * i + j:4 * j + i + 1:3 * (j - i)])
     pick = diagonal == diagonal.max(0)                         # (4, M); ties: keep the first
-    pick[1] &= ~pick[0]
-    pick[2] &= ~(pick[0] | pick[1])
-    pick[3] &= ~(pick[0] | pick[1] | pick[2])
+    pick &= np.cumsum(pick, axis=0) == 1
     np.copyto(qd, pick)
     np.einsum("pin,pn->in", K, qd, out=q)                     # 4·x_p·q for the pivot p
     norm = work[4]
@@ -107,30 +104,31 @@ def _from_rows(X: FloatArray, out: FloatArray | None = None, work: FloatArray | 
     return out
 
 
-def difference_blocks(qa: FloatArray, qb: FloatArray, out: FloatArray) -> None:
-    """``L(q_a) - R(q_b)`` for quaternions given batch-last, written entry by entry into ``out``.
-
-    ``qa``, ``qb`` (…, 4, M) and ``out`` (…, 4, 4, M) with ``out[..., j, r, :]`` receiving entry
-    (r, j) of the M blocks: ``out[..., j, :, :]`` flattened is column j of the blocks stacked (row
-    r·M + m is row r of block m), which is how the solvers lay out the columns of ``[E F]``. Every
-    entry is ``±a_k ± b_k`` with the same k (``_L_INDEX == _R_INDEX``): one elementwise pass per entry.
-    """
+def _block_matrix() -> FloatArray:
+    """(16, 8): row ``4j + r`` gives entry (r, j) of ``L(p) - R(r')`` from the stacked quaternions ``[p; r']``."""
+    B = np.zeros((16, 8))
     for r in range(4):
         for j in range(4):
-            k, sl, sr = _L_INDEX[r, j], _L_SIGN[r, j], _R_SIGN[r, j]
-            a, b, cell = qa[..., k, :], qb[..., k, :], out[..., j, r, :]
-            if sl > 0:
-                (np.subtract if sr > 0 else np.add)(a, b, out=cell)
-            elif sr < 0:
-                np.subtract(b, a, out=cell)
-            else:
-                np.add(a, b, out=cell)
-                np.negative(cell, out=cell)
+            B[4 * j + r, _L_INDEX[r, j]] += _L_SIGN[r, j]
+            B[4 * j + r, 4 + _R_INDEX[r, j]] -= _R_SIGN[r, j]
+    return B
+
+
+_BLOCK = _block_matrix()
+
+
+def difference_blocks(qab: FloatArray, out: FloatArray | None = None) -> FloatArray:
+    """``L(q_a) - R(q_b)`` for quaternion pairs given batch-last: ``qab`` (…, 8, M) holds ``q_a`` then
+    ``q_b`` (x-y-z-w). Returns (…, 16, M) (into ``out`` if given) with row ``4j + r`` the entries (r, j)
+    of the M blocks, so that rows ``4j … 4j + 3`` flattened are column j of the blocks stacked (row
+    ``r·M + m`` is row r of block m), which is how the solvers lay out the columns of ``[E F]``.
+    Every entry is ``±a_k ± b_k``: one matrix product with the ±1 table (exact but for that sum)."""
+    return np.matmul(_BLOCK, qab, out=out)
 
 
 def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``L(q_a) - R(q_b)`` and ``L(q'_a) - R(q'_b)`` (…, 4, 4) of the (broadcast) transforms
-    ``Ta``, ``Tb`` (…, 4, 4): both stacks are converted in one pass and the blocks formed entry by entry."""
+    ``Ta``, ``Tb`` (…, 4, 4): both stacks are converted in one pass and the blocks formed by one product."""
     Ta, Tb = np.asarray(Ta, dtype=np.float64), np.asarray(Tb, dtype=np.float64)
     if Ta.shape != Tb.shape:
         Ta, Tb = np.broadcast_arrays(Ta, Tb)
@@ -138,8 +136,10 @@ def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray) -> tuple[FloatArray, 
     a, b = Ta.reshape(-1, 16), Tb.reshape(-1, 16)
     n = len(a)
     both = _from_rows(np.concatenate((a[:, :12], b[:, :12])).T.copy())   # (2, 4, 2n): [q; q'] of a, then of b
-    blocks = np.empty((2, n, 4, 4))
-    difference_blocks(both[:, :, :n], both[:, :, n:], blocks.transpose(0, 3, 2, 1))
+    pairs = np.empty((2, n, 8))                                # rows [q_a, q_b] for E, then [q'_a, q'_b] for F
+    pairs[:, :, :4] = both[:, :, :n].transpose(0, 2, 1)
+    pairs[:, :, 4:] = both[:, :, n:].transpose(0, 2, 1)
+    blocks = pairs @ _BLOCK.reshape(4, 4, 8).transpose(2, 1, 0).reshape(8, 16)   # entry (r, j) at 4r + j
     return blocks[0].reshape(shape), blocks[1].reshape(shape)
 
 

@@ -38,7 +38,7 @@ from . import dualquat as dq
 from .dualquat import _L_INDEX, _L_SIGN
 
 __all__ = ["Prior", "Problem", "build_problem", "checked_arrays", "motion_problem", "pair_blocks",
-           "validate_motions"]
+           "problem_from_blocks", "validate_motions"]
 
 _G = np.diag([1.0, 1.0, 1.0, 0.0])
 _UPPER8 = np.triu(np.ones((8, 8)))
@@ -372,7 +372,7 @@ def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, chunk: int) -> F
     blocks = -(-size // block)                                      # QR calls per chunk
     factors = np.empty((8 * blocks * -(-len(A) // chunk), 8))
     work, both = np.empty((16, 2 * blocks * block)), np.empty((2, 4, 2 * blocks * block))
-    columns = np.empty((blocks, 2, 4, 4, block))
+    pairs, columns = np.empty((blocks, 2, 8, block)), np.empty((blocks, 2, 16, block))
     k = 0
     for start, stop, X in _checked_chunks(A, B, chunk, block, work):
         m, p = stop - start, X.shape[1] // 2
@@ -381,28 +381,22 @@ def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, chunk: int) -> F
             qq[:, :, :m] *= sw[start:stop]
             qq[:, :, p:p + m] *= sw[start:stop]
         nb = p // block
-        qa, qb = (qq[:, :, s:s + p].reshape(2, 4, nb, block).transpose(2, 0, 1, 3) for s in (0, p))
-        dq.difference_blocks(qa, qb, columns[:nb])
-        for cols in columns[:nb]:
+        for s, half in ((0, slice(0, 4)), (p, slice(4, 8))):        # per QR block and part: [q_a; q_b]
+            pairs[:nb, :, half] = qq[:, :, s:s + p].reshape(2, 4, nb, block).transpose(2, 0, 1, 3)
+        dq.difference_blocks(pairs[:nb], columns[:nb])
+        for cols in columns[:nb]:                                   # (2, 16, b): the columns of [E F]
             _triangular_factor(cols.reshape(8, 4 * block).T, overwrite=True, out=factors[k:k + 8])
             k += 8
     return _stacked_factor(factors[:k])
 
 
-def motion_problem(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float = 1.0,
-                   prior: Prior | None = None, chunk: int = CHUNK) -> Problem:
-    """:func:`build_problem` from the arrays of :func:`checked_arrays`: reads, checks and reduces the
-    motions in one pass of ``chunk`` pairs at a time."""
-    Rm = _motion_factor(A, B, w, chunk)
+def _problem(J: FloatArray, pairs: int, alpha: float, prior: Prior | None) -> Problem:
+    """The problem of the pairs' residual rows ``J`` (or rows with the same R factor) in ``(q', q)``
+    order, after the checks of α and the prior, with the prior's rows (eqs 26–27) added."""
     if not (np.isfinite(alpha) and alpha > 0):
         raise ConfigError(f"alpha must be a positive number, got {alpha}", "alpha",
                            "pass e.g. alpha=1.0 (units 1/m)")
-    # [[0, P], [E, F]] with P = √w E_i and [E F] = α √w [E_i F_i] = Q α Rm: the same R as
-    # [[0, Re], [α Re, α G], [0, α Rf]] for Rm = [[Re, G], [0, Rf]]
-    J = np.zeros((12, 8))
-    J[:4, 4:] = Rm[:4, :4]
-    J[4:, :] = alpha * Rm
-    rows = 4 * len(A)
+    rows = 4 * pairs
     if prior is not None:
         if not (prior.a >= 0 and prior.b >= 0):
             raise ConfigError("prior weights must be non-negative", "prior", "pass a, b ≥ 0")
@@ -413,6 +407,32 @@ def motion_problem(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float = 1
                        np.sqrt(prior.b) * np.hstack([Lc, Lcd])])
         rows += 4
     return Problem.from_rows(J, rows)
+
+
+def motion_problem(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float = 1.0,
+                   prior: Prior | None = None, chunk: int = CHUNK) -> Problem:
+    """:func:`build_problem` from the arrays of :func:`checked_arrays`: reads, checks and reduces the
+    motions in one pass of ``chunk`` pairs at a time."""
+    Rm = _motion_factor(A, B, w, chunk)
+    # [[0, P], [E, F]] with P = √w E_i and [E F] = α √w [E_i F_i] = Q α Rm: the same R as
+    # [[0, Re], [α Re, α G], [0, α Rf]] for Rm = [[Re, G], [0, Rf]]
+    J = np.zeros((12, 8))
+    J[:4, 4:] = Rm[:4, :4]
+    J[4:, :] = alpha * Rm
+    return _problem(J, len(A), alpha, prior)
+
+
+def problem_from_blocks(E: FloatArray, F: FloatArray, w: FloatArray, alpha: float = 1.0,
+                        prior: Prior | None = None) -> Problem:
+    """:func:`build_problem` from the per-pair blocks of :func:`pair_blocks` (N, 4, 4) of checked motions
+    and their weights: all residual rows ``[[0, √w E_i], [α√w E_i, α√w F_i]]`` stacked at once (8N x 8),
+    for a caller that needs the blocks anyway (Daniilidis' method) and few pairs."""
+    sw = np.sqrt(w)[:, None, None]
+    J = np.zeros((len(E), 8, 8))
+    J[:, :4, 4:] = sw * E
+    J[:, 4:, :4] = alpha * sw * E
+    J[:, 4:, 4:] = alpha * sw * F
+    return _problem(J.reshape(-1, 8), len(E), alpha, prior)
 
 
 def build_problem(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1.0,
