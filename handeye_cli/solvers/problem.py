@@ -347,7 +347,8 @@ def _checked_chunks(A: FloatArray, B: FloatArray, chunk: int, block: int = 1,
 
 def validate_motions(motions_a: FloatArray, motions_b: FloatArray,
                      weights: FloatArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Check shapes, finiteness and rotation blocks; return float arrays (N,4,4), (N,4,4), (N,)."""
+    """Check shapes, finiteness and rotation blocks, in one pass of :data:`CHUNK` pairs at a time (the
+    arrays are not copied); return float arrays (N,4,4), (N,4,4), (N,)."""
     A, B, w = checked_arrays(motions_a, motions_b, weights)
     for _ in _checked_chunks(A, B, CHUNK):
         pass
@@ -362,10 +363,11 @@ def pair_blocks(motions_a: FloatArray, motions_b: FloatArray) -> tuple[FloatArra
 def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, chunk: int) -> FloatArray:
     """The 8x8 R factor of the rows ``√w_i [E_i F_i]`` of all pairs, in one checked pass (TSQR).
 
-    Per chunk, the pairs' dual quaternions give the blocks entry by entry, written as the columns of
-    Fortran-ordered (4b, 8) matrices of b pairs each (rows in any order: R does not depend on it; the
-    identity pairs that pad the last matrix give zero rows), which LAPACK factorises in place; their
-    R factors, stacked, are factorised again (:func:`_stacked_factor`)."""
+    Per chunk, the pairs' dual quaternions give the blocks by one product
+    (:func:`~handeye_cli.solvers.dualquat.difference_blocks`), laid out as the columns of Fortran-ordered
+    (4b, 8) matrices of b pairs each (rows in any order: R does not depend on it; the identity pairs
+    that pad the last matrix give zero rows), which LAPACK factorises in place; their R factors,
+    stacked, are factorised again (:func:`_stacked_factor`)."""
     sw = None if (w == 1.0).all() else np.sqrt(w)
     size = min(chunk, len(A))
     block = min(_QR_PAIRS, size)
