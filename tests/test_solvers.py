@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 import handeye_cli
 from handeye_cli import se3
 from handeye_cli.simulation import motion_pairs, random_transform
-from handeye_cli.solvers import METHODS, Prior, build_problem, dualquat, solve
+from handeye_cli.solvers import METHODS, Prior, Problem, build_problem, dualquat, solve
 from handeye_cli.solvers.optimal import dqopt
 from handeye_cli.solvers.problem import pair_blocks, problem_from_blocks
 
@@ -234,20 +234,37 @@ def test_bad_input_raises_one_clear_error(bad, match):
     assert "\n" not in str(info.value)
 
 
+def _all_rows(A, B, alpha, w, prior):
+    """The residual rows of cost (8) (+ prior, eq 27) stacked whole, ``[[0, √w E], [α√w E, α√w F]]`` on [q'; q]."""
+    E, F = pair_blocks(A, B)
+    sw = np.sqrt(w)[:, None, None]
+    rows = [np.concatenate([np.zeros((len(A), 4, 4)), sw * E], axis=2),
+            alpha * sw * np.concatenate([E, F], axis=2)]
+    if prior is not None:
+        T_p, a, b = prior
+        qp, qpd = dualquat.from_transforms(T_p)
+        Lc, Lcd = dualquat.left(dualquat.conjugate(qp)), dualquat.left(dualquat.conjugate(qpd))
+        rows += [np.hstack([np.zeros((4, 4)), np.sqrt(a) * np.diag([1.0, 1.0, 1.0, 0.0]) @ Lc])[None],
+                 np.sqrt(b) * np.hstack([Lc, Lcd])[None]]
+    return np.concatenate([r.reshape(-1, 8) for r in rows])
+
+
 @pytest.mark.parametrize("with_prior", [False, True])
 def test_chunked_pass_equals_all_rows_at_once(with_prior):
     """Motions reduced chunk by chunk (TSQR: chunks of 1 to 600 pairs, QR calls of up to 256 pairs, the
-    last padded) give the problem of all residual rows factorised at once, to rounding, and its optimum
-    the independent cost."""
+    last padded), and the per-pair blocks reduced in a tree, give the problem of all residual rows
+    factorised at once, to rounding, and its optimum the independent cost."""
     rng = np.random.default_rng(21)
     X = random_transform(rng)
     n = 600
     A, B = motion_pairs(n, X, rng, sigma_r=SIGMA_R, sigma_t=SIGMA_T)
     w = rng.uniform(0.1, 3, n)
     prior = (random_transform(rng), 0.5, 2.0) if with_prior else None
-    kw = {"alpha": 2.0, "prior": Prior(*prior) if prior else None}
-    whole = problem_from_blocks(*pair_blocks(A, B), w, **kw)
+    whole = Problem.from_rows(_all_rows(A, B, 2.0, w, prior))        # one QR of all 8N (+ 8) rows
     r_whole = dqopt(whole)
+    kw = {"alpha": 2.0, "prior": Prior(*prior) if prior else None}
+    blocks = problem_from_blocks(*pair_blocks(A, B), w, **kw)
+    np.testing.assert_allclose(blocks.form, whole.form, rtol=0, atol=1e-13 * np.abs(whole.form).max())
     for chunk in (1, 7, 256, 300, n):
         part = build_problem(A, B, weights=w, chunk=chunk, **kw)
         assert part.rows == 4 * n + 4 * with_prior

@@ -79,7 +79,9 @@ def _from_rows(X: FloatArray, out: FloatArray | None = None, work: FloatArray | 
     for (i, j), a, b, sign in _K_OFF_DIAGONAL:                 # into K[i, j] and K[j, i] at once
         (np.add if sign == "+" else np.subtract)(X[a], X[b], out=work[4 * i + j:4 * j + i + 1:3 * (j - i)])
     pick = diagonal == diagonal.max(0)                         # (4, M); ties: keep the first
-    pick &= np.cumsum(pick, axis=0) == 1
+    pick[1] &= ~pick[0]
+    pick[2] &= ~(pick[0] | pick[1])
+    pick[3] &= ~(pick[0] | pick[1] | pick[2])
     np.copyto(qd, pick)
     np.einsum("pin,pn->in", K, qd, out=q)                     # 4·x_p·q for the pivot p
     norm = work[4]

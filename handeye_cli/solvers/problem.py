@@ -76,12 +76,13 @@ def _triangular_factor(J: FloatArray, overwrite: bool = False, out: FloatArray |
     return R
 
 
-def _stacked_factor(J: FloatArray) -> FloatArray:
-    """The R factor of stacked 8x8 R factors ``J`` (8k, 8), by a tree: blocks of at most ``_QR_ROWS`` rows
-    are factorised and their R factors stacked until one is left (a single one is returned as it is)."""
-    while len(J) > 8:
+def _tree_factor(J: FloatArray) -> FloatArray:
+    """The 8x8 R factor of ``J`` (n, 8) by a tree (TSQR): blocks of at most ``_QR_ROWS`` rows are factorised
+    and their R factors stacked, and again, until one is left."""
+    while True:
         J = np.vstack([_triangular_factor(J[s:s + _QR_ROWS]) for s in range(0, len(J), _QR_ROWS)])
-    return J
+        if len(J) == 8:
+            return J
 
 
 @dataclass(frozen=True, eq=False)
@@ -367,7 +368,7 @@ def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, chunk: int) -> F
     (:func:`~handeye_cli.solvers.dualquat.difference_blocks`), laid out as the columns of Fortran-ordered
     (4b, 8) matrices of b pairs each (rows in any order: R does not depend on it; the identity pairs
     that pad the last matrix give zero rows), which LAPACK factorises in place; their R factors,
-    stacked, are factorised again (:func:`_stacked_factor`)."""
+    stacked, are factorised again (:func:`_tree_factor`)."""
     sw = None if (w == 1.0).all() else np.sqrt(w)
     size = min(chunk, len(A))
     block = min(_QR_PAIRS, size)
@@ -389,15 +390,20 @@ def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, chunk: int) -> F
         for cols in columns[:nb]:                                   # (2, 16, b): the columns of [E F]
             _triangular_factor(cols.reshape(8, 4 * block).T, overwrite=True, out=factors[k:k + 8])
             k += 8
-    return _stacked_factor(factors[:k])
+    return _tree_factor(factors[:k])
 
 
-def _problem(J: FloatArray, pairs: int, alpha: float, prior: Prior | None) -> Problem:
-    """The problem of the pairs' residual rows ``J`` (or rows with the same R factor) in ``(q', q)``
-    order, after the checks of α and the prior, with the prior's rows (eqs 26–27) added."""
+def _reduced_problem(Rm: FloatArray, pairs: int, alpha: float, prior: Prior | None) -> Problem:
+    """The problem of ``pairs`` pairs from the R factor ``Rm`` of their rows ``√w_i [E_i F_i]``, after the
+    checks of α and the prior, with the prior's rows (eqs 26–27) added."""
     if not (np.isfinite(alpha) and alpha > 0):
         raise ConfigError(f"alpha must be a positive number, got {alpha}", "alpha",
                            "pass e.g. alpha=1.0 (units 1/m)")
+    # [[0, P], [E, F]] with P = √w E_i and [E F] = α √w [E_i F_i] = Q α Rm: the same R as
+    # [[0, Re], [α Re, α G], [0, α Rf]] for Rm = [[Re, G], [0, Rf]]
+    J = np.zeros((12, 8))
+    J[:4, 4:] = Rm[:4, :4]
+    J[4:, :] = alpha * Rm
     rows = 4 * pairs
     if prior is not None:
         if not (prior.a >= 0 and prior.b >= 0):
@@ -415,26 +421,16 @@ def motion_problem(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float = 1
                    prior: Prior | None = None, chunk: int = CHUNK) -> Problem:
     """:func:`build_problem` from the arrays of :func:`checked_arrays`: reads, checks and reduces the
     motions in one pass of ``chunk`` pairs at a time."""
-    Rm = _motion_factor(A, B, w, chunk)
-    # [[0, P], [E, F]] with P = √w E_i and [E F] = α √w [E_i F_i] = Q α Rm: the same R as
-    # [[0, Re], [α Re, α G], [0, α Rf]] for Rm = [[Re, G], [0, Rf]]
-    J = np.zeros((12, 8))
-    J[:4, 4:] = Rm[:4, :4]
-    J[4:, :] = alpha * Rm
-    return _problem(J, len(A), alpha, prior)
+    return _reduced_problem(_motion_factor(A, B, w, chunk), len(A), alpha, prior)
 
 
 def problem_from_blocks(E: FloatArray, F: FloatArray, w: FloatArray, alpha: float = 1.0,
                         prior: Prior | None = None) -> Problem:
     """:func:`build_problem` from the per-pair blocks of :func:`pair_blocks` (N, 4, 4) of checked motions
-    and their weights: all residual rows ``[[0, √w E_i], [α√w E_i, α√w F_i]]`` stacked at once (8N x 8),
-    for a caller that needs the blocks anyway (Daniilidis' method) and few pairs."""
-    sw = np.sqrt(w)[:, None, None]
-    J = np.zeros((len(E), 8, 8))
-    J[:, :4, 4:] = sw * E
-    J[:, 4:, :4] = alpha * sw * E
-    J[:, 4:, 4:] = alpha * sw * F
-    return _problem(J.reshape(-1, 8), len(E), alpha, prior)
+    and their weights, for a caller that needs the blocks anyway (Daniilidis' method): the rows
+    ``√w_i [E_i F_i]`` are stacked whole (4N x 8) and factorised by :func:`_tree_factor`."""
+    K = (np.sqrt(w)[:, None, None] * np.concatenate((E, F), axis=2)).reshape(-1, 8)
+    return _reduced_problem(_tree_factor(K), len(E), alpha, prior)
 
 
 def build_problem(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1.0,
