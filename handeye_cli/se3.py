@@ -33,6 +33,7 @@ __all__ = [
     "relative",
     "rotation_angle",
     "is_rotation",
+    "rotation_residuals",
 ]
 
 
@@ -146,18 +147,41 @@ def rotation_angle(T_or_R: FloatArray) -> FloatArray | np.float64:
     return np.arctan2(skew_norm, trace - 1.0)
 
 
-# Determinant of a 3x3 matrix flattened row-major: Σ sign · product over the six permutations.
-_DET_INDEX = np.array([[0, 4, 8], [1, 5, 6], [2, 3, 7], [2, 4, 6], [1, 3, 8], [0, 5, 7]])
-_DET_SIGN = np.array([1.0, 1.0, 1.0, -1.0, -1.0, -1.0])
-_EYE3 = np.eye(3)[:, :, None]
+def rotation_residuals(C: FloatArray, work: FloatArray | None = None) -> FloatArray:
+    """The seven numbers that vanish for a proper rotation, per matrix of a batch-last stack:
+    ``C`` (3, 3, N) with ``C[i, j]`` the (N,) entries ``R_ij``; returns (7, N): the distinct entries
+    of ``RᵀR - I`` (the diagonal, then (0,1), (1,2), (0,2)) and ``det R - 1``.
+
+    Each step is one elementwise pass over rows of the batch (numpy's batched 3x3 products and
+    reductions over short inner axes are slow); :func:`is_rotation` and the solvers' validation
+    of motions (:mod:`handeye_cli.solvers.problem`) both use it. ``work`` (≥ 16, N), if given, is
+    used for every intermediate and its first seven rows are returned, so nothing is allocated.
+    """
+    n = C.shape[2]
+    w = np.empty((16, n)) if work is None else work
+    out, products = w[:7], w[7:16].reshape(3, 3, n)
+    np.multiply(C, C, out=products)
+    products.sum(0, out=out[0:3])
+    out[0:3] -= 1.0
+    np.multiply(C[:, :2], C[:, 1:], out=products[:, :2])
+    products[:, :2].sum(0, out=out[3:5])
+    np.multiply(C[:, 0], C[:, 2], out=products[:, 0])
+    products[:, 0].sum(0, out=out[5])
+    r0, r1, r2 = C                                             # det R = R_0 · (R_1 × R_2)
+    cross, tmp = products[0], products[1]
+    for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
+        np.multiply(r1[i], r2[j], out=cross[k])
+        np.multiply(r1[j], r2[i], out=tmp[k])
+    cross -= tmp
+    cross *= r0
+    cross.sum(0, out=out[6])
+    out[6] -= 1.0
+    return out
 
 
 def is_rotation(R: FloatArray, tol: float = 1e-6) -> BoolArray | np.bool_:
     """Boolean mask (a numpy scalar for one matrix): which (…, 3, 3) matrices are proper rotations within ``tol``:
-    ``|RᵀR - I|`` (largest entry) and ``|det R - 1|`` both at most ``tol``.
-
-    The batch is moved to the last axis so that every step is one elementwise pass over it
-    (numpy's batched 3x3 products and reductions over short inner axes are slow).
+    ``|RᵀR - I|`` (largest entry) and ``|det R - 1|`` both at most ``tol`` (see :func:`rotation_residuals`).
 
     Examples
     --------
@@ -168,9 +192,7 @@ def is_rotation(R: FloatArray, tol: float = 1e-6) -> BoolArray | np.bool_:
     """
     R = np.asarray(R, dtype=float)
     shape = R.shape[:-2]
-    C = np.ascontiguousarray(R.reshape(-1, 3, 3).transpose(1, 2, 0))     # C[k, i] = R_ki, batch last
-    D = (C[:, :, None] * C[:, None]).sum(0) - _EYE3                      # RᵀR - I
-    det = _DET_SIGN @ C.reshape(9, -1)[_DET_INDEX].prod(1)
-    dev = np.maximum(np.abs(D).max((0, 1)), np.abs(det - 1.0))
+    C = np.ascontiguousarray(R.reshape(-1, 3, 3).transpose(1, 2, 0))     # C[i, j] = R_ij, batch last
+    dev = np.abs(rotation_residuals(C)).max(0)
     mask: BoolArray | np.bool_ = (dev <= tol).reshape(shape)[()]
     return mask

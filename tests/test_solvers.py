@@ -11,7 +11,9 @@ from scipy.spatial.transform import Rotation
 import handeye_cli
 from handeye_cli import se3
 from handeye_cli.simulation import motion_pairs, random_transform
-from handeye_cli.solvers import METHODS, Prior, solve
+from handeye_cli.solvers import METHODS, Prior, Problem, build_problem, dualquat, solve
+from handeye_cli.solvers.optimal import dqopt
+from handeye_cli.solvers.problem import pair_blocks, problem_from_blocks
 
 SIGMA_R, SIGMA_T = np.deg2rad(0.57), 0.01    # the paper's noise levels (appendix D.2)
 
@@ -230,3 +232,68 @@ def test_bad_input_raises_one_clear_error(bad, match):
         solve(a, b, **kw)
     assert isinstance(info.value, handeye_cli.HandEyeError)
     assert "\n" not in str(info.value)
+
+
+def _all_rows(A, B, alpha, w, prior):
+    """The residual rows of cost (8) (+ prior, eq 27) stacked whole, ``[[0, √w E], [α√w E, α√w F]]`` on [q'; q]."""
+    E, F = pair_blocks(A, B)
+    sw = np.sqrt(w)[:, None, None]
+    rows = [np.concatenate([np.zeros((len(A), 4, 4)), sw * E], axis=2),
+            alpha * sw * np.concatenate([E, F], axis=2)]
+    if prior is not None:
+        T_p, a, b = prior
+        qp, qpd = dualquat.from_transforms(T_p)
+        Lc, Lcd = dualquat.left(dualquat.conjugate(qp)), dualquat.left(dualquat.conjugate(qpd))
+        rows += [np.hstack([np.zeros((4, 4)), np.sqrt(a) * np.diag([1.0, 1.0, 1.0, 0.0]) @ Lc])[None],
+                 np.sqrt(b) * np.hstack([Lc, Lcd])[None]]
+    return np.concatenate([r.reshape(-1, 8) for r in rows])
+
+
+@pytest.mark.parametrize("with_prior", [False, True])
+def test_chunked_pass_equals_all_rows_at_once(with_prior):
+    """Motions reduced chunk by chunk (TSQR: chunks of 1 to 600 pairs, QR calls of up to 256 pairs, the
+    last padded), and the per-pair blocks reduced in a tree, give the problem of all residual rows
+    factorised at once, to rounding, and its optimum the independent cost."""
+    rng = np.random.default_rng(21)
+    X = random_transform(rng)
+    n = 600
+    A, B = motion_pairs(n, X, rng, sigma_r=SIGMA_R, sigma_t=SIGMA_T)
+    w = rng.uniform(0.1, 3, n)
+    prior = (random_transform(rng), 0.5, 2.0) if with_prior else None
+    whole = Problem.from_rows(_all_rows(A, B, 2.0, w, prior))        # one QR of all 8N (+ 8) rows
+    r_whole = dqopt(whole)
+    kw = {"alpha": 2.0, "prior": Prior(*prior) if prior else None}
+    blocks = problem_from_blocks(*pair_blocks(A, B), w, **kw)
+    np.testing.assert_allclose(blocks.form, whole.form, rtol=0, atol=1e-13 * np.abs(whole.form).max())
+    for chunk in (1, 7, 256, 300, n):
+        part = build_problem(A, B, weights=w, chunk=chunk, **kw)
+        assert part.rows == 4 * n + 4 * with_prior
+        np.testing.assert_allclose(part.form, whole.form, rtol=0, atol=1e-13 * np.abs(whole.form).max())
+        r = dqopt(part)
+        T = dualquat.to_transform(r.q, r.qd)
+        np.testing.assert_allclose(T, dualquat.to_transform(r_whole.q, r_whole.qd), atol=1e-12)
+        assert part.cost(r.q, r.qd) == pytest.approx(ref.cost(A, B, T, 2.0, w, prior), rel=1e-12)
+
+
+def test_chunked_pass_on_noise_free_motions_is_exact():
+    """Noise-free motions make M singular; chunks of 7 pairs still give the extrinsic exactly."""
+    rng = np.random.default_rng(22)
+    X = random_transform(rng)
+    A, B = motion_pairs(40, X, rng)
+    r = dqopt(build_problem(A, B, chunk=7))
+    assert r.singular_m
+    rot, trans = _error(dualquat.to_transform(r.q, r.qd), X)
+    assert rot < 1e-9 and trans < 1e-9
+
+
+def test_chunked_check_reports_the_first_bad_motion_of_a_before_b():
+    """A bad motion of b in an earlier chunk than one of a: the error still names a's, as an
+    unchunked check of a, then b, would."""
+    rng = np.random.default_rng(0)
+    A, B = motion_pairs(30, random_transform(rng), rng)
+    A[25, 0, 3], B[3, :3, :3] = np.inf, 2 * B[3, :3, :3]
+    with pytest.raises(handeye_cli.HandEyeError, match=r"motions_a\[25\] contains NaN or inf"):
+        build_problem(A, B, chunk=4)
+    A[25, 0, 3] = 0.0
+    with pytest.raises(handeye_cli.HandEyeError, match=r"motions_b\[3\] has a rotation block"):
+        build_problem(A, B, chunk=4)

@@ -93,8 +93,7 @@ def _problems_from_grams(Q: FloatArray) -> list[Problem]:
     """Residual-row problems with ``M, Wᵀ, S`` equal to the blocks of each 8x8 ``Q`` (in ``[q'; q]`` order)."""
     lam, V = np.linalg.eigh(Q)
     K = np.sqrt(np.clip(lam, 0.0, None))[:, :, None] * np.swapaxes(V, 1, 2)     # KᵀK = Q
-    empty = np.zeros((0, 4))
-    return [Problem(empty, k[:, 4:], k[:, :4]) for k in K]
+    return [Problem.from_rows(k) for k in K]
 
 
 def _prior_gram(A: FloatArray, B: FloatArray, alpha: float, prior: Prior | None) -> FloatArray:

@@ -19,7 +19,17 @@ from .approximate import dq2ndord, dq2steps, dqconvrlx
 from .classical import CLASSICAL
 from .daniilidis import daniilidis
 from .optimal import dqitr, dqopt
-from .problem import Prior, Problem, build_problem, eigh, pair_blocks, problem_from_blocks, validate_motions
+from .problem import (
+    Prior,
+    Problem,
+    build_problem,
+    checked_arrays,
+    eigh,
+    motion_problem,
+    pair_blocks,
+    problem_from_blocks,
+    validate_motions,
+)
 
 __all__ = ["METHODS", "Prior", "Problem", "Solution", "build_problem", "solve", "dq_cost"]
 
@@ -136,9 +146,13 @@ def solve(motions_a: FloatArray, motions_b: FloatArray, method: str = "dqopt", a
     """
     if method not in METHODS:
         raise ConfigError(f"unknown method {method!r}", "method", f"choose one of {', '.join(METHODS)}")
-    A, B, w = validate_motions(motions_a, motions_b, weights)
-    E, F = pair_blocks(A, B)
-    problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)
+    if method == "daniilidis":                                 # needs the per-pair blocks: few pairs
+        A, B, w = validate_motions(motions_a, motions_b, weights)
+        E, F = pair_blocks(A, B)
+        problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)
+    else:
+        A, B, w = checked_arrays(motions_a, motions_b, weights)
+        problem = motion_problem(A, B, w, alpha=alpha, prior=prior)    # the one pass over the motions
     if prior is None:
         _check_determined(problem)
     common = partial(Solution, method=method, alpha=float(alpha), pairs=len(A))

@@ -44,69 +44,88 @@ def multiply(p: FloatArray, q: FloatArray) -> FloatArray:
     return product
 
 
-def _shepperd_matrix() -> FloatArray:
-    """(16, 16): row 4p + i gives component i of the quaternion scaled by pivot p (``4·x_p·(x, y, z, w)``)
-    from a transform flattened row-major (``X[4i + j] = T_ij``); the diagonal rows 5p lack the 1 of
-    ``4x_p² = 1 ± R00 ± R11 ± R22``. The ten distinct values are 4x², 4y², 4z², 4w², R01 + R10,
-    R02 + R20, R12 + R21, R21 - R12, R02 - R20, R10 - R01."""
-    values = [{0: 1, 5: -1, 10: -1}, {0: -1, 5: 1, 10: -1}, {0: -1, 5: -1, 10: 1}, {0: 1, 5: 1, 10: 1},
-              {1: 1, 4: 1}, {2: 1, 8: 1}, {6: 1, 9: 1}, {9: 1, 6: -1}, {2: 1, 8: -1}, {4: 1, 1: -1}]
-    pivot_rows = [[0, 4, 5, 7], [4, 1, 6, 8], [5, 6, 2, 9], [7, 8, 9, 3]]
-    S = np.zeros((16, 16))
-    for p, rows in enumerate(pivot_rows):
-        for i, v in enumerate(rows):
-            for col, sign in values[v].items():
-                S[4 * p + i, col] = sign
-    return S
+# Shepperd's method on the symmetric 4x4 matrix K with K = 4 q qᵀ for a rotation (x-y-z-w): row p of K is
+# 4·x_p·(x, y, z, w), and its diagonal 4x², 4y², 4z², 4w² is 1 ± R00 ± R11 ± R22. Its ten distinct entries
+# from the flattened rotation (R_ij at 4i + j): (row, column) of K, then the flat indices whose sum (+)
+# and difference (-) it is; the diagonal is filled apart.
+_K_OFF_DIAGONAL = (((0, 1), 1, 4, "+"), ((0, 2), 2, 8, "+"), ((1, 2), 6, 9, "+"),   # 4xy, 4xz, 4yz
+                   ((0, 3), 9, 6, "-"), ((1, 3), 2, 8, "-"), ((2, 3), 4, 1, "-"))   # 4xw, 4yw, 4zw
 
 
-def _dual_part_matrix() -> FloatArray:
-    """(4, 12): ``q' = ½ (t, 0) ⊗ q`` from the products ``t_j q_k`` at 4j + k (vector part
-    ``½ (t w + t × v)``, scalar part ``-½ t·v``)."""
-    D = np.zeros((4, 12))
-    for j in range(3):
-        a, b = (j + 1) % 3, (j + 2) % 3
-        D[j, 4 * j + 3] = 0.5
-        D[j, 4 * a + b] += 0.5
-        D[j, 4 * b + a] -= 0.5
-        D[3, 4 * j + j] = -0.5
-    return D
+def _from_rows(X: FloatArray, out: FloatArray | None = None, work: FloatArray | None = None) -> FloatArray:
+    """Unit dual quaternions ``[q; q']`` as a (2, 4, M) array of transforms given batch-last:
+    ``X`` (≥ 12, M) with ``X[4i + j]`` the (M,) entries ``T_ij`` (the bottom row is not read).
 
-
-_SHEPPERD = _shepperd_matrix()
-_DUAL = _dual_part_matrix()
-_PIVOTS = np.arange(4)[:, None]
-
-
-def _from_flat(X: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Unit dual quaternions ``(q, q')`` as (4, M) arrays of transforms flattened batch-last, X (16, M).
-
-    The rotation by Shepperd's method: of the four expressions ``4x², 4y², 4z², 4w²`` (from the
-    trace and the diagonal) the largest is taken as the pivot, so no division by a small number
-    occurs. It is what ``scipy``'s ``Rotation.from_matrix`` does for one matrix, without its per-call
-    overhead; with the batch on the last axis each step is one pass over contiguous rows.
-    Then ``q' = ½ (t, 0) ⊗ q`` (eq 2), with the sign that makes ``w ≥ 0``.
+    The rotation by Shepperd's method: of the four expressions ``4x², 4y², 4z², 4w²`` (the diagonal
+    of K) the largest is taken as the pivot, so no division by a small number occurs; it is what
+    ``scipy``'s ``Rotation.from_matrix`` does for one matrix, without its per-call overhead. The
+    pivot's row of K is picked by one-hot weights (ties go to the first, as ``argmax``), so each step
+    is one elementwise pass over rows of the batch. Then ``q' = ½ (t, 0) ⊗ q`` (eq 2), with the sign
+    that makes ``w ≥ 0``. ``out`` (2, 4, M) and ``work`` (≥ 16, M), if given, receive the result and
+    every intermediate, so that a caller converting chunk after chunk allocates nothing.
     """
-    G = _SHEPPERD @ X                                        # the four pivots' scaled quaternions
-    G[::5] += 1.0
-    pick = np.argmax(G[::5].T, axis=1) == _PIVOTS           # (4, M) one-hot
-    q = (G.reshape(4, 4, -1) * pick[:, None]).sum(0)         # ∝ 4·pivot·(x, y, z, w)
-    q *= np.where(q[3] < 0, -1.0, 1.0) / np.sqrt(np.einsum("im,im->m", q, q))
-    qd = _DUAL @ (X[3:12:4, None] * q).reshape(12, -1)
-    return q, qd
+    n = X.shape[1]
+    out = np.empty((2, 4, n)) if out is None else out
+    work = np.empty((16, n)) if work is None else work
+    q, qd = out
+    K = work[:16].reshape(4, 4, n)
+    diagonal = work[0:16:5]
+    trace = qd[0]                                              # qd's rows serve as scratch until the end
+    X[0:11:5].sum(0, out=trace)                                # R00 + R11 + R22
+    np.multiply(X[0:11:5], 2.0, out=diagonal[:3])             # 4x_i² = 1 + 2 R_ii - trace
+    diagonal[:3] -= trace
+    diagonal[:3] += 1.0
+    np.add(trace, 1.0, out=diagonal[3])                        # 4w² = 1 + trace
+    for (i, j), a, b, sign in _K_OFF_DIAGONAL:                 # into K[i, j] and K[j, i] at once
+        (np.add if sign == "+" else np.subtract)(X[a], X[b], out=work[4 * i + j:4 * j + i + 1:3 * (j - i)])
+    pick = diagonal == diagonal.max(0)                         # (4, M); ties: keep the first
+    pick[1] &= ~pick[0]
+    pick[2] &= ~(pick[0] | pick[1])
+    pick[3] &= ~(pick[0] | pick[1] | pick[2])
+    np.copyto(qd, pick)
+    np.einsum("pin,pn->in", K, qd, out=q)                     # 4·x_p·q for the pivot p
+    norm = work[4]
+    np.multiply(q, q, out=work[:4])
+    work[:4].sum(0, out=norm)
+    np.sqrt(norm, out=norm)
+    np.divide(np.where(q[3] < 0, -1.0, 1.0), norm, out=norm)
+    q *= norm
+    half_t, v, tmp = work[0:5], work[5:10], work[10:13]        # ½ (t_x, t_y, t_z, t_x, t_y), (x, y, z, x, y):
+    np.multiply(X[3:12:4], 0.5, out=half_t[:3])               # their cyclic shifts are views
+    half_t[3:] = half_t[:2]
+    v[:3] = q[:3]
+    v[3:] = q[:2]
+    np.multiply(half_t[1:4], v[2:5], out=qd[:3])               # ½ (w t + t × v)
+    np.multiply(half_t[2:5], v[1:4], out=tmp)
+    qd[:3] -= tmp
+    np.multiply(half_t[:3], q[3], out=tmp)
+    qd[:3] += tmp
+    np.multiply(half_t[:3], v[:3], out=tmp)                    # -½ t·v
+    tmp.sum(0, out=qd[3])
+    np.negative(qd[3], out=qd[3])
+    return out
 
 
 def _block_matrix() -> FloatArray:
-    """(8, 16): ``vec(L(p) - R(r)) = [p, r] @ _BLOCK`` for row vectors p, r (row-major 4x4)."""
-    B = np.zeros((8, 16))
-    for i in range(4):
+    """(16, 8): row ``4j + r`` gives entry (r, j) of ``L(p) - R(r')`` from the stacked quaternions ``[p; r']``."""
+    B = np.zeros((16, 8))
+    for r in range(4):
         for j in range(4):
-            B[_L_INDEX[i, j], 4 * i + j] += _L_SIGN[i, j]
-            B[4 + _R_INDEX[i, j], 4 * i + j] -= _R_SIGN[i, j]
+            B[4 * j + r, _L_INDEX[r, j]] += _L_SIGN[r, j]
+            B[4 * j + r, 4 + _R_INDEX[r, j]] -= _R_SIGN[r, j]
     return B
 
 
 _BLOCK = _block_matrix()
+
+
+def difference_blocks(qab: FloatArray, out: FloatArray | None = None) -> FloatArray:
+    """``L(q_a) - R(q_b)`` for quaternion pairs given batch-last: ``qab`` (…, 8, M) holds ``q_a`` then
+    ``q_b`` (x-y-z-w). Returns (…, 16, M) (into ``out`` if given) with row ``4j + r`` the entries (r, j)
+    of the M blocks, so that rows ``4j … 4j + 3`` flattened are column j of the blocks stacked (row
+    ``r·M + m`` is row r of block m), which is how the solvers lay out the columns of ``[E F]``.
+    Every entry is ``±a_k ± b_k``: one matrix product with the ±1 table (exact but for that sum)."""
+    return np.matmul(_BLOCK, qab, out=out)
 
 
 def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -118,20 +137,18 @@ def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray) -> tuple[FloatArray, 
     shape = Ta.shape[:-2] + (4, 4)
     a, b = Ta.reshape(-1, 16), Tb.reshape(-1, 16)
     n = len(a)
-    q, qd = _from_flat(np.concatenate((a, b)).T.copy())
-    pairs = np.empty((2 * n, 8))                 # rows [q_a, q_b] for E, then [q'_a, q'_b] for F
-    pairs[:n, :4] = q[:, :n].T
-    pairs[:n, 4:] = q[:, n:].T
-    pairs[n:, :4] = qd[:, :n].T
-    pairs[n:, 4:] = qd[:, n:].T
-    blocks = pairs @ _BLOCK
-    return blocks[:n].reshape(shape), blocks[n:].reshape(shape)
+    both = _from_rows(np.concatenate((a[:, :12], b[:, :12])).T.copy())   # (2, 4, 2n): [q; q'] of a, then of b
+    pairs = np.empty((2, n, 8))                                # rows [q_a, q_b] for E, then [q'_a, q'_b] for F
+    pairs[:, :, :4] = both[:, :, :n].transpose(0, 2, 1)
+    pairs[:, :, 4:] = both[:, :, n:].transpose(0, 2, 1)
+    blocks = pairs @ _BLOCK.reshape(4, 4, 8).transpose(2, 1, 0).reshape(8, 16)   # entry (r, j) at 4r + j
+    return blocks[0].reshape(shape), blocks[1].reshape(shape)
 
 
 def from_transforms(T: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Unit dual quaternions ``(q, q')`` of transforms (…, 4, 4), scalar part of ``q`` ≥ 0 (eq 2)."""
     T = np.asarray(T, dtype=np.float64)
-    q, qd = _from_flat(np.ascontiguousarray(T.reshape(-1, 16).T))
+    q, qd = _from_rows(np.ascontiguousarray(T.reshape(-1, 16)[:, :12].T))
     shape = T.shape[:-2] + (4,)
     return q.T.reshape(shape).copy(), qd.T.reshape(shape).copy()
 

@@ -16,10 +16,15 @@ The prior (eq 26) adds ``a δqᵀ G δq + b |δq'|²`` with ``δQ = Q̂* ⊗ Q``
 ``√a G L(q̂*)`` acting on q, and ``√b (L(q̂'*) q + L(q̂*) q')``, which give eq 29
 (``S += a L*ᵀGL*``, ``W += b L'*ᵀL*``, ``M += b I``) plus the constant ``b |q̂'|²`` that the
 paper drops and that is kept here so that costs are the true values.
-Quaternions are x-y-z-w (see :mod:`.dualquat`).
+
+The residual rows of all pairs are never held: the motions are read in chunks, each checked
+(finite, rigid) and reduced at once to the 8x8 R factor of its rows ``√w_i [E_i F_i]``; the
+chunks' factors, stacked, are factorised again (TSQR), which gives the R factor of all rows to
+rounding. Quaternions are x-y-z-w (see :mod:`.dualquat`).
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -32,12 +37,21 @@ from ..errors import ConfigError, DataError
 from . import dualquat as dq
 from .dualquat import _L_INDEX, _L_SIGN
 
-__all__ = ["Prior", "Problem", "build_problem", "pair_blocks", "problem_from_blocks", "validate_motions"]
+__all__ = ["Prior", "Problem", "build_problem", "checked_arrays", "motion_problem", "pair_blocks",
+           "problem_from_blocks", "validate_motions"]
 
 _G = np.diag([1.0, 1.0, 1.0, 0.0])
 _UPPER8 = np.triu(np.ones((8, 8)))
 _EPS = np.finfo(float).eps
 _LWORK, _IWORK = (int(v) for v in lapack.dgelsd_lwork(4, 3, 1, -1)[:2])      # workspace of the 4x3 lstsq
+_ROTATION_TOL = 1e-6        # a motion's rotation block: |RᵀR - I| and |det R - 1| at most this
+CHUNK = 4096
+"""Motion pairs read, checked and converted at once (their rows of scratch fit a cache of a few MB)."""
+# Pairs factorised per LAPACK call: their 1024 x 8 rows stay below the size from which OpenBLAS runs its
+# level-2 BLAS on several threads; on a busy 2-core machine a call that waits for a second thread was
+# measured 100 times slower.
+_QR_PAIRS = 256
+_QR_ROWS = 4 * _QR_PAIRS
 
 
 @dataclass(frozen=True)
@@ -49,42 +63,57 @@ class Prior:
     b: float = 1.0
 
 
+def _triangular_factor(J: FloatArray, overwrite: bool = False, out: FloatArray | None = None) -> FloatArray:
+    """The 8x8 R of the thin QR factorisation of ``J`` (n, 8) (zero rows below the n-th when n < 8),
+    written into ``out`` if given. ``overwrite`` lets LAPACK work in place on a Fortran-ordered ``J``."""
+    r, _, _, info = lapack.dgeqrf(J, overwrite_a=overwrite)
+    if info:
+        raise np.linalg.LinAlgError(f"QR factorisation failed (info {info})")
+    R = np.empty((8, 8)) if out is None else out
+    k = min(len(J), 8)
+    np.multiply(r[:k], _UPPER8[:k], out=R[:k])
+    R[k:] = 0.0
+    return R
+
+
+def _tree_factor(J: FloatArray) -> FloatArray:
+    """The 8x8 R factor of ``J`` (n, 8) by a tree (TSQR): blocks of at most ``_QR_ROWS`` rows are factorised
+    and their R factors stacked, and again, until one is left."""
+    while True:
+        J = np.vstack([_triangular_factor(J[s:s + _QR_ROWS]) for s in range(0, len(J), _QR_ROWS)])
+        if len(J) == 8:
+            return J
+
+
 @dataclass(frozen=True, eq=False)
 class Problem:
-    """Cost (8) (+ prior) as stacked residual rows: ``|P q|² + |F q + E q'|²``.
+    """Cost (8) (+ prior) as the R factor of its stacked residual rows, ``|P q|² + |F q + E q'|²``.
 
-    ``P`` (K, 4) holds the rotational residual rows (``√w_i E_i``, and ``√a G L(q̂*)`` for a prior);
-    ``F``, ``E`` (L, 4) the dual ones (``α√w_i F_i``, ``α√w_i E_i``, and ``√b L(q̂'*)``, ``√b L(q̂*)``).
-    Then ``S = PᵀP + FᵀF``, ``M = EᵀE``, ``W = FᵀE`` (eq 9, eq 29) and the prior's constant is
-    included, so :meth:`cost` is the true value. Keeping the rows lets Z0 be formed without
-    the cancellation in ``S - W M⁻¹ Wᵀ`` and costs be summed from residuals.
+    ``P`` holds the rotational residual rows (``√w_i E_i``, and ``√a G L(q̂*)`` for a prior);
+    ``F``, ``E`` the dual ones (``α√w_i F_i``, ``α√w_i E_i``, and ``√b L(q̂'*)``, ``√b L(q̂*)``).
+    ``R`` (8, 8) is the upper-triangular factor of the thin QR factorisation of the rows
+    ``[[0, P], [E, F]]`` acting on ``[q'; q]``, and the cost is ``|R [q'; q]|²``: the prior's constant
+    is included, so :meth:`cost` is the true value. In blocks ``R = [[Re, G], [0, Rz]]``: ``Re`` is the R
+    factor of ``E`` (``M = ReᵀRe``), ``W = GᵀRe``, and ``RzᵀRz = PᵀP + |F - Π_E F|²`` is Z0, so Z0 is
+    formed without the cancellation in ``S - W M⁻¹ Wᵀ``. ``rows`` is the number of dual residual rows
+    (4 per pair, 4 for a prior); it sets the rank tolerance of the least squares in :meth:`dual_part`.
     """
 
-    P: FloatArray
-    F: FloatArray
-    E: FloatArray
+    R: FloatArray
+    rows: int
 
-    @cached_property
-    def _K(self) -> FloatArray:
-        """``[E F]`` (L, 8), column-major for LAPACK; zero rows pad it to at least 8."""
-        n = len(self.E)
-        K: FloatArray = np.zeros((8, max(n, 8))).T
-        K[:n, :4] = self.E
-        K[:n, 4:] = self.F
-        return K
-
-    @cached_property
-    def _PtP(self) -> FloatArray:
-        PtP: FloatArray = self.P.T @ self.P
-        return PtP
+    @classmethod
+    def from_rows(cls, J: FloatArray, rows: int | None = None) -> Problem:
+        """The problem whose cost is ``|J [q'; q]|²`` for residual rows ``J`` (n, 8) in ``(q', q)`` order;
+        ``rows`` defaults to n."""
+        J = np.asarray(J, dtype=np.float64)
+        return cls(_triangular_factor(J), len(J) if rows is None else rows)
 
     @cached_property
     def form(self) -> FloatArray:
         """The 8x8 matrix ``[[M, Wᵀ], [W, S]]`` of cost (8) (+ prior, eq 29) in ``(q', q)`` order:
-        the cost is ``[q'; q]ᵀ form [q'; q]`` plus the prior's constant."""
-        K = self._K
-        Q: FloatArray = K.T @ K
-        Q[4:, 4:] += self._PtP
+        the cost is ``[q'; q]ᵀ form [q'; q]``, the prior's constant included."""
+        Q: FloatArray = self.R.T @ self.R
         return Q
 
     @property
@@ -100,23 +129,9 @@ class Problem:
         return self.form[4:, :4]
 
     def cost(self, q: FloatArray, qd: FloatArray) -> float:
-        """Cost (8) plus the prior terms at the dual quaternion ``q + ε q'``, summed from residuals."""
-        rot = self.P @ q
-        dual = self.F @ q + self.E @ qd
-        return float(rot @ rot + dual @ dual)
-
-    @cached_property
-    def _R(self) -> FloatArray:
-        """The 8x8 R of the thin QR factorisation ``[E F] = Q R = Q [[Re, G], [0, Rf]]``.
-
-        Then ``E = Q₁ Re`` and ``F = Q₁ G + Q₂ Rf`` (``Q = [Q₁ Q₂]``), so ``M = ReᵀRe``,
-        ``W = GᵀRe`` and ``|F - Π_E F|² = RfᵀRf``: everything below is 4x4 algebra on R.
-        """
-        r: FloatArray
-        r, _, _, info = lapack.dgeqrf(self._K)
-        if info:
-            raise np.linalg.LinAlgError(f"QR factorisation failed (info {info})")
-        return r[:8] * _UPPER8
+        """Cost (8) plus the prior terms at the dual quaternion ``q + ε q'``: ``|R [q'; q]|²``."""
+        r = self.R[:, :4] @ qd + self.R[:, 4:] @ q
+        return float(r @ r)
 
     @cached_property
     def _svd(self) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -156,8 +171,8 @@ class Problem:
 
     @property
     def R_factor(self) -> FloatArray:
-        """The R of the thin QR factorisation ``E = Qe Re`` (so ``M = ReᵀRe``)."""
-        return self._R[:4, :4]
+        """``Re``, the R of the thin QR factorisation ``E = Qe Re`` (so ``M = ReᵀRe``)."""
+        return self.R[:4, :4]
 
     @cached_property
     def _Zs(self) -> FloatArray:
@@ -165,11 +180,10 @@ class Problem:
         Rinv = self._Rinv
         if Rinv is None:
             raise np.linalg.LinAlgError("M is singular")
-        R = self._R
+        R = self.R
         Zs = np.empty((3, 4, 4))
-        Rf = R[4:, 4:]
-        np.matmul(Rf.T, Rf, out=Zs[0])
-        Zs[0] += self._PtP
+        Rz = R[4:, 4:]
+        np.matmul(Rz.T, Rz, out=Zs[0])
         WMinv = R[:4, 4:].T @ Rinv.T
         np.add(WMinv, WMinv.T, out=Zs[1])
         np.matmul(Rinv, Rinv.T, out=Zs[2])
@@ -179,8 +193,8 @@ class Problem:
     def Z(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         """``Z0 = S - W M⁻¹ Wᵀ``, ``Z1 = W M⁻¹ + M⁻¹ Wᵀ``, ``Z2 = M⁻¹`` (eq 13); needs a regular M.
 
-        From ``[E F] = Q [[Re, G], [0, Rf]]`` (:attr:`_R`): ``Z2 = Re⁻¹ Re⁻ᵀ``, ``W M⁻¹ = Gᵀ Re⁻ᵀ`` and
-        ``Z0 = PᵀP + RfᵀRf`` (the paper's ``AᵀA + α² BᵀCB``), which is PSD by construction and
+        From ``R = [[Re, G], [0, Rz]]`` (:attr:`R`): ``Z2 = Re⁻¹ Re⁻ᵀ``, ``W M⁻¹ = Gᵀ Re⁻ᵀ`` and
+        ``Z0 = RzᵀRz`` (the paper's ``AᵀA + α² BᵀCB``), which is PSD by construction and
         free of the cancellation in ``S - W M⁻¹ Wᵀ``.
         """
         Zs = self._Zs
@@ -190,17 +204,17 @@ class Problem:
     def Z0_relaxed(self) -> FloatArray:
         """Z0 also for a singular M: the Schur complement with the projector on E's column space.
 
-        With ``E = Q₁ Re`` and ``Re = U Σ Vᵀ``, E's numerical column space is ``Q₁ U_k``, so
-        ``F - Π_E F = Q₁ (G - U_k U_kᵀ G) + Q₂ Rf``.
+        With ``E = Q₁ Re`` and ``Re = U Σ Vᵀ``, E's numerical column space is ``Q₁ U_k``, so the rows
+        ``[G; Rz]`` of q lose ``U_k U_kᵀ G``.
         """
         if self.M_is_regular:
             return self.Z[0]
         U, sv, _ = self._svd
         U = U[:, sv > _rank_tolerance(sv)]
-        R = self._R
-        G, Rf = R[:4, 4:], R[4:, 4:]
+        R = self.R
+        G, Rz = R[:4, 4:], R[4:, 4:]
         Gr = G - U @ (U.T @ G)
-        Z0: FloatArray = self._PtP + Rf.T @ Rf + Gr.T @ Gr
+        Z0: FloatArray = Rz.T @ Rz + Gr.T @ Gr
         return Z0
 
     def _dual(self, q: FloatArray, basis: FloatArray, full_rank: bool = False
@@ -210,14 +224,14 @@ class Problem:
 
         ``full_rank`` (M regular, so ``Re B`` has full column rank with ``cond ≤ cond(Re) < 1e8``)
         lets the least squares be solved by QR (``dgels``) instead of the rank-revealing SVD."""
-        R = self._R
+        R = self.R
         gq = R[:4, 4:] @ q
         CB = R[:4, :4] @ basis
         info = 1
         if full_rank:
             _, y, info = lapack.dgels(CB, -gq)
         if info:
-            y, _, _, info = lapack.dgelsd(CB, -gq, _LWORK, _IWORK, _EPS * max(len(self.E), 3))
+            y, _, _, info = lapack.dgelsd(CB, -gq, _LWORK, _IWORK, _EPS * max(self.rows, 3))
             if info:
                 raise np.linalg.LinAlgError(f"least squares did not converge (info {info})")
         y = y[:3]
@@ -228,8 +242,8 @@ class Problem:
 
         Solves ``min |F q + E q'|²`` over ``q' = B y ⊥ q`` by least squares, with the orthonormal
         basis ``B`` of ``q``'s complement formed by the first three columns of ``L(q)`` (orthogonal,
-        with ``L(q) e_w = q``). With ``[E F] = Q [[Re, G], [0, Rf]]`` (:attr:`_R`) that is the 4x3
-        problem ``min |Re B y + G q|`` (the rows ``Rf q`` do not depend on y), the same as the
+        with ``L(q) e_w = q``). With ``R = [[Re, G], [0, Rz]]`` (:attr:`R`) that is the 4x3
+        problem ``min |Re B y + G q|`` (the rows ``Rz q`` do not depend on y), the same as the
         (L x 3) one on E and F.
         With a regular M this is exactly eq 20, ``q' = M⁻¹ (μ - Wᵀ) q`` with μ from eq 14, but it
         needs no inverse of M and stays defined when M is singular along ``q`` (noise-free data).
@@ -256,11 +270,6 @@ def _rank_tolerance(sv: FloatArray) -> float:
     return 1e-8 * max(float(sv[0]), 1e-300)
 
 
-def _all_rigid(T: FloatArray) -> bool:
-    """Whether every transform of a (N, 4, 4) stack is finite with a rotation block (both sensors at once)."""
-    return bool(np.isfinite(T).all() and se3.is_rotation(T[:, :3, :3], 1e-6).all())
-
-
 def _raise_first_bad(A: FloatArray, B: FloatArray) -> None:
     """Raise the error for the first bad motion array: wrong shape, non-finite, or not a rotation."""
     for name, T in (("motions_a", A), ("motions_b", B)):
@@ -269,33 +278,81 @@ def _raise_first_bad(A: FloatArray, B: FloatArray) -> None:
         if not np.isfinite(T).all():
             bad = int(np.flatnonzero(~np.isfinite(T).all(axis=(1, 2)))[0])
             raise DataError(f"{name}[{bad}] contains NaN or inf", name, "remove or repair that motion")
-        ok = se3.is_rotation(T[:, :3, :3], 1e-6)
+        ok = se3.is_rotation(T[:, :3, :3], _ROTATION_TOL)
         if not ok.all():
             bad = int(np.flatnonzero(~ok)[0])
             raise DataError(f"{name}[{bad}] has a rotation block that is not a rotation", name,
                                "pass rigid transforms (orthonormal rotation, det +1)")
 
 
-def validate_motions(motions_a: FloatArray, motions_b: FloatArray,
-                     weights: FloatArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Check shapes, finiteness and rotation blocks; return float arrays (N,4,4), (N,4,4), (N,)."""
+def checked_arrays(motions_a: FloatArray, motions_b: FloatArray,
+                   weights: FloatArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Check shapes, counts and weights, not the motions themselves (:func:`motion_problem` and
+    :func:`validate_motions` check those in the one pass that reads them); return float arrays
+    (N,4,4), (N,4,4), (N,).
+
+    Where a check fails, a bad motion is still reported first, as :func:`validate_motions` does."""
     A = np.asarray(motions_a, dtype=np.float64)
     B = np.asarray(motions_b, dtype=np.float64)
-    shapes_ok = A.ndim == B.ndim == 3 and A.shape[1:] == B.shape[1:] == (4, 4)
-    if not (shapes_ok and _all_rigid(np.concatenate((A, B)))):
+    if not (A.ndim == B.ndim == 3 and A.shape[1:] == B.shape[1:] == (4, 4)):
         _raise_first_bad(A, B)
     if len(A) != len(B):
+        _raise_first_bad(A, B)
         raise DataError(f"motions_a has {len(A)} motions, motions_b {len(B)}", "motions",
                            "pass the same number of motions for both sensors")
     if len(A) < 2:
+        _raise_first_bad(A, B)
         raise DataError(f"{len(A)} motion pair(s)", "motions", "at least 2 motion pairs are needed")
     if weights is None:
-        w = np.ones(len(A))
-    else:
-        w = np.asarray(weights, dtype=np.float64).reshape(-1)
-        if w.shape != (len(A),) or not np.isfinite(w).all() or (w < 0).any() or not (w > 0).any():
-            raise DataError(f"weights must be {len(A)} finite non-negative numbers, not all zero",
-                               "weights", "pass one weight per motion pair")
+        return A, B, np.ones(len(A))
+    w = np.asarray(weights, dtype=np.float64).reshape(-1)
+    if w.shape != (len(A),) or not np.isfinite(w).all() or (w < 0).any() or not (w > 0).any():
+        _raise_first_bad(A, B)
+        raise DataError(f"weights must be {len(A)} finite non-negative numbers, not all zero",
+                           "weights", "pass one weight per motion pair")
+    return A, B, w
+
+
+def _checked_chunks(A: FloatArray, B: FloatArray, chunk: int, block: int = 1,
+                    work: FloatArray | None = None) -> Iterator[tuple[int, int, FloatArray]]:
+    """The motions in chunks of ``chunk`` pairs, each checked as it is read: ``(start, stop, X)`` with
+    ``X`` (12, 2p) batch-last (``X[4i + j]`` holds ``T_ij``; reused between chunks): the transforms of
+    ``A[start:stop]``, identities up to p (``stop - start`` rounded up to a multiple of ``block``), then
+    those of ``B[start:stop]`` and identities again. A chunk with a non-finite entry or a rotation block
+    off by more than 1e-6 (:func:`~handeye_cli.se3.rotation_residuals`, as ``se3.is_rotation``) raises
+    the error for the first bad motion of all (:func:`_raise_first_bad`). ``work`` (16, 2p) is
+    scratch; with it nothing is allocated per chunk."""
+    n = len(A)
+    Af, Bf = A.reshape(n, 16), B.reshape(n, 16)
+    buffer = np.empty((12, 2 * -(-min(chunk, n) // block) * block))
+    work = np.empty((16, buffer.shape[1])) if work is None else work
+    for start in range(0, n, chunk):
+        stop = min(start + chunk, n)
+        m = stop - start
+        p = -(-m // block) * block
+        a, b = Af[start:stop], Bf[start:stop]
+        X = buffer[:, :2 * p]
+        np.copyto(X[:, :m], a[:, :12].T)
+        np.copyto(X[:, p:p + m], b[:, :12].T)
+        if p > m:
+            for pad in (X[:, m:p], X[:, p + m:]):
+                pad[...] = 0.0
+                pad[0:11:5] = 1.0
+        residuals = se3.rotation_residuals(X.reshape(3, 4, 2 * p)[:, :3], work[:, :2 * p])
+        np.abs(residuals, out=residuals)
+        # a sum is finite only if every term is (a false alarm from overflow is cleared by the full check)
+        if not (np.isfinite(a.sum() + b.sum()) and residuals.max() <= _ROTATION_TOL):
+            _raise_first_bad(A, B)
+        yield start, stop, X
+
+
+def validate_motions(motions_a: FloatArray, motions_b: FloatArray,
+                     weights: FloatArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Check shapes, finiteness and rotation blocks, in one pass of :data:`CHUNK` pairs at a time (the
+    arrays are not copied); return float arrays (N,4,4), (N,4,4), (N,)."""
+    A, B, w = checked_arrays(motions_a, motions_b, weights)
+    for _ in _checked_chunks(A, B, CHUNK):
+        pass
     return A, B, w
 
 
@@ -304,33 +361,84 @@ def pair_blocks(motions_a: FloatArray, motions_b: FloatArray) -> tuple[FloatArra
     return dq.pair_difference_blocks(motions_a, motions_b)
 
 
-def build_problem(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1.0,
-                  prior: Prior | None = None, weights: FloatArray | None = None) -> Problem:
-    """Stack the residual rows of cost (8) (weighted) and of the prior (eqs 26–27).
+def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, chunk: int) -> FloatArray:
+    """The 8x8 R factor of the rows ``√w_i [E_i F_i]`` of all pairs, in one checked pass (TSQR).
 
-    ``alpha`` [1/m] weighs the translational residuals against the rotational ones.
-    """
-    A, B, w = validate_motions(motions_a, motions_b, weights)
-    return problem_from_blocks(*pair_blocks(A, B), w, alpha=alpha, prior=prior)
+    Per chunk, the pairs' dual quaternions give the blocks by one product
+    (:func:`~handeye_cli.solvers.dualquat.difference_blocks`), laid out as the columns of Fortran-ordered
+    (4b, 8) matrices of b pairs each (rows in any order: R does not depend on it; the identity pairs
+    that pad the last matrix give zero rows), which LAPACK factorises in place; their R factors,
+    stacked, are factorised again (:func:`_tree_factor`)."""
+    sw = None if (w == 1.0).all() else np.sqrt(w)
+    size = min(chunk, len(A))
+    block = min(_QR_PAIRS, size)
+    blocks = -(-size // block)                                      # QR calls per chunk
+    factors = np.empty((8 * blocks * -(-len(A) // chunk), 8))
+    work, both = np.empty((16, 2 * blocks * block)), np.empty((2, 4, 2 * blocks * block))
+    pairs, columns = np.empty((blocks, 2, 8, block)), np.empty((blocks, 2, 16, block))
+    k = 0
+    for start, stop, X in _checked_chunks(A, B, chunk, block, work):
+        m, p = stop - start, X.shape[1] // 2
+        qq = dq._from_rows(X, both[:, :, :2 * p], work[:, :2 * p])   # [q; q'] of a (p), then of b (p)
+        if sw is not None:
+            qq[:, :, :m] *= sw[start:stop]
+            qq[:, :, p:p + m] *= sw[start:stop]
+        nb = p // block
+        for s, half in ((0, slice(0, 4)), (p, slice(4, 8))):        # per QR block and part: [q_a; q_b]
+            pairs[:nb, :, half] = qq[:, :, s:s + p].reshape(2, 4, nb, block).transpose(2, 0, 1, 3)
+        dq.difference_blocks(pairs[:nb], columns[:nb])
+        for cols in columns[:nb]:                                   # (2, 16, b): the columns of [E F]
+            _triangular_factor(cols.reshape(8, 4 * block).T, overwrite=True, out=factors[k:k + 8])
+            k += 8
+    return _tree_factor(factors[:k])
 
 
-def problem_from_blocks(E: FloatArray, F: FloatArray, w: FloatArray, alpha: float = 1.0,
-                        prior: Prior | None = None) -> Problem:
-    """:func:`build_problem` from the per-pair blocks of :func:`pair_blocks` and validated weights."""
+def _reduced_problem(Rm: FloatArray, pairs: int, alpha: float, prior: Prior | None) -> Problem:
+    """The problem of ``pairs`` pairs from the R factor ``Rm`` of their rows ``√w_i [E_i F_i]``, after the
+    checks of α and the prior, with the prior's rows (eqs 26–27) added."""
     if not (np.isfinite(alpha) and alpha > 0):
         raise ConfigError(f"alpha must be a positive number, got {alpha}", "alpha",
                            "pass e.g. alpha=1.0 (units 1/m)")
-    sw = np.sqrt(w)[:, None, None]
-    P = (E * sw).reshape(-1, 4)
-    Fd = (alpha * F * sw).reshape(-1, 4)
-    Ed = alpha * P
+    # [[0, P], [E, F]] with P = √w E_i and [E F] = α √w [E_i F_i] = Q α Rm: the same R as
+    # [[0, Re], [α Re, α G], [0, α Rf]] for Rm = [[Re, G], [0, Rf]]
+    J = np.zeros((12, 8))
+    J[:4, 4:] = Rm[:4, :4]
+    J[4:, :] = alpha * Rm
+    rows = 4 * pairs
     if prior is not None:
         if not (prior.a >= 0 and prior.b >= 0):
             raise ConfigError("prior weights must be non-negative", "prior", "pass a, b ≥ 0")
         qp, qpd = dq.from_transforms(np.asarray(prior.T_a_b, dtype=np.float64))
         Lc = dq.left(dq.conjugate(qp))                       # δq = L(q̂*) q            (eq 27)
         Lcd = dq.left(dq.conjugate(qpd))                     # δq' = L(q̂'*) q + L(q̂*) q'
-        P = np.vstack([P, np.sqrt(prior.a) * (_G @ Lc)])
-        Fd = np.vstack([Fd, np.sqrt(prior.b) * Lcd])
-        Ed = np.vstack([Ed, np.sqrt(prior.b) * Lc])
-    return Problem(P, Fd, Ed)
+        J = np.vstack([J, np.hstack([np.zeros((4, 4)), np.sqrt(prior.a) * (_G @ Lc)]),
+                       np.sqrt(prior.b) * np.hstack([Lc, Lcd])])
+        rows += 4
+    return Problem.from_rows(J, rows)
+
+
+def motion_problem(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float = 1.0,
+                   prior: Prior | None = None, chunk: int = CHUNK) -> Problem:
+    """:func:`build_problem` from the arrays of :func:`checked_arrays`: reads, checks and reduces the
+    motions in one pass of ``chunk`` pairs at a time."""
+    return _reduced_problem(_motion_factor(A, B, w, chunk), len(A), alpha, prior)
+
+
+def problem_from_blocks(E: FloatArray, F: FloatArray, w: FloatArray, alpha: float = 1.0,
+                        prior: Prior | None = None) -> Problem:
+    """:func:`build_problem` from the per-pair blocks of :func:`pair_blocks` (N, 4, 4) of checked motions
+    and their weights, for a caller that needs the blocks anyway (Daniilidis' method): the rows
+    ``√w_i [E_i F_i]`` are stacked whole (4N x 8) and factorised by :func:`_tree_factor`."""
+    K = (np.sqrt(w)[:, None, None] * np.concatenate((E, F), axis=2)).reshape(-1, 8)
+    return _reduced_problem(_tree_factor(K), len(E), alpha, prior)
+
+
+def build_problem(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1.0,
+                  prior: Prior | None = None, weights: FloatArray | None = None, chunk: int = CHUNK) -> Problem:
+    """Stack the residual rows of cost (8) (weighted) and of the prior (eqs 26–27), as their R factor.
+
+    ``alpha`` [1/m] weighs the translational residuals against the rotational ones; ``chunk``: the
+    motions read at once (the result does not depend on it beyond rounding).
+    """
+    A, B, w = checked_arrays(motions_a, motions_b, weights)
+    return motion_problem(A, B, w, alpha=alpha, prior=prior, chunk=chunk)
