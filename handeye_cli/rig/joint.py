@@ -41,7 +41,7 @@ _SIGMA2_FLOOR = 1e-18     # (1e-9 rad)², (α · 1 nm)²: below it residuals are
 def split_forms(A: Array, B: Array, counts: Array, alpha: float) -> Array:
     """The rotational and dual 8x8 cost matrices (``[q'; q]`` order) of motion pairs ``A_i X = X B_i``
     (N, 4, 4) weighted by each row of ``counts`` (R, N): (R, 2, 8, 8), the dual part scaled by α²."""
-    E, F = pair_blocks(A, B)
+    E, F = pair_blocks(A, B, alpha)
     rot = np.zeros((len(E), 8, 8))
     rot[:, 4:, 4:] = np.einsum("nki,nkj->nij", E, E)
     EF = np.concatenate((E, F), axis=2)                       # rows E q' + F q on [q'; q]

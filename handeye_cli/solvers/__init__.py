@@ -137,7 +137,7 @@ def solve(motions_a: FloatArray, motions_b: FloatArray, method: str = "dqopt", a
     if method not in METHODS:
         raise ConfigError(f"unknown method {method!r}", "method", f"choose one of {', '.join(METHODS)}")
     A, B, w = validate_motions(motions_a, motions_b, weights)
-    E, F = pair_blocks(A, B)
+    E, F = pair_blocks(A, B, alpha)
     problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)
     if prior is None:
         _check_determined(problem)

@@ -109,9 +109,17 @@ def _block_matrix() -> FloatArray:
 _BLOCK = _block_matrix()
 
 
-def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray) -> tuple[FloatArray, FloatArray]:
+def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray, alpha: float = 1.0) -> tuple[FloatArray, FloatArray]:
     """``L(q_a) - R(q_b)`` and ``L(q'_a) - R(q'_b)`` (…, 4, 4) of the (broadcast) transforms
-    ``Ta``, ``Tb`` (…, 4, 4): both stacks are converted in one pass and the blocks formed by one product."""
+    ``Ta``, ``Tb`` (…, 4, 4): both stacks are converted in one pass and the blocks formed by one product.
+
+    The blocks need the signs of ``Q_a`` and ``Q_b`` to agree (``Q_a = Q_X ⊗ Q_b ⊗ Q_X*``, not
+    ``-Q_X ⊗ Q_b ⊗ Q_X*``). Conjugation keeps the dual scalar part ``(w, w')`` (the screw's angle and
+    pitch invariants), so the sign of ``Q_b`` is the one whose ``(w_b, w'_b)`` has a non-negative
+    product ``w_a w_b + α² w'_a w'_b`` with ``(w_a, w'_a)`` (α [1/m]: the cost's weight of the dual
+    part). Away from a half-turn that is the sign making ``w ≥ 0``; near a half-turn (``w ≈ 0``) noise
+    can flip one ``w`` — a pair then costs as much as a 180° error — and the pitch part ``w' = -½ t·v``
+    decides."""
     Ta, Tb = np.asarray(Ta, dtype=np.float64), np.asarray(Tb, dtype=np.float64)
     if Ta.shape != Tb.shape:
         Ta, Tb = np.broadcast_arrays(Ta, Tb)
@@ -119,6 +127,10 @@ def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray) -> tuple[FloatArray, 
     a, b = Ta.reshape(-1, 16), Tb.reshape(-1, 16)
     n = len(a)
     q, qd = _from_flat(np.concatenate((a, b)).T.copy())
+    flip = q[3, :n] * q[3, n:] + alpha * alpha * qd[3, :n] * qd[3, n:] < 0     # Q_b ~ -Q_b: agree with Q_a
+    if flip.any():
+        q[:, n:][:, flip] *= -1.0
+        qd[:, n:][:, flip] *= -1.0
     pairs = np.empty((2 * n, 8))                 # rows [q_a, q_b] for E, then [q'_a, q'_b] for F
     pairs[:n, :4] = q[:, :n].T
     pairs[:n, 4:] = q[:, n:].T

@@ -299,9 +299,11 @@ def validate_motions(motions_a: FloatArray, motions_b: FloatArray,
     return A, B, w
 
 
-def pair_blocks(motions_a: FloatArray, motions_b: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """The per-pair blocks ``E_i = L(q_C) - R(q_H)`` and ``F_i = L(q'_C) - R(q'_H)`` (eqs 6–7), (N,4,4) each."""
-    return dq.pair_difference_blocks(motions_a, motions_b)
+def pair_blocks(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1.0) -> tuple[FloatArray, FloatArray]:
+    """The per-pair blocks ``E_i = L(q_C) - R(q_H)`` and ``F_i = L(q'_C) - R(q'_H)`` (eqs 6–7), (N,4,4) each;
+    the sign of ``Q_H`` agrees with ``Q_C``'s dual scalar part weighed by α [1/m]
+    (:func:`~handeye_cli.solvers.dualquat.pair_difference_blocks`)."""
+    return dq.pair_difference_blocks(motions_a, motions_b, alpha)
 
 
 def build_problem(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1.0,
@@ -311,7 +313,7 @@ def build_problem(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1
     ``alpha`` [1/m] weighs the translational residuals against the rotational ones.
     """
     A, B, w = validate_motions(motions_a, motions_b, weights)
-    return problem_from_blocks(*pair_blocks(A, B), w, alpha=alpha, prior=prior)
+    return problem_from_blocks(*pair_blocks(A, B, alpha), w, alpha=alpha, prior=prior)
 
 
 def problem_from_blocks(E: FloatArray, F: FloatArray, w: FloatArray, alpha: float = 1.0,
