@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import sparse
 from scipy.optimize import nnls
 
 from .. import se3
@@ -141,21 +142,26 @@ def edge_noise(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]]) 
     maps, energy = [], np.zeros((2, 3))
     for side, (M, raw) in enumerate(zip((A, B), raw_ns, strict=True)):
         S = _residual_sensitivity(M, q, qd, alpha, side)         # ∂r/∂ε_M
-        G = -np.einsum("ab,nkb,n,nkc->nac", Hinv, KD, w, S)      # ∂δ/∂ε_M
+        G = -Hinv @ (np.swapaxes(KD, 1, 2) @ (w[:, None, None] * S))   # ∂δ/∂ε_M
         back = -adjoint(se3.inverse(M))                          # ε_M = n(t_j) - Ad(M⁻¹) n(t_i)
         lo, hi, frac = interpolation(raw, stamps)
-        L = np.zeros((len(raw), 6, 6))
-        for sample, to_eps in ((cal.pairs.j, None), (cal.pairs.i, back)):
-            Gs = G if to_eps is None else G @ to_eps
-            Ss = S if to_eps is None else S @ to_eps
+        ends = (cal.pairs.j, cal.pairs.i)                        # a motion's end and start samples
+        blocks = (G, G @ back)
+        n_pairs = len(G)
+        rows, cols, vals = [], [], []
+        for e, (sample, S_end) in enumerate(zip(ends, (S, S @ back), strict=True)):
+            S2 = np.square(S_end)
+            parts = np.stack([S2[:, :4, :3].sum(axis=(1, 2)), S2[:, 4:, :3].sum(axis=(1, 2)),
+                              S2[:, 4:, 3:].sum(axis=(1, 2))], axis=1)          # (N, 3) per unit share²
             for idx, share in ((lo, 1.0 - frac), (hi, frac)):
-                c = share[sample][:, None, None]
-                np.add.at(L, idx[sample], c * Gs)
-                Sc = c * Ss
-                energy[side] += [np.sum(w * np.sum(Sc[:, :4, :3] ** 2, axis=(1, 2))),
-                                 np.sum(w * np.sum(Sc[:, 4:, :3] ** 2, axis=(1, 2))),
-                                 np.sum(w * np.sum(Sc[:, 4:, 3:] ** 2, axis=(1, 2)))]
-        maps.append(L)
+                rows.append(idx[sample])
+                cols.append(e * n_pairs + np.arange(n_pairs))
+                vals.append(share[sample])
+                energy[side] += (w * share[sample] ** 2) @ parts
+        spread = sparse.csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                                  shape=(len(raw), 2 * n_pairs))               # raw sample ← (pair, end)
+        L = spread @ np.concatenate(blocks).reshape(-1, 36)
+        maps.append(L.reshape(-1, 6, 6))
     observed = np.array([np.sum(w * np.sum(r[:, :4] ** 2, axis=1)), np.sum(w * np.sum(r[:, 4:] ** 2, axis=1))])
     return EdgeNoise((maps[0], maps[1]), energy, observed)
 
