@@ -57,14 +57,23 @@ def dual_quaternion(T: np.ndarray, dtype=np.float64) -> tuple[np.ndarray, np.nda
     return q, qmul(t, q) / 2
 
 
+def _agree(qa: np.ndarray, qad: np.ndarray, qb: np.ndarray, qbd: np.ndarray, alpha: float
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """``Q_B ~ -Q_B``: the sign whose dual scalar ``(w, α w')`` agrees with ``Q_A``'s (conjugation keeps it)."""
+    agree = np.where(qa[:, 3] * qb[:, 3] + alpha ** 2 * qad[:, 3] * qbd[:, 3] < 0, -1, 1).astype(qb.dtype)[:, None]
+    return agree * qb, agree * qbd
+
+
 def cost(A: np.ndarray, B: np.ndarray, X: np.ndarray, alpha: float, weights: np.ndarray | None = None,
          prior: tuple[np.ndarray, float, float] | None = None) -> float:
-    """``Σ w_i |Q_A ⊗ Q_X − Q_X ⊗ Q_B|²_α`` (cost 8), plus ``a |vec δq|² + b |δq'|²`` (eq 26)."""
+    """``Σ w_i |Q_A ⊗ Q_X − Q_X ⊗ Q_B|²_α`` (cost 8), plus ``a |vec δq|² + b |δq'|²`` (eq 26); the sign of
+    each ``Q_B`` agrees with ``Q_A``'s dual scalar part ``w + ε w'`` (weighed by α)."""
     ld = np.longdouble
     qa, qad = dual_quaternion(A, ld)
     qb, qbd = dual_quaternion(B, ld)
     qx, qxd = dual_quaternion(X, ld)
     alpha = ld(alpha)
+    qb, qbd = _agree(qa, qad, qb, qbd, alpha)
     real = qmul(qa, qx) - qmul(qx, qb)
     dual = qmul(qad, qx) + qmul(qa, qxd) - qmul(qxd, qb) - qmul(qx, qbd)
     w = np.ones(len(A), dtype=ld) if weights is None else np.asarray(weights, dtype=ld)
@@ -91,7 +100,7 @@ def residuals(params: np.ndarray, A: np.ndarray, B: np.ndarray, alpha: float,
     """The residual vector whose squared norm is :func:`cost` at ``transform(params)``."""
     X = transform(params)
     qa, qad = dual_quaternion(A)
-    qb, qbd = dual_quaternion(B)
+    qb, qbd = _agree(qa, qad, *dual_quaternion(B), alpha)
     qx, qxd = dual_quaternion(X)
     real = qmul(qa, qx) - qmul(qx, qb)
     dual = qmul(qad, qx) + qmul(qa, qxd) - qmul(qxd, qb) - qmul(qx, qbd)

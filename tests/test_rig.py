@@ -14,6 +14,7 @@ from handeye_cli.errors import ConfigError
 from handeye_cli.options import Options
 from handeye_cli.rig import RigOptions, calibrate_rig
 from handeye_cli.rig.graph import chains, synchronise
+from handeye_cli.rig.joint import log_errors
 from handeye_cli.rig.simulate import SimSensor, simulate_streams
 from handeye_cli.simulation import _smooth_trajectory, random_transform
 from handeye_cli.streams import PoseStream
@@ -102,50 +103,96 @@ def _chain_errors(res, truth: list[np.ndarray], k: int) -> dict[tuple[int, ...],
     return {path: pose_error(X, truth[k]) for path, X in chains(rel, len(res.names), k).items()}
 
 
-def test_joint_at_least_as_accurate_as_best_pairwise_chain() -> None:
-    """Over several simulated rigs whose sensors lose tracking at different times (cam0 2–9 s,
-    cam1 9–15 s, lidar 15–21 s of 30 s), the joint estimate's RMS error per sensor is no larger
-    than that of the best pairwise chain (the chain of pairwise-only results from the reference
-    with the smallest RMS error) by more than 5 %, and, for a sensor that lost tracking, better than
-    its direct pair with the reference. Error: rotation
-    [rad] + α · translation [m] with the cost's α = 1/m. Since the pairwise solves choose and weigh
-    their pairs by a noise model (--pairs auto), the best chain is sometimes up to ~3 % better than
-    the joint estimate, which weighs whole pairs of streams (benchmarks/rig.py prints both cases)."""
-    joint, chains = {}, {}
-    gaps = (((2.0, 9.0),), ((9.0, 15.0),), ((15.0, 21.0),), ())
-    for seed in range(6):
+GAPS = (((2.0, 9.0),), ((9.0, 15.0),), ((15.0, 21.0),), ())     # cam0, cam1, lidar lose tracking
+SEEDS = 20
+
+
+@pytest.fixture(scope="module")
+def gappy_rigs():
+    """20 simulated rigs (seeds 0–19, not chosen) of four sensors at different rates and noise levels
+    with clock offsets, each camera and the lidar losing tracking once (cam0 2–9 s, cam1 9–15 s,
+    lidar 15–21 s of 30 s): [(truth, result)]."""
+    out = []
+    for seed in range(SEEDS):
         T = _mounts(seed)
-        sensors = [replace(s, gaps=g) for s, g in zip(_sensors(T, drift=False), gaps, strict=True)]
-        res = calibrate_rig(simulate_streams(sensors, duration_s=30, seed=seed), RigOptions(time_offsets=KNOWN_OFFSETS))
-        for k in range(1, 4):
-            joint.setdefault(k, []).append(_combined(pose_error(res.matrices[k], T[k])))
-            for path, err in _chain_errors(res, T, k).items():
-                chains.setdefault(k, {}).setdefault(path, []).append(_combined(err))
+        sensors = [replace(s, gaps=g) for s, g in zip(_sensors(T, drift=False), GAPS, strict=True)]
+        out.append((T, calibrate_rig(simulate_streams(sensors, duration_s=30, seed=seed),
+                                     RigOptions(time_offsets=KNOWN_OFFSETS))))
+    return out
+
+
+def test_joint_at_least_as_accurate_as_best_pairwise_chain(gappy_rigs) -> None:
+    """Per sensor, the joint estimate's RMS error over the 20 rigs is no larger than that of the best
+    chain of pairwise-only results from the reference (chosen in hindsight, for rotation and for
+    translation separately), and for a sensor that lost tracking strictly smaller than its direct
+    pair's (the other streams bridge its gap).
+
+    Why it holds: the joint estimate is the generalised least squares of the pairwise estimates
+    under their joint covariance, and every chain is a linear unbiased combination of the same
+    estimates (Gauss–Markov, to first order). Why 20 rigs: the margin is a few per cent for the
+    sensor with the fewest gaps (wheels), so fewer rigs let the sampling noise of the RMS decide —
+    over 40 simulated rigs, every run of 20 consecutive seeds passes, runs of 6 pass one time in
+    four (benchmarks/rig.py prints the same comparison without gaps, where the direct pair holds
+    nearly all the information and the two tie within noise, and with drift, which biases the
+    pairs instead of adding noise)."""
     for k in range(1, 4):
-        best = min(_rms(v) for v in chains[k].values())
-        assert _rms(joint[k]) <= 1.05 * best, (k, _rms(joint[k]), best)
-        if gaps[k]:          # a sensor that lost tracking: the other streams bridge its gap
-            assert _rms(joint[k]) < _rms(chains[k][(0, k)])          # strictly better than the direct pair
+        joint = np.array([pose_error(res.matrices[k], T[k]) for T, res in gappy_rigs])
+        chains = {}
+        for T, res in gappy_rigs:
+            for path, err in _chain_errors(res, T, k).items():
+                chains.setdefault(path, []).append(err)
+        rms = {path: _rms(np.array(v)) for path, v in chains.items()}
+        best = np.min(np.array(list(rms.values())), axis=0)
+        assert np.all(_rms(joint) <= best), (k, _rms(joint), best, rms)
+        if GAPS[k]:
+            assert np.all(_rms(joint) < rms[(0, k)]), (k, _rms(joint), rms[(0, k)])
 
 
-def _combined(err: tuple[float, float]) -> float:
-    return float(np.deg2rad(err[0]) + err[1])
+def test_noise_model_is_calibrated(gappy_rigs) -> None:
+    """The noise model's predictions hold on the same rigs: each pairwise estimate's error against the
+    truth is a χ² of 6 degrees of freedom under the predicted covariance (mean over 120 pairs near 6,
+    where the summed-cost weights of before had no such scale), the predicted RMS errors of the
+    joint estimate match the measured ones, and each stream's estimated pose noise (three-cornered
+    hat over its pairs) is the simulated one: 3-D RMS angle σr, 3-D RMS translation √3 σt."""
+    chi2, predicted, measured, noise = [], [], [], []
+    for T, res in gappy_rigs:
+        C = res.problem.covariance
+        for e, edge in enumerate(res.edges):
+            d = log_errors(edge.matrix @ se3.inverse(se3.inverse(T[edge.j]) @ T[edge.k]))
+            chi2.append(d @ np.linalg.solve(C[6 * e:6 * e + 6, 6 * e:6 * e + 6], d))
+        predicted.append([[np.trace(c[:3, :3]), np.trace(c[3:, 3:])] for c in res.covariances[1:]])
+        measured.append([np.square(log_errors(se3.inverse(Tk) @ X)).reshape(2, 3).sum(axis=1)
+                         for Tk, X in zip(T[1:], res.matrices[1:], strict=True)])
+        noise.append([res.noise.std(k) for k in range(4)])
+    assert 5.0 < np.mean(chi2) < 7.5
+    ratio = np.sqrt(np.mean(measured, axis=0) / np.mean(predicted, axis=0))       # (sensor, rot/trans)
+    assert np.all((ratio > 0.75) & (ratio < 1.3)), ratio
+    truth = np.array([[s.sigma_r, np.sqrt(3) * s.sigma_t] for s in _sensors(_mounts(0), drift=False)])
+    assert np.allclose(np.mean(noise, axis=0) / truth, 1.0, atol=0.1), np.mean(noise, axis=0) / truth
 
 
-def _rms(values: list[float]) -> float:
-    return float(np.sqrt(np.mean(np.square(values))))
+def _rms(values: np.ndarray) -> np.ndarray:
+    return np.asarray(np.sqrt(np.mean(np.square(values), axis=0)))
 
 
 def test_bad_stream_is_named() -> None:
-    """A stream whose translations are 20 % short (e.g. monocular VO scale) spoils every loop it is in."""
+    """A stream whose translations are 20 % short (e.g. monocular VO scale) spoils every loop it is in:
+    it is named, informs no other sensor, the others are recovered as well as without it, its own
+    rotation too, and the noise model charges it with the most translation noise."""
     T = _mounts(0)
     res = calibrate_rig(simulate_streams(_sensors(T, bad_scale=0.8), duration_s=40, seed=0),
                         RigOptions(time_offsets=KNOWN_OFFSETS))
-    assert res.names[res.consistency.suspect] == "wheels"
+    assert res.names[res.consistency.suspect] == "wheels" and res.problem.excluded == 3
     assert any("stream wheels is inconsistent" in w for w in res.warnings)
     doc = res.document()
-    assert doc["consistency"]["suspect"] == "wheels"
+    assert doc["consistency"]["suspect"] == "wheels" and doc["noise_model"]["excluded"] == "wheels"
     assert doc["consistency"]["without"]["wheels"] < doc["consistency"]["score"] / 3
+    for k in (1, 2):
+        rot, trans = pose_error(res.matrices[k], T[k])
+        assert rot < 0.05 and trans < 0.002, (res.names[k], rot, trans)
+    assert pose_error(res.matrices[3], T[3])[0] < 0.1
+    noise = {s["name"]: s["noise"]["translation_m"] for s in doc["streams"]}
+    assert max(noise, key=noise.get) == "wheels" and noise["wheels"] > 5 * np.sqrt(3) * 0.005
 
 
 def test_bootstrap_uncertainty(noisy_rig) -> None:

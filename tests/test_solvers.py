@@ -297,3 +297,30 @@ def test_chunked_check_reports_the_first_bad_motion_of_a_before_b():
     A[25, 0, 3] = 0.0
     with pytest.raises(handeye_cli.HandEyeError, match=r"motions_b\[3\] has a rotation block"):
         build_problem(A, B, chunk=4)
+
+
+def test_half_turn_motions_keep_the_sign_of_their_dual_quaternion():
+    """Motions near a half-turn whose noise carries a's rotation just past 180° (so ``w ≥ 0`` flips
+    ``Q_A`` but not ``Q_B``): ``Q_B`` takes the sign of ``Q_A``'s dual scalar, the pairs' residuals at
+    the true X stay at the noise level and the solution stays where the other pairs put it (with the
+    ``w ≥ 0`` sign alone each such pair cost as much as a 180° error and moved X by millimetres)."""
+    from handeye_cli.solvers import dualquat
+    from handeye_cli.solvers.problem import pair_blocks
+
+    rng = np.random.default_rng(11)
+    X = random_transform(rng)
+    A, B = motion_pairs(60, X, rng, sigma_r=SIGMA_R / 10, sigma_t=SIGMA_T / 10)
+    axes = rng.normal(size=(4, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    B_h = np.tile(np.eye(4), (4, 1, 1))
+    B_h[:, :3, :3] = Rotation.from_rotvec(axes * (np.pi - 1e-4)).as_matrix()
+    B_h[:, :3, 3] = 0.3 * axes + 0.05 * rng.normal(size=(4, 3))
+    A_h = X @ B_h @ se3.inverse(X)
+    A_h[:, :3, :3] = A_h[:, :3, :3] @ Rotation.from_rotvec((X[:3, :3] @ axes.T).T * 2e-4).as_matrix()   # → π + 1e-4
+    assert np.all(dualquat.from_transforms(A_h)[0][:, 3] * dualquat.from_transforms(B_h)[0][:, 3] >= 0)
+    E, F = pair_blocks(A_h, B_h)
+    q, qd = dualquat.from_transforms(X)
+    assert np.linalg.norm(E @ q, axis=1).max() < 1e-3 and np.linalg.norm(E @ qd + F @ q, axis=1).max() < 1e-3
+    alone, both = solve(A, B).matrix, solve(np.concatenate([A, A_h]), np.concatenate([B, B_h])).matrix
+    rot, trans = _error(both, alone)
+    assert rot < 0.01 and trans < 1e-4

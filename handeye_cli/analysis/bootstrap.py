@@ -108,7 +108,7 @@ def replicate_grams(motions_a: FloatArray, motions_b: FloatArray, counts: FloatA
                     alpha: float = 1.0, prior: Prior | None = None) -> FloatArray:
     """``[[M, Wᵀ], [W, S]]`` (eq 9, + prior eq 29) per row of ``counts`` (R, N) as (R, 8, 8), via one matrix product."""
     A, B, _ = validate_motions(motions_a, motions_b)
-    E, F = pair_blocks(A, B)
+    E, F = pair_blocks(A, B, alpha)
     Q = (np.asarray(counts, dtype=np.float64) @ _pair_gram(E, F, alpha)).reshape(-1, 8, 8)
     return Q + _prior_gram(A, B, alpha, prior)
 

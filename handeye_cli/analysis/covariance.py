@@ -126,7 +126,7 @@ def linear_covariance(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Float
     lam, mu = float(q @ Qx[:4]), float(q @ Qx[4:])
     Lam = np.block([[lam * np.eye(4), mu * np.eye(4)], [mu * np.eye(4), np.zeros((4, 4))]])
     D = tangent_basis(q, qd)
-    E, F = pair_blocks(A, B)
+    E, F = pair_blocks(A, B, alpha)
     r_rot = E @ q                                                   # (N, 4)
     r_dual = alpha * (F @ q + E @ qd)
     Kx = np.concatenate([np.einsum("nki,nk->ni", E, r_rot) + alpha * np.einsum("nki,nk->ni", F, r_dual),

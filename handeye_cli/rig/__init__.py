@@ -2,9 +2,10 @@
 
 Pipeline: read all streams (one pass per log, :mod:`.read`) → per-stream clock offsets and
 inversion → one optimal calibration per pair of streams (:mod:`.pairwise`) → graph
-synchronisation (chordal rotation averaging, translation least squares, :mod:`.graph`) → joint
-refinement of the summed pairwise dual-quaternion costs (:mod:`.joint`) → loop closures, the
-bad-stream diagnostic and the block bootstrap → :class:`RigResult`.
+synchronisation (chordal rotation averaging, translation least squares, :mod:`.graph`) → the
+streams' noise and the pairwise estimates' joint covariance (:mod:`.noise`) → the generalised
+least squares of all pairwise estimates (:mod:`.joint`; a stream named inconsistent by the loop
+closures informs no other sensor) → the block bootstrap → :class:`RigResult`.
 
 Frames: stream k holds ``T_wk_k(t)``; ``T_ref_k`` is the pose of sensor k in the reference
 sensor's frame (maps points from k to ref); quaternions x-y-z-w; metres; int64 ns stamps.
@@ -16,12 +17,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..errors import ConfigError, DataError
 from ..options import Options
 from ..streams import PoseStream
 from .graph import consistency, loop_closures, synchronise
 from .joint import JointProblem, Motions, bootstrap_rig, refine
+from .noise import edge_covariance, edge_noise, stream_variances
 from .pairwise import ClockOffset, Edge, clock_offsets, solve_edges
 from .read import StreamSpec, parse_stream, read_rig
 from .result import RigResult, transform_entry
@@ -68,12 +71,19 @@ def _check(names: list[str], options: RigOptions) -> int:
 
 
 def _motions(edges: list[Edge], offsets: list[ClockOffset]) -> list[Motions]:
-    """Per edge: motions, their start stamps in the reference's clock [ns], and pair weights."""
+    """Per edge: motions, their start stamps in the reference's clock [ns], pair weights and α."""
     out: list[Motions] = []
     for e in edges:
         p, w = e.calibration.pairs, e.calibration.weights
-        out.append((p.A, p.B, p.t_i_ns - offsets[e.j].offset_ns, np.ones(len(p)) if w is None else w))
+        out.append((p.A, p.B, p.t_i_ns - offsets[e.j].offset_ns, np.ones(len(p)) if w is None else w,
+                    e.calibration.solution.alpha))
     return out
+
+
+def _raw_stamps(streams: list[PoseStream], offsets: list[ClockOffset], e: Edge
+                ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The raw stamps of edge e's streams in its own clock (stream j's): k's shifted by the pair's offset."""
+    return streams[e.j].stamps_ns, streams[e.k].stamps_ns - (offsets[e.k].offset_ns - offsets[e.j].offset_ns)
 
 
 def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None = None, *,
@@ -83,7 +93,7 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
     when a sensor cannot be calibrated against any other."""
     opts = options or RigOptions()
     names = list(streams)
-    ref = _check(names, opts)
+    n, ref = len(names), _check(names, opts)
     cfg = opts.options
     inverted = [name in opts.invert for name in names]
     used = [s.inverted() if inv else s for s, inv in zip(streams.values(), inverted, strict=True)]
@@ -95,26 +105,30 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
         raise DataError("no pair of streams could be calibrated", ", ".join(names), "see the warnings above")
     pairs = [(e.j, e.k) for e in edges]
     X = np.stack([e.matrix for e in edges])
-    problem = JointProblem(len(names), ref, pairs, np.stack([e.forms for e in edges]),
-                           JointProblem.pair_weights(np.stack([e.sigma2 for e in edges])))
-    T0 = synchronise(len(names), pairs, X, problem.weights.sum(axis=1), ref)
-    T = refine(problem, T0)
-    closures = loop_closures(len(names), dict(zip(pairs, X, strict=True)))
-    joint = loop_closures(len(names), {p: Xj for p, Xj in zip(pairs, problem.relative(T), strict=True)})
+    closures = loop_closures(n, dict(zip(pairs, X, strict=True)))
     alpha = edges[0].calibration.solution.alpha
-    cons = consistency(len(names), closures, alpha)
+    cons = consistency(n, closures, alpha)
     if cons.suspect is not None:
         warnings.append(f"stream {names[cons.suspect]} is inconsistent with the others: without it the pairwise "
                         f"loop closures improve from {cons.score:.4g} to {cons.without[cons.suspect]:.4g} "
-                        "(rad + α·m); check its topic, time offset, inversion and mounting")
+                        "(rad + α·m); its pairs do not inform the other sensors; check its topic, time offset, "
+                        "inversion and mounting")
+    noise = [edge_noise(e, _raw_stamps(used, offsets, e)) for e in edges]
+    variances = stream_variances(n, pairs, noise)
+    problem = JointProblem(n, ref, pairs, X, edge_covariance(pairs, noise, variances),
+                           np.stack([e.forms for e in edges]), excluded=cons.suspect)
+    rot_std = problem.edge_std()[:, 0]
+    T0 = synchronise(n, pairs, X, np.square(rot_std.min() / np.maximum(rot_std, 1e-300)), ref)
+    T, covariances = refine(problem, T0)
+    joint = loop_closures(n, {p: Xj for p, Xj in zip(pairs, problem.relative(T), strict=True)})
     unc = None
     if cfg.analysis.bootstrap > 0:
-        unc = bootstrap_rig(problem, T, _motions(edges, offsets), alpha, cfg.analysis.bootstrap,
+        unc = bootstrap_rig(problem, T, _motions(edges, offsets), cfg.analysis.bootstrap,
                             block_s=opts.block_s, seed=cfg.pairs.seed)
     settings = {"reference": names[ref], "time_offsets": dict(opts.time_offsets), "invert": list(opts.invert),
                 "block_seconds": opts.block_s, "options": cfg.flat()}
-    return RigResult(names, ref, used, inverted, offsets, edges, problem, T0, T, closures, joint, cons, unc,
-                     warnings, dict(inputs or {}), settings)
+    return RigResult(names, ref, used, inverted, offsets, edges, problem, T0, T, closures, joint, cons, variances,
+                     covariances, unc, warnings, dict(inputs or {}), settings)
 
 
 def calibrate_rig_files(log: str | None, specs: list[StreamSpec], options: RigOptions | None = None, *,

@@ -1,26 +1,29 @@
-"""Joint refinement of a rig: minimise the summed pairwise dual-quaternion costs over all ``T_ref_k``.
+"""Joint refinement of a rig: every ``T_ref_k`` from all pairwise results, weighed by their joint covariance.
 
-Each calibrated pair (j, k) contributes its cost (8) — exactly quadratic in the dual quaternion
-``[q'; q]`` of ``T_j_k`` — as two 8x8 matrices (eq 9 split by its rows, with the pair's α and
-per-pair weights): ``Q_jk,rot`` of the rotational rows ``E_i q`` and ``Q_jk,dual`` of the dual rows
-``α (F_i q + E_i q')``, each scaled by its own weight::
+Each calibrated pair (j, k) gives an estimate ``X̂_jk`` of ``T_j_k`` — the optimum of its cost (8).
+The pairwise estimates are not independent: pairs (j, k) and (j, l) share stream j's noise, so
+summing their costs as if they were counts stream j twice. :mod:`.noise` propagates every pose
+sample's noise to every pairwise estimate and gives their joint covariance ``C`` (6E x 6E). The
+rig is then the generalised least squares of the pairwise estimates::
 
-    J(T_ref_1 … T_ref_n) = Σ_jk Σ_p ω_jk,p [q'; q]ᵀ Q_jk,p [q'; q],   (q, q') of T_ref_j⁻¹ T_ref_k
+    J(T_ref_1 … T_ref_n) = zᵀ C⁻¹ z,   z_jk = Log(T_ref_j⁻¹ T_ref_k X̂_jk⁻¹)   (rotation [rad], translation [m])
 
-so the result is consistent by construction and every pair's data count, not only the
-reference's. The noise model: ``ω_jk,p = 1 / σ²_jk,p`` (rescaled so the largest is 1) with
-``σ²_jk,p`` the part's cost per degree of freedom at the pair's own optimum, so a noisy pair (or
-one with a bad stream) counts less, and each pair's rotation and translation are weighed by
-their own noise levels rather than by one α. The unknowns are right
-perturbations ``T_ref_k Exp(δ_k)`` (rotation vector [rad], translation [m]) of every non-reference
-sensor, solved by Levenberg–Marquardt from the graph synchronisation's estimate.
+consistent by construction (every ``T_j_k`` is ``T_ref_j⁻¹ T_ref_k``), and, to first order, at
+least as accurate as any chain of pairwise results for every sensor, in rotation and in
+translation: a chain is a linear unbiased combination of the same estimates (Gauss–Markov). Each
+pair's rotation and translation, and their correlations with the other pairs', are weighed by
+the noise the data show, not by one α or by how many motion pairs each pair has.
 
-:func:`bootstrap_rig` resamples time blocks shared by all pairs (a block's count multiplies
-every motion pair that starts in it), re-forms each pair's matrices and re-solves.
+The unknowns are perturbations ``T_ref_k Exp(δ_k)`` (rotation vector [rad], right; translation
+[m], added in the reference frame) of every non-reference sensor, solved by Levenberg–Marquardt
+from the graph synchronisation's estimate. :func:`bootstrap_rig` resamples time blocks shared by
+all pairs (a block's count multiplies every motion pair that starts in it), re-solves each pair on
+its re-weighted cost (8) and the rig from those estimates.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,20 +31,22 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from .. import se3
+from ..analysis.covariance import tangent_basis
 from ..solvers import dualquat as dq
 from ..solvers.problem import pair_blocks
 
-__all__ = ["Motions", "JointProblem", "refine", "bootstrap_rig", "RigUncertainty", "split_forms", "part_costs"]
+__all__ = ["Motions", "JointProblem", "refine", "bootstrap_rig", "RigUncertainty", "split_forms", "part_costs",
+           "resolve_pairs", "whitening", "log_errors"]
 
 Array = NDArray[np.float64]
-Motions = tuple[Array, Array, Array, Array]   # motions A, B (N, 4, 4); start stamps [ns] (N,); pair weights (N,)
-_SIGMA2_FLOOR = 1e-18     # (1e-9 rad)², (α · 1 nm)²: below it residuals are rounding, not noise
+Motions = tuple[Array, Array, Array, Array, float]   # A, B (N, 4, 4); start stamps [ns] (N,); pair weights (N,); α
+_EIGEN_FLOOR = 1e-12      # the smallest eigenvalue of C kept, relative to the largest
 
 
 def split_forms(A: Array, B: Array, counts: Array, alpha: float) -> Array:
     """The rotational and dual 8x8 cost matrices (``[q'; q]`` order) of motion pairs ``A_i X = X B_i``
     (N, 4, 4) weighted by each row of ``counts`` (R, N): (R, 2, 8, 8), the dual part scaled by α²."""
-    E, F = pair_blocks(A, B)
+    E, F = pair_blocks(A, B, alpha)
     rot = np.zeros((len(E), 8, 8))
     rot[:, 4:, 4:] = np.einsum("nki,nkj->nij", E, E)
     EF = np.concatenate((E, F), axis=2)                       # rows E q' + F q on [q'; q]
@@ -56,44 +61,66 @@ def part_costs(forms: Array, T: Array) -> Array:
     return np.asarray(np.einsum("ei,epij,ej->ep", v, forms, v), dtype=np.float64)
 
 
+def log_errors(T: Array) -> Array:
+    """``(ω, t)`` (…, 6) of transforms near the identity: rotation vector [rad], translation [m]."""
+    rotvec = Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_rotvec().reshape(T.shape[:-2] + (3,))
+    return np.concatenate((rotvec, T[..., :3, 3]), axis=-1)
+
+
+def whitening(C: Array) -> Array:
+    """``W`` with ``WᵀW = C⁻¹`` for a covariance C, its eigenvalues floored at ``_EIGEN_FLOOR`` of the
+    largest (combinations of the pairwise estimates that the noise model calls exact stay finite)."""
+    lam, V = np.linalg.eigh(C)
+    lam = np.maximum(lam, _EIGEN_FLOOR * max(float(lam.max()), np.finfo(float).tiny))
+    return np.asarray((V / np.sqrt(lam)).T, dtype=np.float64)
+
+
 @dataclass(frozen=True, eq=False)
 class JointProblem:
-    """The summed pairwise costs: ``pairs`` (E edges (j, k)), ``forms`` (E, 2, 8, 8) (rotational,
-    dual; ``[q'; q]`` order), ``weights`` ω (E, 2), ``reference`` index and ``n`` sensors."""
+    """The rig's generalised least squares: ``pairs`` (E edges (j, k)), their pairwise estimates
+    ``estimates`` (E, 4, 4) ``X̂_jk``, the joint ``covariance`` (6E, 6E) of their errors (left
+    perturbations, rotation [rad] and translation [m] per edge), each pair's cost (8) as
+    ``forms`` (E, 2, 8, 8) (rotational, dual; ``[q'; q]`` order), the ``reference`` and ``n`` sensors.
+    ``excluded``: a sensor whose pairs do not inform the others' extrinsics (a named bad stream)."""
 
     n: int
     reference: int
     pairs: list[tuple[int, int]]
+    estimates: Array
+    covariance: Array
     forms: Array
-    weights: Array
+    excluded: int | None = None
 
-    @staticmethod
-    def pair_weights(sigma2: Array) -> Array:
-        """``ω = σ²_min / σ²`` (E, 2) (largest weight 1), with σ² floored for noise-free pairs."""
-        s = np.maximum(np.asarray(sigma2, dtype=float), _SIGMA2_FLOOR)
-        return np.asarray(s.min() / s, dtype=np.float64)
+    @cached_property
+    def whitening(self) -> Array:
+        """``W`` with ``WᵀW = C⁻¹`` (see :func:`whitening`)."""
+        return whitening(self.covariance)
+
+    def edge_std(self) -> Array:
+        """(E, 2) predicted RMS error of each pairwise-only estimate: rotation [rad], translation [m]."""
+        d = np.diag(self.covariance).reshape(-1, 2, 3)
+        return np.asarray(np.sqrt(np.clip(d, 0.0, None).sum(axis=2)), dtype=np.float64)
 
     def relative(self, T: Array) -> Array:
         """``T_j_k = T_ref_j⁻¹ T_ref_k`` (E, 4, 4) of every edge."""
         j, k = (np.array([p[i] for p in self.pairs]) for i in (0, 1))
         return np.asarray(se3.inverse(T[j]) @ T[k], dtype=np.float64)
 
+    def errors(self, T: Array, estimates: Array | None = None) -> Array:
+        """``z`` (E, 6): ``Log(T_j_k X̂_jk⁻¹)`` of the rig ``T`` against the pairwise estimates."""
+        X = self.estimates if estimates is None else estimates
+        return np.asarray(log_errors(self.relative(T) @ se3.inverse(X)), dtype=np.float64)
+
     def edge_costs(self, T: Array) -> Array:
-        """Each pair's cost (8) at its α (unweighted by ω) at the rig ``T`` (n, 4, 4)."""
+        """Each pair's own cost (8) at its α and pair weights at the rig ``T`` (n, 4, 4)."""
         return np.asarray(part_costs(self.forms, self.relative(T)).sum(axis=1), dtype=np.float64)
 
     def cost(self, T: Array) -> float:
-        """J: the ω-weighted sum of the pairs' rotational and dual costs."""
-        return float(np.sum(self.weights * part_costs(self.forms, self.relative(T))))
+        """J = zᵀ C⁻¹ z (a χ² with 6(E - n + 1) degrees of freedom when the noise model holds)."""
+        return float(np.sum(np.square(self.whitening @ self.errors(T).ravel())))
 
 
-def _factors(forms: Array, weights: Array) -> Array:
-    """``K`` with ``KᵀK = Σ_p ω_p Q_p`` per edge (E, 8, 8), so that J is a sum of squares."""
-    lam, V = np.linalg.eigh(np.einsum("ep,epij->eij", weights, forms))
-    return np.asarray(np.sqrt(np.clip(lam, 0.0, None))[:, :, None] * np.swapaxes(V, 1, 2), dtype=np.float64)
-
-
-def _perturbed(T0: Array, free: Array, p: Array) -> Array:
+def _perturbed(T0: Array, free: NDArray[np.bool_], p: Array) -> Array:
     T = T0.copy()
     d = p.reshape(-1, 6)
     T[free, :3, :3] = T0[free, :3, :3] @ Rotation.from_rotvec(d[:, :3]).as_matrix()
@@ -101,19 +128,83 @@ def _perturbed(T0: Array, free: Array, p: Array) -> Array:
     return np.asarray(T, dtype=np.float64)
 
 
-def refine(problem: JointProblem, T0: Array) -> Array:
-    """Minimise J from the rig estimate ``T0`` (n, 4, 4) (``T0[reference] = I``); returns the rig."""
-    free = np.arange(problem.n) != problem.reference
-    K = _factors(problem.forms, problem.weights)
-    q0, _ = dq.from_transforms(problem.relative(T0))
+def _solve(problem: JointProblem, T0: Array, free: NDArray[np.bool_], edges: NDArray[np.bool_],
+           estimates: Array | None) -> tuple[Array, Array]:
+    """Minimise J over the ``free`` sensors using the ``edges`` kept; returns the rig and the
+    covariance (6F, 6F) of the free sensors' perturbations."""
+    keep = np.repeat(edges, 6)
+    W = problem.whitening if edges.all() else whitening(problem.covariance[np.ix_(keep, keep)])
+    X = problem.estimates if estimates is None else estimates
 
     def residuals(p: Array) -> Array:
-        q, qd = dq.from_transforms(problem.relative(_perturbed(T0, free, p)))
-        sign = np.where(np.sum(q * q0, axis=1) < 0, -1.0, 1.0)[:, None]      # follow one sheet of q ~ -q
-        return np.asarray(np.einsum("eij,ej->ei", K, sign * np.concatenate((qd, q), axis=1)).ravel(), dtype=np.float64)
+        return np.asarray(W @ problem.errors(_perturbed(T0, free, p), X)[edges].ravel(), dtype=np.float64)
 
     r = least_squares(residuals, np.zeros(6 * int(free.sum())), method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
-    return _perturbed(T0, free, r.x)
+    J = np.asarray(r.jac, dtype=np.float64)
+    return _perturbed(T0, free, r.x), np.asarray(np.linalg.pinv(J.T @ J, hermitian=True), dtype=np.float64)
+
+
+def refine(problem: JointProblem, T0: Array, estimates: Array | None = None) -> tuple[Array, Array]:
+    """Minimise J from the rig estimate ``T0`` (n, 4, 4) (``T0[reference] = I``), optionally on other
+    pairwise ``estimates`` (a bootstrap replicate's). Returns the rig and the covariance (n, 6, 6)
+    of each ``T_ref_k``'s perturbation (rotation vector [rad], translation [m]; zero for the reference).
+
+    With an ``excluded`` sensor, the others come from the pairs without it, then the excluded one
+    from its own pairs with the others held: a stream known to be inconsistent moves nobody else."""
+    n, ref = problem.n, problem.reference
+    free = np.arange(n) != ref
+    edges = np.ones(len(problem.pairs), dtype=bool)
+    cov = np.zeros((n, 6, 6))
+    bad = problem.excluded
+    if bad is not None:
+        edges = np.array([bad not in p for p in problem.pairs])
+        others = free & (np.arange(n) != bad)
+        if edges.any() and _reached(n, ref, [p for p, e in zip(problem.pairs, edges, strict=True) if e], others):
+            T0, c = _solve(problem, T0, others, edges, estimates)
+            cov[others] = _blocks(c)
+            free, edges = np.arange(n) == bad, ~edges
+    T, c = _solve(problem, T0, free, edges, estimates)
+    cov[free] = _blocks(c)
+    return T, cov
+
+
+def _reached(n: int, ref: int, pairs: list[tuple[int, int]], nodes: NDArray[np.bool_]) -> bool:
+    """Whether every node in ``nodes`` connects to ``ref`` through ``pairs``."""
+    seen, frontier = {ref}, [ref]
+    while frontier:
+        a = frontier.pop()
+        for j, k in pairs:
+            for u, v in ((j, k), (k, j)):
+                if u == a and v not in seen:
+                    seen.add(v)
+                    frontier.append(v)
+    return all(i in seen for i in np.flatnonzero(nodes))
+
+
+def _blocks(c: Array) -> Array:
+    return np.asarray([c[6 * i:6 * i + 6, 6 * i:6 * i + 6] for i in range(len(c) // 6)], dtype=np.float64)
+
+
+def resolve_pairs(forms: Array, X: Array) -> Array:
+    """Each pair's optimum of the cost (8) given by ``forms`` (E, 2, 8, 8) near ``X`` (E, 4, 4): one
+    constrained Newton step, ``δ = -(Dᵀ(Q - Λ)D)⁻¹ Dᵀ Q x`` (left perturbation; see
+    :mod:`handeye_cli.analysis.covariance`)."""
+    order = np.r_[4:8, 0:4]                                   # [q'; q] → [q; q']
+    q, qd = dq.from_transforms(X)
+    out = np.empty_like(X)
+    for e, Qe in enumerate(forms.sum(axis=1)):
+        Q = Qe[np.ix_(order, order)]
+        x = np.concatenate((q[e], qd[e]))
+        Qx = Q @ x
+        lam, mu = float(q[e] @ Qx[:4]), float(q[e] @ Qx[4:])
+        Lam = np.block([[lam * np.eye(4), mu * np.eye(4)], [mu * np.eye(4), np.zeros((4, 4))]])
+        D = tangent_basis(q[e], qd[e])
+        delta = -np.linalg.lstsq(D.T @ (Q - Lam) @ D, D.T @ Qx, rcond=None)[0]
+        step = np.eye(4)
+        step[:3, :3] = Rotation.from_rotvec(delta[:3]).as_matrix()
+        step[:3, 3] = delta[3:]
+        out[e] = step @ X[e]
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,26 +224,26 @@ class RigUncertainty:
     seed: int
 
 
-def bootstrap_rig(problem: JointProblem, T_hat: Array, motions: list[Motions],
-                  alpha: float, replicates: int, *, block_s: float = 2.0, seed: int = 0) -> RigUncertainty:
+def bootstrap_rig(problem: JointProblem, T_hat: Array, motions: list[Motions], replicates: int, *,
+                  block_s: float = 2.0, seed: int = 0) -> RigUncertainty:
     """Block bootstrap of the joint estimate ``T_hat`` (n, 4, 4).
 
-    ``motions[e] = (A, B, start_ns, pair_weights)`` of edge e: its motion pairs, their start
-    stamps in the reference's clock [ns] and weights (1, or the robust inlier mask). Time is cut
-    into blocks of ``block_s`` seconds shared by every edge; a replicate draws block counts
-    (multinomial) and re-solves from ``T_hat``.
+    ``motions[e] = (A, B, start_ns, pair_weights, alpha)`` of edge e: its motion pairs, their start
+    stamps in the reference's clock [ns], weights (the noise model's, times the robust inlier mask)
+    and α. Time is cut into blocks of ``block_s`` seconds shared by every edge; a replicate draws
+    block counts (multinomial), re-solves every pair on its re-weighted cost and the rig from those
+    estimates (with the same joint covariance), from ``T_hat``.
     """
     t0 = min(int(m[2].min()) for m in motions)
     blocks = [((m[2] - t0) // int(block_s * 1e9)).astype(np.int64) for m in motions]
     n_blocks = int(max(b.max() for b in blocks)) + 1
     rng = np.random.default_rng(seed)
     counts = rng.multinomial(n_blocks, np.full(n_blocks, 1.0 / n_blocks), size=replicates).astype(float)
-    forms = [split_forms(A, B, counts[:, b] * w, alpha) for (A, B, _, w), b in zip(motions, blocks, strict=True)]
+    forms = [split_forms(A, B, counts[:, b] * w, alpha) for (A, B, _, w, alpha), b in zip(motions, blocks, strict=True)]
     rot, trans = np.zeros((replicates, problem.n, 3)), np.zeros((replicates, problem.n, 3))
     for r in range(replicates):
-        rep = JointProblem(problem.n, problem.reference, problem.pairs, np.stack([f[r] for f in forms]),
-                           problem.weights)
-        T = refine(rep, T_hat)
+        X = resolve_pairs(np.stack([f[r] for f in forms]), problem.estimates)
+        T, _ = refine(problem, T_hat, X)
         rot[r] = Rotation.from_matrix(T[:, :3, :3] @ np.swapaxes(T_hat[:, :3, :3], 1, 2)).as_rotvec(degrees=True)
         trans[r] = T[:, :3, 3] - T_hat[:, :3, 3]
     pct = [2.5, 97.5]

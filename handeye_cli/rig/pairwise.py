@@ -20,7 +20,7 @@ from ..errors import ConfigError, HandEyeError
 from ..options import Options
 from ..pipeline import Calibration, calibrate
 from ..streams import PoseStream
-from .joint import part_costs, split_forms
+from .joint import split_forms
 
 __all__ = ["ClockOffset", "Edge", "clock_offsets", "solve_edges"]
 
@@ -49,14 +49,12 @@ class Edge:
     calibration: what :func:`~handeye_cli.pipeline.calibrate` returned (``matrix`` = ``T_j_k``).
     forms: (2, 8, 8) the rotational and dual parts of its cost (8) (``[q'; q]`` order, its α and
     per-pair weights): the pair's cost of any ``T_j_k`` is ``Σ_p [q'; q]ᵀ forms[p] [q'; q]``.
-    sigma2: (2,) each part's cost per degree of freedom at the pairwise optimum (noise levels).
     """
 
     j: int
     k: int
     calibration: Calibration
     forms: NDArray[np.float64]
-    sigma2: NDArray[np.float64]
 
     @property
     def matrix(self) -> NDArray[np.float64]:
@@ -93,9 +91,7 @@ def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset],
                              bootstrap=0, prior=None)
     cal = calibrate(streams[j], streams[k], opts)
     A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
-    forms = split_forms(A, B, np.ones((1, len(A))) if w is None else w[None], cal.solution.alpha)[0]
-    used = len(A) if w is None else int(np.count_nonzero(w))
-    return Edge(j, k, cal, forms, part_costs(forms[None], cal.matrix[None])[0] / max(used - 3, 1))
+    return Edge(j, k, cal, split_forms(A, B, np.ones((1, len(A))) if w is None else w[None], cal.solution.alpha)[0])
 
 
 def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[ClockOffset],

@@ -20,6 +20,7 @@ from ..output.document import plain
 from ..streams import PoseStream
 from .graph import Closure, Consistency
 from .joint import JointProblem, RigUncertainty
+from .noise import StreamNoise
 from .pairwise import ClockOffset, Edge
 
 __all__ = ["RigResult", "transform_entry"]
@@ -46,7 +47,9 @@ class RigResult:
     pairs (pairwise-only results); problem: the joint cost; synchronised: ``T_ref_k`` (n, 4, 4)
     of the graph synchronisation; matrices: the joint ``T_ref_k`` (n, 4, 4); closures: the
     pairwise-only loop closures; joint_closures: those of the joint result; consistency: the
-    bad-stream diagnostic; uncertainty: bootstrap spread (or None); warnings, inputs, settings.
+    bad-stream diagnostic; noise: every stream's estimated pose noise; covariances: (n, 6, 6) the
+    noise model's covariance of each joint ``T_ref_k`` (rotation [rad], translation [m]);
+    uncertainty: bootstrap spread (or None); warnings, inputs, settings.
     """
 
     names: list[str]
@@ -61,6 +64,8 @@ class RigResult:
     closures: list[Closure]
     joint_closures: list[Closure]
     consistency: Consistency
+    noise: StreamNoise
+    covariances: Array
     uncertainty: RigUncertainty | None = None
     warnings: list[str] = field(default_factory=list)
     inputs: dict[str, Any] = field(default_factory=dict)
@@ -71,7 +76,7 @@ class RigResult:
         i, j = self.names.index(parent), self.names.index(child)
         return np.asarray(se3.inverse(self.matrices[i]) @ self.matrices[j], dtype=np.float64)
 
-    def _pair(self, edge: Edge, weight: Array) -> dict[str, Any]:
+    def _pair(self, edge: Edge, std: Array) -> dict[str, Any]:
         names, A, B = self.names, edge.calibration.pairs.A, edge.calibration.pairs.B
         joint = self.T(names[edge.j], names[edge.k])
         mask = None if edge.calibration.weights is None else edge.calibration.weights > 0
@@ -79,14 +84,31 @@ class RigResult:
         return {**transform_entry(names[edge.j], names[edge.k], joint),
                 "pairwise_only": transform_entry(names[edge.j], names[edge.k], edge.matrix),
                 "difference": {"rotation_deg": rot, "translation_m": trans},
-                "pairs_used": len(A), "weights": {"rotation": weight[0], "translation": weight[1]},
+                "pairs_used": len(A),
+                "pairwise_only_error": {"rotation_deg": float(np.rad2deg(std[0])), "translation_m": float(std[1])},
                 "residuals": {"joint": pair_residuals(A, B, joint).summary(mask).as_dict(),
                               "pairwise_only": pair_residuals(A, B, edge.matrix).summary(mask).as_dict()}}
 
     def _streams(self) -> list[dict[str, Any]]:
         return [{"name": name, "source": s.source, "frame_id": s.frame_id, "child_frame_id": s.child_frame_id,
-                 "samples": len(s), "inverted": inv, "time_offset": off.as_dict()}
-                for name, s, inv, off in zip(self.names, self.streams, self.inverted, self.offsets, strict=True)]
+                 "samples": len(s), "inverted": inv, "time_offset": off.as_dict(),
+                 "noise": dict(zip(("rotation_deg", "translation_m"),
+                                   np.multiply(self.noise.std(k), (np.rad2deg(1.0), 1.0)).tolist(), strict=True))}
+                for k, (name, s, inv, off) in enumerate(zip(self.names, self.streams, self.inverted, self.offsets,
+                                                            strict=True))]
+
+    def _noise_model(self) -> dict[str, Any]:
+        """The joint estimate's noise model: its cost (a χ² of ``dof`` degrees of freedom when the
+        model holds) and each sensor's predicted error (root of the covariance's trace)."""
+        dof = 6 * (len(self.edges) - len(self.names) + 1)
+        cov = self.covariances
+        return {"method": "every pose sample's noise propagated to every pairwise estimate; joint covariance; "
+                          "generalised least squares",
+                "cost": self.problem.cost(self.matrices), "dof": dof,
+                "excluded": None if self.problem.excluded is None else self.names[self.problem.excluded],
+                "predicted_error": {name: {"rotation_deg": float(np.rad2deg(np.sqrt(np.trace(cov[k, :3, :3])))),
+                                           "translation_m": float(np.sqrt(np.trace(cov[k, 3:, 3:])))}
+                                    for k, name in enumerate(self.names) if k != self.reference}}
 
     def _uncertainty(self) -> dict[str, Any] | None:
         u = self.uncertainty
@@ -108,10 +130,11 @@ class RigResult:
             "reference": ref,
             "transforms": [transform_entry(ref, name, T) for name, T in zip(names, self.matrices, strict=True)
                            if name != ref],
-            "method": "pairwise dqopt, graph synchronisation, joint refinement of the summed pairwise costs",
+            "method": "pairwise dqopt, graph synchronisation, generalised least squares of the pairwise estimates "
+                      "under their joint noise model",
             "alpha": self.edges[0].calibration.solution.alpha if self.edges else None,
-            "cost": self.problem.cost(self.matrices),
-            "pairwise": [self._pair(e, w) for e, w in zip(self.edges, self.problem.weights, strict=True)],
+            "noise_model": self._noise_model(),
+            "pairwise": [self._pair(e, s) for e, s in zip(self.edges, self.problem.edge_std(), strict=True)],
             "loop_closures": {
                 "pairwise_only": [_closure(cl, names) for cl in self.closures],
                 "joint_max": {"rotation_deg": max((cl.rotation_deg for cl in self.joint_closures), default=0.0),

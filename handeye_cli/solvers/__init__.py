@@ -148,7 +148,7 @@ def solve(motions_a: FloatArray, motions_b: FloatArray, method: str = "dqopt", a
         raise ConfigError(f"unknown method {method!r}", "method", f"choose one of {', '.join(METHODS)}")
     if method == "daniilidis":                                 # needs the per-pair blocks: few pairs
         A, B, w = validate_motions(motions_a, motions_b, weights)
-        E, F = pair_blocks(A, B)
+        E, F = pair_blocks(A, B, alpha)
         problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)
     else:
         A, B, w = checked_arrays(motions_a, motions_b, weights)

@@ -128,16 +128,36 @@ def difference_blocks(qab: FloatArray, out: FloatArray | None = None) -> FloatAr
     return np.matmul(_BLOCK, qab, out=out)
 
 
-def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray) -> tuple[FloatArray, FloatArray]:
+def align_signs(both: FloatArray, alpha: float) -> FloatArray:
+    """Flip, in place, the signs of the b half of ``both`` (2, 4, 2n): ``[q; q']`` (x-y-z-w) of n motions
+    of a, then of n motions of b, so that each ``Q_b`` has the sign of its ``Q_a``; returns ``both``.
+
+    The blocks need the signs of ``Q_a`` and ``Q_b`` to agree (``Q_a = Q_X ⊗ Q_b ⊗ Q_X*``, not
+    ``-Q_X ⊗ Q_b ⊗ Q_X*``). Conjugation keeps the dual scalar part ``(w, w')`` (the screw's angle and
+    pitch invariants), so the sign of ``Q_b`` is the one whose ``(w_b, w'_b)`` has a non-negative
+    product ``w_a w_b + α² w'_a w'_b`` with ``(w_a, w'_a)`` (α [1/m]: the cost's weight of the dual
+    part). Away from a half-turn that is the sign making ``w ≥ 0``; near a half-turn (``w ≈ 0``) noise
+    can flip one ``w`` — a pair then costs as much as a 180° error — and the pitch part ``w' = -½ t·v``
+    decides."""
+    n = both.shape[2] // 2
+    flip = both[0, 3, :n] * both[0, 3, n:] + alpha * alpha * both[1, 3, :n] * both[1, 3, n:] < 0
+    if flip.any():
+        b = both[:, :, n:]
+        b[:, :, flip] *= -1.0
+    return both
+
+
+def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray, alpha: float = 1.0) -> tuple[FloatArray, FloatArray]:
     """``L(q_a) - R(q_b)`` and ``L(q'_a) - R(q'_b)`` (…, 4, 4) of the (broadcast) transforms
-    ``Ta``, ``Tb`` (…, 4, 4): both stacks are converted in one pass and the blocks formed by one product."""
+    ``Ta``, ``Tb`` (…, 4, 4): both stacks are converted in one pass, their signs agreed
+    (:func:`align_signs`, α [1/m]) and the blocks formed by one product."""
     Ta, Tb = np.asarray(Ta, dtype=np.float64), np.asarray(Tb, dtype=np.float64)
     if Ta.shape != Tb.shape:
         Ta, Tb = np.broadcast_arrays(Ta, Tb)
     shape = Ta.shape[:-2] + (4, 4)
     a, b = Ta.reshape(-1, 16), Tb.reshape(-1, 16)
     n = len(a)
-    both = _from_rows(np.concatenate((a[:, :12], b[:, :12])).T.copy())   # (2, 4, 2n): [q; q'] of a, then of b
+    both = align_signs(_from_rows(np.concatenate((a[:, :12], b[:, :12])).T.copy()), alpha)   # (2, 4, 2n)
     pairs = np.empty((2, n, 8))                                # rows [q_a, q_b] for E, then [q'_a, q'_b] for F
     pairs[:, :, :4] = both[:, :, :n].transpose(0, 2, 1)
     pairs[:, :, 4:] = both[:, :, n:].transpose(0, 2, 1)

@@ -356,13 +356,16 @@ def validate_motions(motions_a: FloatArray, motions_b: FloatArray,
     return A, B, w
 
 
-def pair_blocks(motions_a: FloatArray, motions_b: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """The per-pair blocks ``E_i = L(q_C) - R(q_H)`` and ``F_i = L(q'_C) - R(q'_H)`` (eqs 6–7), (N,4,4) each."""
-    return dq.pair_difference_blocks(motions_a, motions_b)
+def pair_blocks(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1.0) -> tuple[FloatArray, FloatArray]:
+    """The per-pair blocks ``E_i = L(q_C) - R(q_H)`` and ``F_i = L(q'_C) - R(q'_H)`` (eqs 6–7), (N,4,4) each;
+    the sign of ``Q_H`` agrees with ``Q_C``'s dual scalar part weighed by α [1/m]
+    (:func:`~handeye_cli.solvers.dualquat.align_signs`)."""
+    return dq.pair_difference_blocks(motions_a, motions_b, alpha)
 
 
-def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, chunk: int) -> FloatArray:
-    """The 8x8 R factor of the rows ``√w_i [E_i F_i]`` of all pairs, in one checked pass (TSQR).
+def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float, chunk: int) -> FloatArray:
+    """The 8x8 R factor of the rows ``√w_i [E_i F_i]`` of all pairs (signs agreed at α [1/m]: see
+    :func:`~handeye_cli.solvers.dualquat.align_signs`), in one checked pass (TSQR).
 
     Per chunk, the pairs' dual quaternions give the blocks by one product
     (:func:`~handeye_cli.solvers.dualquat.difference_blocks`), laid out as the columns of Fortran-ordered
@@ -379,7 +382,7 @@ def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, chunk: int) -> F
     k = 0
     for start, stop, X in _checked_chunks(A, B, chunk, block, work):
         m, p = stop - start, X.shape[1] // 2
-        qq = dq._from_rows(X, both[:, :, :2 * p], work[:, :2 * p])   # [q; q'] of a (p), then of b (p)
+        qq = dq.align_signs(dq._from_rows(X, both[:, :, :2 * p], work[:, :2 * p]), alpha)   # a (p), then b (p)
         if sw is not None:
             qq[:, :, :m] *= sw[start:stop]
             qq[:, :, p:p + m] *= sw[start:stop]
@@ -421,7 +424,7 @@ def motion_problem(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float = 1
                    prior: Prior | None = None, chunk: int = CHUNK) -> Problem:
     """:func:`build_problem` from the arrays of :func:`checked_arrays`: reads, checks and reduces the
     motions in one pass of ``chunk`` pairs at a time."""
-    return _reduced_problem(_motion_factor(A, B, w, chunk), len(A), alpha, prior)
+    return _reduced_problem(_motion_factor(A, B, w, alpha, chunk), len(A), alpha, prior)
 
 
 def problem_from_blocks(E: FloatArray, F: FloatArray, w: FloatArray, alpha: float = 1.0,
