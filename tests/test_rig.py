@@ -191,6 +191,7 @@ def test_bad_stream_is_named() -> None:
         rot, trans = pose_error(res.matrices[k], T[k])
         assert rot < 0.05 and trans < 0.002, (res.names[k], rot, trans)
     assert pose_error(res.matrices[3], T[3])[0] < 0.1
+    assert max(max(c.rotation_deg, c.translation_m) for c in res.joint_closures) < 1e-9    # still consistent
     noise = {s["name"]: s["noise"]["translation_m"] for s in doc["streams"]}
     assert max(noise, key=noise.get) == "wheels" and noise["wheels"] > 5 * np.sqrt(3) * 0.005
 

@@ -83,11 +83,12 @@ def rig(log: str | None, **p: Any) -> None:
     """Calibrate every sensor of a rig from one log: T_ref_k for each stream k, jointly.
 
     Every pair of streams is calibrated (dqopt), the pairwise results are synchronised (rotation
-    averaging, translation least squares) and refined jointly on the summed pairwise costs, so
-    that T_j_k = T_ref_j⁻¹ T_ref_k agrees with the data of every pair. The log is read once.
+    averaging, translation least squares) and combined by generalised least squares under their
+    joint noise model (each stream's pose noise propagated to every pair it is in), so that
+    T_j_k = T_ref_j⁻¹ T_ref_k agrees with the data of every pair. The log is read once.
     The result lists every T_ref_k and T_j_k, per-pair residuals (joint vs pairwise-only),
-    the pairwise loop closures and the stream that spoils them, and with --bootstrap N the
-    uncertainty of each extrinsic.
+    each stream's estimated noise and the predicted errors, the pairwise loop closures and the
+    stream that spoils them, and with --bootstrap N the uncertainty of each extrinsic.
 
     \b
     Examples:
