@@ -62,7 +62,7 @@ def _from_rows(X: FloatArray, out: FloatArray | None = None, work: FloatArray | 
     pivot's row of K is picked by one-hot weights (ties go to the first, as ``argmax``), so each step
     is one elementwise pass over rows of the batch. Then ``q' = ½ (t, 0) ⊗ q`` (eq 2), with the sign
     that makes ``w ≥ 0``. ``out`` (2, 4, M) and ``work`` (≥ 16, M), if given, receive the result and
-    every intermediate, so that a caller converting chunk after chunk allocates nothing.
+    every intermediate, so that a caller converting chunk after chunk allocates no more than masks.
     """
     n = X.shape[1]
     out = np.empty((2, 4, n)) if out is None else out
@@ -107,7 +107,7 @@ def _from_rows(X: FloatArray, out: FloatArray | None = None, work: FloatArray | 
 
 
 def _block_matrix() -> FloatArray:
-    """(16, 8): row ``4j + r`` gives entry (r, j) of ``L(p) - R(r')`` from the stacked quaternions ``[p; r']``."""
+    """(16, 8): row ``4j + r`` gives entry (r, j) of ``L(a) - R(b)`` from the stacked quaternions ``[a; b]``."""
     B = np.zeros((16, 8))
     for r in range(4):
         for j in range(4):

@@ -72,7 +72,8 @@ def _triangular_factor(J: FloatArray, overwrite: bool = False, out: FloatArray |
     R = np.empty((8, 8)) if out is None else out
     k = min(len(J), 8)
     np.multiply(r[:k], _UPPER8[:k], out=R[:k])
-    R[k:] = 0.0
+    if k < 8:
+        R[k:] = 0.0
     return R
 
 
