@@ -30,7 +30,7 @@ from ..solvers import Prior
 from ..solvers import dualquat as dq
 from ..solvers.problem import build_problem, pair_blocks, validate_motions
 
-__all__ = ["LinearCovariance", "linear_covariance", "tangent_basis"]
+__all__ = ["LinearCovariance", "linear_covariance", "tangent_basis", "constrained_hessian"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,6 +74,20 @@ def tangent_basis(q: FloatArray, qd: FloatArray) -> FloatArray:
     D[4:, :3] = 0.5 * Rqd
     D[4:, 3:] = 0.5 * Rq
     return D
+
+
+def constrained_hessian(Q: FloatArray, q: FloatArray, qd: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The curvature of the cost ``xᵀQx`` (Q 8x8 in ``x = [q; q']`` order) over unit dual quaternions at
+    ``q + ε q'``: ``(D, H, Qx)`` with ``D`` the :func:`tangent_basis`, ``H = Dᵀ(Q - Λ)D`` the Lagrangian's
+    Hessian in δ = (ω [rad], v [m]) (Λ from the multipliers ``λ = qᵀ(Qx)_q``, ``μ = qᵀ(Qx)_q'`` of the
+    unit and orthogonality constraints) and ``Qx`` (half the cost's gradient)."""
+    x = np.concatenate([q, qd])
+    Qx = Q @ x
+    lam, mu = float(q @ Qx[:4]), float(q @ Qx[4:])
+    Lam = np.block([[lam * np.eye(4), mu * np.eye(4)], [mu * np.eye(4), np.zeros((4, 4))]])
+    D = tangent_basis(q, qd)
+    H: FloatArray = D.T @ (Q - Lam) @ D
+    return D, H, Qx
 
 
 def _error_map(t: FloatArray) -> FloatArray:
@@ -120,19 +134,13 @@ def linear_covariance(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Float
     A, B, w = validate_motions(motions_a, motions_b, weights)
     problem = build_problem(A, B, alpha=alpha, prior=prior, weights=w)
     q, qd = dq.from_transforms(np.asarray(T_a_b, dtype=np.float64))
-    x = np.concatenate([q, qd])
-    Q = np.block([[problem.S, problem.W], [problem.W.T, problem.M]])
-    Qx = Q @ x
-    lam, mu = float(q @ Qx[:4]), float(q @ Qx[4:])
-    Lam = np.block([[lam * np.eye(4), mu * np.eye(4)], [mu * np.eye(4), np.zeros((4, 4))]])
-    D = tangent_basis(q, qd)
+    D, H, _ = constrained_hessian(np.block([[problem.S, problem.W], [problem.W.T, problem.M]]), q, qd)
     E, F = pair_blocks(A, B, alpha)
     r_rot = E @ q                                                   # (N, 4)
     r_dual = alpha * (F @ q + E @ qd)
     Kx = np.concatenate([np.einsum("nki,nk->ni", E, r_rot) + alpha * np.einsum("nki,nk->ni", F, r_dual),
                          alpha * np.einsum("nki,nk->ni", E, r_dual)], axis=1)   # K_iᵀ K_i x
     G = (w[:, None] * Kx) @ D                                       # (N, 6) scores
-    H = D.T @ (Q - Lam) @ D
     ev = np.linalg.eigvalsh(H)
     singular = bool(ev[0] <= 1e-12 * max(abs(ev[-1]), 1e-300))
     Hinv = np.linalg.pinv(H, hermitian=True)

@@ -39,10 +39,10 @@ class Closure:
     translation_m: float
 
 
-def connected(n: int, pairs: list[tuple[int, int]]) -> NDArray[np.bool_]:
-    """Which of the n nodes the edge list connects to node 0 (breadth-first)."""
+def connected(n: int, pairs: list[tuple[int, int]], start: int = 0) -> NDArray[np.bool_]:
+    """Which of the n nodes the edge list connects to node ``start`` (breadth-first)."""
     seen = np.zeros(n, dtype=bool)
-    seen[0], frontier = True, [0]
+    seen[start], frontier = True, [start]
     while frontier:
         node = frontier.pop()
         for j, k in pairs:

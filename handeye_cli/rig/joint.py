@@ -31,9 +31,10 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from .. import se3
-from ..analysis.covariance import tangent_basis
+from ..analysis.covariance import constrained_hessian
 from ..solvers import dualquat as dq
 from ..solvers.problem import pair_blocks
+from .graph import connected
 
 __all__ = ["Motions", "JointProblem", "refine", "bootstrap_rig", "RigUncertainty", "split_forms", "part_costs",
            "resolve_pairs", "whitening", "log_errors"]
@@ -159,26 +160,14 @@ def refine(problem: JointProblem, T0: Array, estimates: Array | None = None) -> 
     if bad is not None:
         edges = np.array([bad not in p for p in problem.pairs])
         others = free & (np.arange(n) != bad)
-        if edges.any() and _reached(n, ref, [p for p, e in zip(problem.pairs, edges, strict=True) if e], others):
+        kept = [p for p, e in zip(problem.pairs, edges, strict=True) if e]
+        if edges.any() and connected(n, kept, ref)[others].all():
             T0, c = _solve(problem, T0, others, edges, estimates)
             cov[others] = _blocks(c)
             free, edges = np.arange(n) == bad, ~edges
     T, c = _solve(problem, T0, free, edges, estimates)
     cov[free] = _blocks(c)
     return T, cov
-
-
-def _reached(n: int, ref: int, pairs: list[tuple[int, int]], nodes: NDArray[np.bool_]) -> bool:
-    """Whether every node in ``nodes`` connects to ``ref`` through ``pairs``."""
-    seen, frontier = {ref}, [ref]
-    while frontier:
-        a = frontier.pop()
-        for j, k in pairs:
-            for u, v in ((j, k), (k, j)):
-                if u == a and v not in seen:
-                    seen.add(v)
-                    frontier.append(v)
-    return all(i in seen for i in np.flatnonzero(nodes))
 
 
 def _blocks(c: Array) -> Array:
@@ -193,13 +182,8 @@ def resolve_pairs(forms: Array, X: Array) -> Array:
     q, qd = dq.from_transforms(X)
     out = np.empty_like(X)
     for e, Qe in enumerate(forms.sum(axis=1)):
-        Q = Qe[np.ix_(order, order)]
-        x = np.concatenate((q[e], qd[e]))
-        Qx = Q @ x
-        lam, mu = float(q[e] @ Qx[:4]), float(q[e] @ Qx[4:])
-        Lam = np.block([[lam * np.eye(4), mu * np.eye(4)], [mu * np.eye(4), np.zeros((4, 4))]])
-        D = tangent_basis(q[e], qd[e])
-        delta = -np.linalg.lstsq(D.T @ (Q - Lam) @ D, D.T @ Qx, rcond=None)[0]
+        D, H, Qx = constrained_hessian(Qe[np.ix_(order, order)], q[e], qd[e])
+        delta = -np.linalg.lstsq(H, D.T @ Qx, rcond=None)[0]
         step = np.eye(4)
         step[:3, :3] = Rotation.from_rotvec(delta[:3]).as_matrix()
         step[:3, 3] = delta[3:]

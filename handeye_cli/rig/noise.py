@@ -36,7 +36,7 @@ from scipy import sparse
 from scipy.optimize import nnls
 
 from .. import se3
-from ..analysis.covariance import tangent_basis
+from ..analysis.covariance import constrained_hessian
 from ..solvers import dualquat as dq
 from ..solvers.problem import pair_blocks
 from .pairwise import Edge
@@ -130,12 +130,8 @@ def edge_noise(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]]) 
     E, F = pair_blocks(A, B, alpha)
     Z = np.zeros_like(E)
     K = np.concatenate([np.concatenate([E, Z], axis=2), alpha * np.concatenate([F, E], axis=2)], axis=1)  # rows on x
-    Q = np.einsum("n,nki,nkj->ij", w, K, K)
-    Qx = Q @ x
-    lam, mu = float(q @ Qx[:4]), float(q @ Qx[4:])
-    Lam = np.block([[lam * np.eye(4), mu * np.eye(4)], [mu * np.eye(4), np.zeros((4, 4))]])
-    D = tangent_basis(q, qd)
-    Hinv = np.linalg.pinv(D.T @ (Q - Lam) @ D, hermitian=True)
+    D, H, _ = constrained_hessian(np.einsum("n,nki,nkj->ij", w, K, K), q, qd)
+    Hinv = np.linalg.pinv(H, hermitian=True)
     KD = K @ D                                                   # (N, 8, 6) ∂r/∂δ
     r = K @ x
     stamps = cal.synced.stamps_ns
