@@ -28,7 +28,7 @@ import numpy as np
 from .._typing import BoolArray, FloatArray, IntArray
 from ..solvers import Prior
 from ..solvers import dualquat as dq
-from ..solvers.problem import build_problem, pair_blocks, validate_motions
+from ..solvers.problem import pair_blocks, problem_from_blocks, validate_motions
 
 __all__ = ["LinearCovariance", "linear_covariance", "tangent_basis", "constrained_hessian"]
 
@@ -132,10 +132,10 @@ def linear_covariance(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Float
     Hessian the pseudo-inverse is used and ``singular`` is set.
     """
     A, B, w = validate_motions(motions_a, motions_b, weights)
-    problem = build_problem(A, B, alpha=alpha, prior=prior, weights=w)
+    E, F = pair_blocks(A, B, alpha)
+    problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)   # the blocks serve both
     q, qd = dq.from_transforms(np.asarray(T_a_b, dtype=np.float64))
     D, H, _ = constrained_hessian(np.block([[problem.S, problem.W], [problem.W.T, problem.M]]), q, qd)
-    E, F = pair_blocks(A, B, alpha)
     r_rot = E @ q                                                   # (N, 4)
     r_dual = alpha * (F @ q + E @ qd)
     Kx = np.concatenate([np.einsum("nki,nk->ni", E, r_rot) + alpha * np.einsum("nki,nk->ni", F, r_dual),
