@@ -117,6 +117,7 @@ def _block_matrix() -> FloatArray:
 
 
 _BLOCK = _block_matrix()
+_BLOCK_ROWS = _BLOCK.reshape(4, 4, 8).transpose(2, 1, 0).reshape(8, 16)   # [a, b] rows → entry (r, j) at 4r + j
 
 
 def difference_blocks(qab: FloatArray, out: FloatArray | None = None) -> FloatArray:
@@ -161,7 +162,7 @@ def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray, alpha: float = 1.0) -
     pairs = np.empty((2, n, 8))                                # rows [q_a, q_b] for E, then [q'_a, q'_b] for F
     pairs[:, :, :4] = both[:, :, :n].transpose(0, 2, 1)
     pairs[:, :, 4:] = both[:, :, n:].transpose(0, 2, 1)
-    blocks = pairs @ _BLOCK.reshape(4, 4, 8).transpose(2, 1, 0).reshape(8, 16)   # entry (r, j) at 4r + j
+    blocks = pairs @ _BLOCK_ROWS
     return blocks[0].reshape(shape), blocks[1].reshape(shape)
 
 
