@@ -3,7 +3,9 @@
 Builds (in a temporary directory) zstd-chunked MCAP logs of a rig — a at 100 Hz and b at 30 Hz
 (PoseStamped) plus ``/tf`` at 100 Hz — of each ``--minutes`` length, and one image-heavy log
 (``--image-seconds`` of the same poses with ``--image-hz`` images of ``--image-mb`` MB
-interleaved). For each log it prints, all measured in this run:
+interleaved: distinct images of random pixels, which zstd cannot compress, like the issue's
+1.96 GB log; ``--same-image`` repeats one image instead, which a 4 MB chunk compresses about
+fivefold, so the limit is mostly start-up). For each log it prints, all measured in this run:
 
 * the limit: Python start-up with numpy + scipy.linalg + scipy.spatial.transform (a fresh
   process) plus zstd-decompressing every chunk of the file (in-process, ``zstandard``);
@@ -15,10 +17,13 @@ interleaved). For each log it prints, all measured in this run:
 * in-process stage timers (read, sync, gate, pairs, solve) of the default pipeline;
 * the ratio of the longest to the shortest log's calibrate time, beside the ratio of their lengths.
 
-    python benchmarks/scale.py [--minutes 10 60] [--image-seconds 80 --image-hz 20 --image-mb 1] [--repeat 2]
-                               [--keep DIR]
+    python benchmarks/scale.py [--minutes 10 60] [--image-seconds 80 --image-hz 20 --image-mb 1 --same-image]
+                               [--repeat 2] [--keep DIR]
 
 Each timing (the limit, the plain and the diagnostic calibrate runs) is the fastest of ``--repeat`` runs.
+The processes run with Python's bytecode cache on (as an installed package has it; an environment
+with ``PYTHONDONTWRITEBYTECODE`` would compile every handeye module on every start, 0.15 s), kept
+in a temporary ``PYTHONPYCACHEPREFIX`` and written by one warm-up run before any timing.
 
 ``--keep DIR`` builds the logs in DIR and keeps them: a later run with the same DIR and the same
 lengths reuses them (the name of each log holds its parameters).
@@ -43,8 +48,9 @@ CALIBRATE = ["calibrate", "--topic-a", "/a/pose", "--topic-b", "/b/pose", "-q", 
 DIAGNOSTICS = ["--bootstrap", "200", "--robust", "--alpha", "auto"]
 
 
-def build(path: Path, seconds: float, image_hz: float = 0.0, image_mb: float = 1.0) -> None:
-    """A rig log: /a/pose 100 Hz, /b/pose 30 Hz (PoseStamped), /tf 100 Hz, optional images."""
+def build(path: Path, seconds: float, image_hz: float = 0.0, image_mb: float = 1.0, same_image: bool = False) -> None:
+    """A rig log: /a/pose 100 Hz, /b/pose 30 Hz (PoseStamped), /tf 100 Hz, optional images
+    (distinct ones, or one repeated with ``same_image``)."""
     from _logs import POSE, image_channel, pose_channel, records, write_mcap
 
     from handeye_cli import se3
@@ -58,16 +64,16 @@ def build(path: Path, seconds: float, image_hz: float = 0.0, image_mb: float = 1
                 pose_channel("/tf", "tf2_msgs/msg/TFMessage", records(a, "world", "base_link"))]
     if image_hz:
         channels.append(image_channel("/camera/image", int(a.stamps_ns[0]), int(a.stamps_ns[-1]), image_hz,
-                                      int(image_mb * 1e6)))
+                                      int(image_mb * 1e6), distinct=not same_image))
     write_mcap(path, channels, chunk_size=4 * 1024 * 1024)
 
 
-def built(path: Path, seconds: float, image_hz: float = 0.0, image_mb: float = 1.0) -> None:
+def built(path: Path, seconds: float, image_hz: float = 0.0, image_mb: float = 1.0, same_image: bool = False) -> None:
     """:func:`build` unless ``path`` exists (a kept log); written beside it, then renamed, so an
     interrupted build leaves no log to reuse."""
     if not path.exists():
         part = path.with_suffix(".part")
-        build(part, seconds, image_hz, image_mb)
+        build(part, seconds, image_hz, image_mb, same_image)
         part.rename(path)
 
 
@@ -86,13 +92,23 @@ def measured_code() -> Path:
     return Path(handeye_cli.__file__).resolve().parent.parent
 
 
+ENV = dict(os.environ)   # the environment of the measured processes (see use_bytecode_cache)
+
+
+def use_bytecode_cache(pycache: Path) -> None:
+    """Let the measured processes cache bytecode under ``pycache``, and write it once."""
+    ENV.pop("PYTHONDONTWRITEBYTECODE", None)
+    ENV["PYTHONPYCACHEPREFIX"] = str(pycache)
+    run_process([sys.executable, "-c", "import numpy, scipy.linalg, scipy.spatial.transform, handeye_cli.pipeline"])
+
+
 def run_process(args: list[str]) -> Run:
     """One fresh process, run in the checkout of :func:`measured_code` so that it imports the same
     handeye_cli as this one (``python -m`` puts the working directory first on the path); the peak
     is its VmHWM, polled from /proc while it runs (rusage of reaped children would give the largest
     child so far); the CPU time is its own rusage (wait4)."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=measured_code())
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=measured_code(), env=ENV)
     peak_kb = 0
     while True:
         pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
@@ -118,22 +134,43 @@ def best(runs: list[Run]) -> Run:
     return Run(fastest.wall, min(r.cpu for r in runs), fastest.rss)
 
 
+def decompress_every_chunk(path: Path) -> int:
+    """zstd-decompress every chunk of ``path`` the cheapest way a reader can: the file mapped (not
+    copied), each chunk (found by the summary's chunk index) into one reused buffer (no allocation,
+    so no page faults per chunk: a fresh 5 MB buffer per chunk was up to 7x slower on this VM).
+    Returns the bytes decompressed."""
+    import mmap
+    import struct
+
+    import zstandard
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as f:
+        chunks = make_reader(f).get_summary().chunk_indexes
+    buf, total = bytearray(max(c.uncompressed_size for c in chunks)), 0
+    with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as mm, memoryview(mm) as view:
+        for c in chunks:
+            at = c.chunk_start_offset + 1 + 8 + 8 + 8 + 8 + 4           # opcode, length, times, size, CRC
+            n = struct.unpack_from("<I", view, at)[0]
+            size = struct.unpack_from("<Q", view, at + 4 + n)[0]
+            data = view[at + 12 + n:at + 12 + n + size]
+            if c.compression == "zstd":
+                with zstandard.ZstdDecompressor().stream_reader(data, read_size=size) as reader:
+                    out = memoryview(buf)[:c.uncompressed_size]
+                    while out and (got := reader.readinto(out)):
+                        out, total = out[got:], total + got
+            data.release()
+    return total
+
+
 def limit(path: Path, repeat: int) -> tuple[Run, Run]:
     """(start-up, decompression of every chunk), each the best of ``repeat`` — the least any reader must do."""
-    import zstandard
-    from mcap.records import Chunk
-    from mcap.stream_reader import StreamReader
-
     startup = best([run_process([sys.executable, "-c", "import numpy, scipy.linalg, scipy.spatial.transform"])
                     for _ in range(repeat)])
-    dctx = zstandard.ZstdDecompressor()
     runs = []
     for _ in range(repeat):
         t0, c0 = time.perf_counter(), time.process_time()
-        with open(path, "rb") as f:
-            for record in StreamReader(f, skip_magic=False, emit_chunks=True).records:
-                if isinstance(record, Chunk) and record.compression == "zstd":
-                    dctx.decompress(record.data, max_output_size=record.uncompressed_size)
+        decompress_every_chunk(path)
         runs.append(Run(time.perf_counter() - t0, time.process_time() - c0, 0.0))
     return startup, best(runs)
 
@@ -180,10 +217,12 @@ def measure(path: Path, label: str, report_dir: Path, repeat: int) -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--minutes", type=float, nargs="+", default=[10.0, 60.0])
+    ap.add_argument("--minutes", type=float, nargs="*", default=[10.0, 60.0],
+                    help="pose logs (none: the image log only)")
     ap.add_argument("--image-seconds", type=float, default=80.0)
     ap.add_argument("--image-hz", type=float, default=20.0)
     ap.add_argument("--image-mb", type=float, default=1.0)
+    ap.add_argument("--same-image", action="store_true", help="repeat one image (compressible), not distinct ones")
     ap.add_argument("--repeat", type=int, default=2, help="runs of each timing, the fastest kept")
     ap.add_argument("--keep", type=Path, help="build the logs here, keep them and reuse the ones already there")
     args = ap.parse_args()
@@ -192,6 +231,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="handeye-scale-") as tmp:
         d = (args.keep or Path(tmp)).resolve()
         d.mkdir(parents=True, exist_ok=True)
+        use_bytecode_cache(Path(tmp) / "pycache")
         for minutes in args.minutes:
             path = d / f"poses_{minutes:g}min.mcap"
             built(path, 60 * minutes)
@@ -200,10 +240,11 @@ def main() -> None:
             if not args.keep:
                 path.unlink()
         if args.image_seconds > 0:
-            path = d / f"images_{args.image_seconds:g}s_{args.image_hz:g}hz_{args.image_mb:g}mb.mcap"
-            built(path, args.image_seconds, args.image_hz, args.image_mb)
-            measure(path, f"{args.image_seconds:g}-s log with {args.image_hz:g} Hz images of {args.image_mb:g} MB", d,
-                    args.repeat)
+            kind = "same" if args.same_image else "distinct"
+            path = d / f"images_{args.image_seconds:g}s_{args.image_hz:g}hz_{args.image_mb:g}mb_{kind}.mcap"
+            built(path, args.image_seconds, args.image_hz, args.image_mb, args.same_image)
+            measure(path, f"{args.image_seconds:g}-s log with {args.image_hz:g} Hz {kind} images of "
+                    f"{args.image_mb:g} MB", d, args.repeat)
     if len(times) > 1:
         lo, hi = min(times), max(times)
         print(f"\n{hi:g}-min / {lo:g}-min calibrate time: {times[hi] / times[lo]:.2f} (lengths {hi / lo:.1f}x)")
