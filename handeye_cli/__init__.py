@@ -17,14 +17,40 @@ quaternions are x-y-z-w; time is int64 nanoseconds; metres and radians.
 """
 __version__ = "0.1.0"
 
-from .config import load_options
-from .errors import HandEyeError
-from .options import Options
-from .pipeline import Calibration, StreamSpec, calibrate, calibrate_files
-from .rig import RigOptions, RigResult, calibrate_rig, calibrate_rig_files
-from .solvers import METHODS, Prior, Solution, solve
-from .streams import PoseStream
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .config import load_options
+    from .errors import HandEyeError
+    from .options import Options
+    from .pipeline import Calibration, StreamSpec, calibrate, calibrate_files
+    from .rig import RigOptions, RigResult, calibrate_rig, calibrate_rig_files
+    from .solvers import METHODS, Prior, Solution, solve
+    from .streams import PoseStream
+
+# the public names and their modules, imported on first use (PEP 562): a command imports only
+# the stages it runs, so ``handeye calibrate`` does not pay for the rig, the fleet or the solvers
+# it does not call
+_HOMES = {
+    "load_options": "config", "HandEyeError": "errors", "Options": "options",
+    "Calibration": "pipeline", "StreamSpec": "pipeline", "calibrate": "pipeline", "calibrate_files": "pipeline",
+    "RigOptions": "rig", "RigResult": "rig", "calibrate_rig": "rig", "calibrate_rig_files": "rig",
+    "METHODS": "solvers", "Prior": "solvers", "Solution": "solvers", "solve": "solvers", "PoseStream": "streams",
+}
 
 __all__ = ["HandEyeError", "METHODS", "PoseStream", "Prior", "Solution", "solve", "Calibration", "StreamSpec",
            "calibrate", "calibrate_files", "load_options", "Options", "RigOptions", "RigResult", "calibrate_rig",
            "calibrate_rig_files", "__version__"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _HOMES:
+        value = getattr(import_module(f".{_HOMES[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

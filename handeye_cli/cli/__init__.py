@@ -1,13 +1,23 @@
 """The ``handeye`` command line: click commands that parse options, call the library and print.
 
-One module per command (calibrate, solve, inspect); :mod:`.params` generates the flags from
-:mod:`handeye_cli.options`. Exit codes: 0 success; 2 bad input or an unsolvable problem (one
-line on stderr, no output file); 3 warnings under ``--strict``.
+One module per command (:data:`COMMANDS`, each imported only when run); :mod:`.params` generates
+the flags from :mod:`handeye_cli.options`. Exit codes: 0 success; 2 bad input or an unsolvable
+problem (one line on stderr, no output file); 3 warnings under ``--strict``.
+
+Before numpy is first imported, the command line caps BLAS at one thread unless the environment
+sets a thread count: every matrix handeye factorises has 8 columns, where BLAS threads only wait
+for each other (threaded OpenBLAS was slower on 2 cores, never faster), and ``handeye batch``
+runs one process per core.
 """
 from __future__ import annotations
 
+import os
 import sys
 import traceback
+from importlib import import_module
+
+if not {"OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"} & set(os.environ):
+    os.environ["OPENBLAS_NUM_THREADS"] = os.environ["MKL_NUM_THREADS"] = "1"
 
 import click
 
@@ -15,10 +25,30 @@ from .. import __version__
 from ..errors import HandEyeError
 from .common import CONTEXT, Drifted, StrictFailure
 
-__all__ = ["cli", "main"]
+__all__ = ["COMMANDS", "cli", "main"]
 
 
-@click.group(context_settings=CONTEXT)
+# command name → module of this package that defines it (as a function of the same name):
+# each is imported only when run or listed, so a command pays only for the stages it uses
+COMMANDS = {"batch": "batch", "calibrate": "calibrate", "check": "check", "compare": "compare",
+            "inspect": "inspect", "report": "batch", "rig": "rig", "solve": "solve"}
+
+
+class LazyGroup(click.Group):
+    """A click group whose subcommands (:data:`COMMANDS`) are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(COMMANDS)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in COMMANDS:
+            return None
+        command = getattr(import_module(f".{COMMANDS[cmd_name]}", __name__), cmd_name)
+        assert isinstance(command, click.Command)
+        return command
+
+
+@click.group(cls=LazyGroup, context_settings=CONTEXT)
 @click.version_option(__version__, "-V", "--version", prog_name="handeye")
 @click.option("--debug", is_flag=True, help="Show the full traceback on errors.")
 def cli(debug: bool) -> None:
@@ -33,22 +63,6 @@ def cli(debug: bool) -> None:
       handeye inspect sample_data/rig.mcap
       handeye solve sample_data/pairs.csv --method dqopt
     """
-
-
-def _register() -> None:
-    from .batch import batch, report
-    from .calibrate import calibrate
-    from .check import check
-    from .compare import compare
-    from .inspect import inspect
-    from .rig import rig
-    from .solve import solve
-
-    for command in (calibrate, solve, inspect, batch, check, report, rig, compare):
-        cli.add_command(command)
-
-
-_register()
 
 
 def main(argv: list[str] | None = None) -> None:

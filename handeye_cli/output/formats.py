@@ -26,7 +26,6 @@ import shlex
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 import yaml
@@ -97,6 +96,8 @@ def _flag_args(f: Frame) -> list[str]:
 
 def _urdf(doc: dict[str, Any], frames: list[Frame]) -> str:
     """One fixed joint per transform; the links in order of appearance (a rig's reference is the root)."""
+    from xml.sax.saxutils import quoteattr  # 50 ms of imports (urllib, http, ssl): only for the XML formats
+
     links = "".join(f"  <link name={quoteattr(name)}/>\n"
                     for name in dict.fromkeys(name for f in frames for name in (f.parent, f.child)))
     joints = "".join(
@@ -110,6 +111,8 @@ def _urdf(doc: dict[str, Any], frames: list[Frame]) -> str:
 
 
 def _ros1_launch(doc: dict[str, Any], frames: list[Frame]) -> str:
+    from xml.sax.saxutils import quoteattr
+
     nodes = "".join(f'  <node pkg="tf2_ros" type="static_transform_publisher" name="{_node_name(f)}"\n'
                     f"        args={quoteattr(' '.join([*_xyz_quat(f.matrix), f.parent, f.child]))}/>\n"
                     for f in frames)

@@ -27,7 +27,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from .. import se3
@@ -107,6 +106,8 @@ def station_residuals(A: Array, B: Array, X: Array, Y: Array) -> tuple[Array, Ar
 
 def _refine(A: Array, B: Array, X0: Array, Y0: Array, w: Array, alpha: float) -> tuple[Array, Array, float]:
     """Nonlinear least squares on ``(Y B_i)⁻¹ A_i X`` from ``(X0, Y0)``; returns ``(X, Y, cost)``."""
+    from scipy.optimize import least_squares  # 0.1 s to import: only for the robot-world methods
+
     sw = np.sqrt(w)[:, None]
 
     def unpack(p: Array) -> tuple[Array, Array]:

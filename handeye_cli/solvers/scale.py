@@ -29,7 +29,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from ..errors import DataError
@@ -143,6 +142,8 @@ def solve_with_scale(motions_a: NDArray[np.float64], motions_b: NDArray[np.float
     DataError: when the motions cannot determine the scale (no translation of b, or a scale
         known worse than ±50 %, or not positive).
     """
+    from scipy.optimize import least_squares  # 0.1 s to import: only when a scale is solved for
+
     A, B, w = validate_motions(motions_a, motions_b, weights)
     if not np.any(np.linalg.norm(B[:, :3, 3], axis=1) * (w > 0) > 0):
         raise _undetermined("stream b does not translate")

@@ -1,0 +1,61 @@
+"""What starting a command costs: each command imports only what it runs; BLAS runs one thread."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+PROBE = """
+import json, os, sys
+from handeye_cli.cli import cli
+cli.get_command(None, {command!r})
+print(json.dumps({{"modules": sorted(sys.modules), "blas": os.environ.get("OPENBLAS_NUM_THREADS")}}))
+"""
+
+
+def _started(command: str, **env: str) -> dict:
+    clean = {k: v for k, v in os.environ.items() if k not in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
+                                                               "MKL_NUM_THREADS")}
+    out = subprocess.run([sys.executable, "-c", PROBE.format(command=command)], env={**clean, **env},
+                         capture_output=True, text=True, check=True).stdout
+    return json.loads(out)
+
+
+@pytest.mark.parametrize("command", ["calibrate", "solve", "inspect", "check"])
+def test_a_command_imports_only_what_it_runs(command: str) -> None:
+    modules = set(_started(command)["modules"])
+    for heavy in ("scipy.optimize", "scipy.signal", "matplotlib", "xml.sax.saxutils", "handeye_cli.rig",
+                  "handeye_cli.fleet", "handeye_cli.output.report", "rosbags"):
+        assert heavy not in modules, f"handeye {command} imports {heavy}"
+
+
+def test_every_command_is_listed_and_loads() -> None:
+    import click
+
+    from handeye_cli.cli import COMMANDS, cli
+
+    ctx = click.Context(cli)
+    assert cli.list_commands(ctx) == sorted(COMMANDS)
+    for name in COMMANDS:
+        command = cli.get_command(ctx, name)
+        assert isinstance(command, click.Command) and command.name == name
+    assert cli.get_command(ctx, "calibrat") is None
+
+
+def test_blas_runs_one_thread_unless_the_environment_says() -> None:
+    assert _started("calibrate")["blas"] == "1"
+    assert _started("calibrate", OPENBLAS_NUM_THREADS="2")["blas"] == "2"
+    assert _started("calibrate", OMP_NUM_THREADS="4")["blas"] is None      # the user's setting stands
+
+
+def test_the_public_api_resolves_lazily() -> None:
+    import handeye_cli
+
+    for name in handeye_cli.__all__:
+        assert getattr(handeye_cli, name) is not None
+    assert set(handeye_cli.__all__) <= set(dir(handeye_cli))
+    with pytest.raises(AttributeError):
+        handeye_cli.no_such_name  # noqa: B018
