@@ -27,10 +27,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import nnls
 
 from ..solvers import dualquat as dq
 from ..solvers.problem import pair_blocks
+from .nnls import nnls
 
 __all__ = ["NoiseModel", "PairFeatures", "pair_features", "cost_residuals", "fit_noise_model"]
 
