@@ -19,6 +19,7 @@ encapsulation header.
 from __future__ import annotations
 
 import contextlib
+import mmap
 import struct
 import zlib
 from collections.abc import Sequence
@@ -205,9 +206,21 @@ class _Chunks:
     """
 
     def __init__(self, f: Any) -> None:
-        self._f = f
-        self._record = bytearray()      # chunk record + its message index, as in the file
+        # the file mapped, not read: a chunk is decompressed straight from the page cache, without
+        # first copying it (1.6 GB of images cost 0.15 s to copy, more than decompressing them);
+        # the pages of a chunk leave the process once it is used (:meth:`_release`), so its resident
+        # memory holds one chunk, not the file; the map dies with this reader
+        self._mm = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+        self._map = memoryview(self._mm)
+        self._used = (0, 0)             # the bytes [start, stop) of the last chunk read
         self._raw = bytearray()         # decompressed zstd records
+
+    def _release(self) -> None:
+        """Unmap the pages of the last chunk read from this process (they stay in the page cache)."""
+        start, stop = self._used
+        if stop > start and hasattr(mmap, "MADV_DONTNEED"):
+            first = start - start % mmap.PAGESIZE
+            self._mm.madvise(mmap.MADV_DONTNEED, first, stop - first)
 
     @staticmethod
     def _grown(buf: bytearray, size: int, keep: int = 0) -> bytearray:
@@ -221,13 +234,13 @@ class _Chunks:
     def read(self, index: Any, wanted: set[int]) -> tuple[list[tuple[int, NDArray[np.uint64]]], NDArray[np.uint8]]:
         """(MessageIndex entries of the ``wanted`` channels, the chunk's uncompressed records through
         its last wanted message) of the chunk at ``index``; ``[]`` and no records if none is wanted.
-        The records are a view of a reused buffer, valid until the next call."""
-        size = index.chunk_length + index.message_index_length
-        self._record = self._grown(self._record, size)
-        view = memoryview(self._record)[:size]
-        self._f.seek(index.chunk_start_offset)
-        if self._f.readinto(view) != size:
+        The records are a view of the file's map or of a reused buffer, valid until the next call."""
+        self._release()     # the records returned by the last call are used by now
+        start = index.chunk_start_offset
+        view = self._map[start:start + index.chunk_length + index.message_index_length]
+        if len(view) != index.chunk_length + index.message_index_length:
             raise _Decline("chunk cut off")
+        self._used = (start, start + len(view))
         entries = _message_index(view[index.chunk_length:], wanted)
         if not entries:
             return [], np.zeros(0, np.uint8)
@@ -367,7 +380,10 @@ def read_fast(path: Path, chunks: Sequence[Any], channels: dict[int, tuple[str, 
     collect: dict[str, _Collect] = {}
     declined: set[str] = set()
     with open(path, "rb") as f:
-        chunk_reader = _Chunks(f)
+        try:
+            chunk_reader = _Chunks(f)
+        except (OSError, ValueError):     # a file that cannot be mapped: the generic reader's
+            return {}
         for index in chunks:
             cids = set(index.message_index_offsets) & set(wanted)
             if not cids:
