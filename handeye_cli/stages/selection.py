@@ -35,8 +35,9 @@ from numpy.typing import NDArray
 from .. import se3
 from ..analysis.covariance import tangent_basis
 from ..analysis.noise_model import NoiseModel, PairFeatures, cost_residuals, fit_noise_model, pair_features
-from ..solvers import Prior, build_problem, solve
+from ..solvers import Prior, solve
 from ..solvers import dualquat as dq
+from ..solvers.problem import pair_blocks, problem_from_blocks
 from .pairs import Pairs
 from .sync import Synced
 
@@ -153,10 +154,11 @@ def _ml_weights(model: NoiseModel, f: PairFeatures) -> tuple[NDArray[np.float64]
     return 1.0 / (np.sqrt(vr * vd) * alpha), alpha
 
 
-def _level_errors(A: NDArray[np.float64], B: NDArray[np.float64], w: NDArray[np.float64], alpha: float,
+def _level_errors(E: NDArray[np.float64], F: NDArray[np.float64], w: NDArray[np.float64], alpha: float,
                   X: NDArray[np.float64], scale: float) -> tuple[float, float]:
-    """Predicted RMS rotation [rad] and translation [m] error of X from these pairs, ``scale`` times over."""
-    problem = build_problem(A, B, alpha=alpha, weights=w)
+    """Predicted RMS rotation [rad] and translation [m] error of X from the pairs of blocks ``E``, ``F``
+    (:func:`~handeye_cli.solvers.problem.pair_blocks` at α [1/m]), ``scale`` times over."""
+    problem = problem_from_blocks(E, F, w, alpha=alpha)
     q, qd = dq.from_transforms(X)
     D = tangent_basis(q, qd)
     Q = np.block([[problem.S, problem.W], [problem.W.T, problem.M]])
@@ -195,6 +197,7 @@ def _choose_levels(probe: _Probe, w: NDArray[np.float64], alpha: float, share: N
                    X: NDArray[np.float64], max_pairs: int) -> NDArray[np.int64]:
     """Ladder indices of the levels to keep (see the module docstring, step 4–5)."""
     errors = np.full((len(probe.strides), 2), np.inf)
+    E, F = pair_blocks(probe.pairs.A, probe.pairs.B, alpha)     # once for all levels
     budget = max(max_pairs // 4, _MIN_LEVEL_PAIRS)       # what one level would get when a few are kept
     for k, (stride, avail) in enumerate(zip(probe.strides, probe.available, strict=True)):
         sel = probe.level == k
@@ -202,7 +205,7 @@ def _choose_levels(probe: _Probe, w: NDArray[np.float64], alpha: float, share: N
             continue
         used = min(int(avail), budget)
         overlap = _overlap(int(stride), int(avail), used, float(np.mean(share[sel])))
-        errors[k] = _level_errors(probe.pairs.A[sel], probe.pairs.B[sel], w[sel], alpha, X,
+        errors[k] = _level_errors(E[sel], F[sel], w[sel], alpha, X,
                                   used / np.count_nonzero(sel) / overlap)
     if not np.isfinite(errors).any():
         return np.arange(len(probe.strides))
