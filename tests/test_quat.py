@@ -29,9 +29,8 @@ def edge_quats(seed: int) -> np.ndarray:
     base = Rotation.random(len(angles), random_state=seed).as_quat()
     half_turns = np.array([[x, y, z, 0.0] for x in (-1.0, 0.0, 1.0) for y in (-1.0, 0.0, 1.0) for z in (-1.0, 0.5)])
     half_turns /= np.linalg.norm(half_turns, axis=1, keepdims=True)
-    q = np.concatenate([local, dq.multiply(base, local), half_turns, [[0.0, 0.0, 0.0, -0.0], [0.0, 0.0, 0.0, 1.0]]])
-    q = q[np.linalg.norm(q, axis=1) > 0]
-    return np.concatenate([q, -q])
+    q = np.concatenate([local, dq.multiply(base, local), half_turns])
+    return np.concatenate([q, -q])                              # -q: the half-turns with w = -0.0
 
 
 def test_products_and_relative_rotations_equal_scipys() -> None:
