@@ -1,10 +1,17 @@
-"""Quaternion and dual-quaternion algebra for the solvers (paper §2).
+"""Quaternion and dual-quaternion algebra (paper §2): the one home of both, for the solvers and the stages.
 
-Quaternion order inside the solvers is **x, y, z, w** — the paper's ``(q⃗, q₀)`` (imaginary
-part first, so its ``G = diag(1, 1, 1, 0)`` of eq 26 reads as written) and the same order as
-ROS and scipy. A rigid transform ``[R | t]`` is the unit dual quaternion
-``Q = q + ε q'`` with ``q`` the rotation quaternion and ``q' = ½ (t, 0) ⊗ q`` (eq 2).
-The sign is fixed so that the scalar part ``w`` of ``q`` is ≥ 0 (``Q ~ -Q``).
+Quaternion order is **x, y, z, w** everywhere — the paper's ``(q⃗, q₀)`` (imaginary part first,
+so its ``G = diag(1, 1, 1, 0)`` of eq 26 reads as written) and the same order as ROS and scipy.
+A rigid transform ``[R | t]`` is the unit dual quaternion ``Q = q + ε q'`` with ``q`` the rotation
+quaternion and ``q' = ½ (t, 0) ⊗ q`` (eq 2). The sign is fixed so that the scalar part ``w`` of
+``q`` is ≥ 0 (``Q ~ -Q``).
+
+Batched rotations of the stages (sync's SLERP, the time offset's angular velocities and steps,
+the motion-consistency gate): :func:`multiply`, :func:`relative`, :func:`to_rotvec`,
+:func:`from_rotvec` and :func:`slerp` compute what ``scipy.spatial.transform.Rotation``'s
+``*``, ``inv()``, ``as_rotvec``, ``from_rotvec`` do (the same results within 1e-12, the tested
+reference), several times faster on rows of quaternions: each is a few elementwise passes over
+the components, with no per-call object or normalisation (inputs are unit quaternions).
 """
 from __future__ import annotations
 
@@ -12,7 +19,8 @@ import numpy as np
 
 from .._typing import FloatArray
 
-__all__ = ["left", "right", "conjugate", "multiply", "from_transforms", "to_transform"]
+__all__ = ["left", "right", "conjugate", "multiply", "relative", "to_rotvec", "from_rotvec", "slerp",
+           "from_transforms", "to_transform"]
 
 
 # L(q)[i, j] = _L_SIGN[i, j] * q[_L_INDEX[i, j]] and likewise for R(q), in x-y-z-w order:
@@ -38,10 +46,108 @@ def conjugate(q: FloatArray) -> FloatArray:
     return np.asarray(q, dtype=np.float64) * np.array([-1.0, -1.0, -1.0, 1.0], dtype=np.float64)
 
 
+def _product(p: FloatArray, q: FloatArray, conjugate_p: bool) -> FloatArray:
+    """``p ⊗ q``, or ``p* ⊗ q`` with ``conjugate_p``, of x-y-z-w quaternions (…, 4), broadcast.
+
+    Component by component into the result, with two scratch rows: ``(p_w q⃗ ± q_w p⃗) ± p⃗ × q⃗``
+    and ``p_w q_w ∓ p⃗·q⃗`` (conjugating ``p`` only flips the signs of its terms): five times faster
+    than the product through :func:`left`, twenty times than scipy's, on 10⁵ rows."""
+    p, q = np.asarray(p, dtype=np.float64), np.asarray(q, dtype=np.float64)
+    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
+    a, b = np.empty(out.shape[:-1]), np.empty(out.shape[:-1])
+    add, subtract = (np.subtract, np.add) if conjugate_p else (np.add, np.subtract)
+    for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
+        o = out[..., k]
+        np.multiply(p[..., 3], q[..., k], out=o)
+        np.multiply(q[..., 3], p[..., k], out=a)
+        add(o, a, out=o)
+        np.multiply(p[..., i], q[..., j], out=a)               # (p⃗ × q⃗)_k
+        np.multiply(p[..., j], q[..., i], out=b)
+        a -= b
+        add(o, a, out=o)
+    o = out[..., 3]
+    np.multiply(p[..., 3], q[..., 3], out=o)
+    for k in range(3):
+        np.multiply(p[..., k], q[..., k], out=a)
+        subtract(o, a, out=o)
+    return out
+
+
 def multiply(p: FloatArray, q: FloatArray) -> FloatArray:
-    """Hamilton product ``p ⊗ q`` of quaternions (…, 4) in x-y-z-w order."""
-    product: FloatArray = np.einsum("...ij,...j->...i", left(p), q)
-    return product
+    """Hamilton product ``p ⊗ q`` of quaternions (…, 4) in x-y-z-w order, broadcast (scipy's ``p * q``)."""
+    return _product(p, q, conjugate_p=False)
+
+
+def relative(p: FloatArray, q: FloatArray) -> FloatArray:
+    """``p* ⊗ q`` of quaternions (…, 4) in x-y-z-w order, broadcast: for unit quaternions ``p⁻¹ ⊗ q``,
+    the rotation from ``p`` to ``q`` in ``p``'s frame (scipy's ``p.inv() * q``; cf. ``se3.relative``)."""
+    return _product(p, q, conjugate_p=True)
+
+
+# Below this angle [rad] the maps between quaternions and rotation vectors use their Taylor series
+# (scipy's threshold): the first term they leave out is below 1e-21 there, and nothing is divided by ~0.
+_SMALL_ANGLE = 1e-3
+
+
+def to_rotvec(q: FloatArray) -> FloatArray:
+    """Rotation vectors [rad] (…, 3) of unit x-y-z-w quaternions (…, 4): the axis times the angle in
+    [0, π], the log map of the shorter arc (``q`` and ``-q`` give the same vector), as scipy's
+    ``Rotation.as_rotvec``.
+
+    The angle is ``2 atan2(|q⃗|, |w|)``, exact near 0 and near π; the vector is ``(angle / |q⃗|) q⃗``
+    with the sign that makes ``w ≥ 0``, and the series ``2 + angle²/12 + 7 angle⁴/2880`` of that
+    scale below ``_SMALL_ANGLE``. At ``w = 0`` exactly (a half-turn) the sign is scipy's: the first
+    non-zero of x, y, z made positive."""
+    q = np.asarray(q, dtype=np.float64)
+    rows = q.reshape(-1, 4)
+    v, w = rows[:, :3], rows[:, 3]
+    norm = np.sqrt(np.einsum("ni,ni->n", v, v))
+    angle = np.arctan2(norm, np.abs(w))
+    angle *= 2.0
+    scale = angle * angle                                      # the series, in place
+    scale *= 7.0 / 2880.0
+    scale += 1.0 / 12.0
+    scale *= angle * angle
+    scale += 2.0
+    np.divide(angle, norm, out=scale, where=angle > _SMALL_ANGLE)
+    flip = w < 0
+    half_turn = w == 0
+    if half_turn.any():
+        u = v[half_turn]
+        flip[half_turn] = u[np.arange(len(u)), np.argmax(u != 0, axis=-1)] < 0
+    np.negative(scale, out=scale, where=flip)
+    rotvec: FloatArray = (v * scale[:, None]).reshape(q.shape[:-1] + (3,))
+    return rotvec
+
+
+def from_rotvec(rotvec: FloatArray) -> FloatArray:
+    """Unit x-y-z-w quaternions (…, 4) of rotation vectors [rad] (…, 3), ``w = cos(angle/2) ≥ 0`` for
+    angles up to π: the exp map, as scipy's ``Rotation.from_rotvec`` (the series
+    ``½ - angle²/48 + angle⁴/3840`` of ``sin(angle/2) / angle`` below ``_SMALL_ANGLE``)."""
+    rotvec = np.asarray(rotvec, dtype=np.float64)
+    rows = rotvec.reshape(-1, 3)
+    angle = np.sqrt(np.einsum("ni,ni->n", rows, rows))
+    scale = angle * angle                                      # the series, in place
+    scale *= 1.0 / 3840.0
+    scale -= 1.0 / 48.0
+    scale *= angle * angle
+    scale += 0.5
+    half = 0.5 * angle
+    np.divide(np.sin(half), angle, out=scale, where=angle > _SMALL_ANGLE)
+    out = np.empty((len(rows), 4))
+    np.multiply(rows, scale[:, None], out=out[:, :3])
+    np.cos(half, out=out[:, 3])
+    return out.reshape(rotvec.shape[:-1] + (4,))
+
+
+def slerp(q_lo: FloatArray, q_hi: FloatArray, frac: FloatArray) -> FloatArray:
+    """Per-row spherical linear interpolation between unit x-y-z-w quaternions ``q_lo`` and ``q_hi``
+    (…, 4) at fractions ``frac`` (…) ∈ [0, 1]: ``q_lo ⊗ exp(frac · log(q_lo⁻¹ ⊗ q_hi))``, along the
+    shorter arc (``q_hi`` and ``-q_hi`` give the same rotation), with ``q_lo``'s sign — scipy's
+    ``r_lo * Rotation.from_rotvec(frac * (r_lo.inv() * r_hi).as_rotvec())``."""
+    step = to_rotvec(relative(q_lo, q_hi))
+    step *= np.asarray(frac, dtype=np.float64)[..., None]
+    return multiply(q_lo, from_rotvec(step))
 
 
 # Shepperd's method on the symmetric 4x4 matrix K with K = 4 q qᵀ for a rotation (x-y-z-w): row p of K is

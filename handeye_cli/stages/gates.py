@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from ..errors import ConfigError, DataError
+from ..solvers import dualquat as dq
 from ..streams import PoseStream
 from .sync import Synced, associate, median_step_ns, rates_text
 
@@ -60,9 +61,8 @@ Mask = NDArray[np.bool_]
 
 def _motion(xyz: Floats, quat: Floats, i: Ints, j: Ints) -> tuple[Floats, Floats, Floats]:
     """Invariants of the motions ``T(t_i)⁻¹ T(t_j)``: rotation angle [rad], t·r [m·rad], |t| [m]."""
-    r_i = Rotation.from_quat(quat[i])
-    rotvec = (r_i.inv() * Rotation.from_quat(quat[j])).as_rotvec()
-    t = r_i.inv().apply(xyz[j] - xyz[i])
+    rotvec = dq.to_rotvec(dq.relative(quat[i], quat[j]))
+    t = Rotation.from_quat(quat[i]).apply(xyz[j] - xyz[i], inverse=True)
     return np.linalg.norm(rotvec, axis=1), np.einsum("ij,ij->i", t, rotvec), np.linalg.norm(t, axis=1)
 
 

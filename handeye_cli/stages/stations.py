@@ -139,7 +139,7 @@ def _noise(stream: PoseStream) -> tuple[float, float]:
     if len(stream) < 3:
         return 0.0, 0.0
     q = stream.quat_xyzw
-    step = np.einsum("nij,nj->ni", dq.left(dq.conjugate(q[:-1])), q[1:])
+    step = dq.relative(q[:-1], q[1:])
     d_rot = np.diff(2.0 * step[:, :3] * np.sign(step[:, 3:]), axis=0)
     d_pos = np.diff(stream.xyz, n=2, axis=0)
     scale = 1.4826 / np.sqrt(6.0)           # MAD → σ, and Var(x₋ − 2x + x₊) = 6σ²

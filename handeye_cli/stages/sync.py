@@ -31,10 +31,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from .. import se3
 from ..errors import ConfigError, DataError
+from ..solvers import dualquat as dq
 from ..streams import PoseStream
 
 __all__ = ["Synced", "associate", "interpolate", "median_step_ns", "default_max_dt_ns", "rates_text", "METHODS"]
@@ -136,13 +136,6 @@ def rates_text(step_ns: tuple[int, int]) -> str:
     return ", ".join(f"{name} {rate(step)}" for name, step in zip("ab", step_ns, strict=True))
 
 
-def _slerp(q_lo: Floats, q_hi: Floats, frac: Floats) -> Floats:
-    """Per-row SLERP between x-y-z-w quaternions ``q_lo`` and ``q_hi`` at fractions ``frac`` ∈ [0, 1]."""
-    r_lo = Rotation.from_quat(q_lo)
-    step = (r_lo.inv() * Rotation.from_quat(q_hi)).as_rotvec()
-    return (r_lo * Rotation.from_rotvec(step * frac[:, None])).as_quat()
-
-
 def _lookup(stream: PoseStream, query: Ints, method: str, segment: Ints | None
             ) -> tuple[NDArray[np.bool_], Ints, Floats, Floats, Ints]:
     """:func:`interpolate`, also returning the index of a sample used (for its segment).
@@ -167,7 +160,7 @@ def _lookup(stream: PoseStream, query: Ints, method: str, segment: Ints | None
         return inside, pick, stream.xyz[pick], stream.quat_xyzw[pick], np.minimum(d_lo, d_hi)
     frac = np.where(exact, 0.0, d_lo / np.maximum(stamps[hi] - stamps[lo], 1))
     xyz = stream.xyz[lo] + frac[:, None] * (stream.xyz[hi] - stream.xyz[lo])
-    return inside, lo, xyz, _slerp(stream.quat_xyzw[lo], stream.quat_xyzw[hi], frac), np.maximum(d_lo, d_hi)
+    return inside, lo, xyz, dq.slerp(stream.quat_xyzw[lo], stream.quat_xyzw[hi], frac), np.maximum(d_lo, d_hi)
 
 
 def interpolate(stream: PoseStream, query_ns: NDArray[np.int64], *, method: str = "interpolate"

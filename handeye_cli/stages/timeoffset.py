@@ -42,9 +42,9 @@ from typing import Any
 
 import numpy as np
 from scipy import ndimage, optimize, signal
-from scipy.spatial.transform import Rotation
 
 from ..errors import HandEyeError
+from ..solvers import dualquat as dq
 from ..streams import PoseStream
 from .sync import interpolate
 
@@ -103,12 +103,16 @@ class _Signal:
         return np.arange(len(self.valid)) * (_GRID_NS / 1e9)
 
 
+def _step_rotvecs(quat: np.ndarray) -> np.ndarray:
+    """(N-1, 3) rotation vectors [rad] of the motions between consecutive x-y-z-w quaternions (N, 4)."""
+    return dq.to_rotvec(dq.relative(quat[:-1], quat[1:]))
+
+
 def _bad_steps(stream: PoseStream) -> np.ndarray:
     """bool[N-1]: steps i→i+1 that are data gaps (longer than 0.5 s and 2.5 median steps) or tracking
     jumps (rate > 5× local median + 1 rad/s)."""
     dt = np.diff(stream.stamps_ns)
-    rot = Rotation.from_quat(stream.quat_xyzw)
-    rate = (rot[:-1].inv() * rot[1:]).magnitude() / np.maximum(dt, 1) * 1e9
+    rate = np.linalg.norm(_step_rotvecs(stream.quat_xyzw), axis=1) / np.maximum(dt, 1) * 1e9
     local = ndimage.median_filter(rate, size=11, mode="nearest")
     bad: np.ndarray = (dt > max(_MAX_GAP_NS, _GAP_STEPS * np.median(dt))) | (rate > 5 * local + 1.0)
     return bad
@@ -126,7 +130,8 @@ def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float) -> _S
                            "record more samples while rotating, or give a fixed --time-offset")
     _, _, q_lo, _ = interpolate(stream, centres - half)
     _, _, q_hi, _ = interpolate(stream, centres + half)
-    omega = (Rotation.from_quat(q_lo).inv() * Rotation.from_quat(q_hi)).as_rotvec() / (2 * half / 1e9)
+    omega = dq.to_rotvec(dq.relative(q_lo, q_hi))
+    omega /= 2 * half / 1e9
     sigma = smooth_ns / _GRID_NS
     omega = ndimage.gaussian_filter1d(omega, sigma, axis=0, mode="nearest", truncate=_TRUNCATE)
     bad = np.concatenate([[0], np.cumsum(_bad_steps(stream))])
@@ -258,9 +263,8 @@ class _StepRefiner:
     def __init__(self, a: PoseStream, b: PoseStream) -> None:
         self.slow_is_b = _median_step(b) > _median_step(a)
         slow, self.fast = (b, a) if self.slow_is_b else (a, b)
-        rot = Rotation.from_quat(slow.quat_xyzw)
         self.stamps = slow.stamps_ns
-        self.r_slow = (rot[:-1].inv() * rot[1:]).as_rotvec()
+        self.r_slow = _step_rotvecs(slow.quat_xyzw)
         self.keep = ~_bad_steps(slow)
 
     def offset_range(self, max_offset_ns: int | None) -> tuple[float, float]:
@@ -284,7 +288,7 @@ class _StepRefiner:
         q = np.zeros((len(t), 4))
         q[inside] = quat
         k = np.flatnonzero(both)
-        r_fast = (Rotation.from_quat(q[k]).inv() * Rotation.from_quat(q[k + 1])).as_rotvec()
+        r_fast = dq.to_rotvec(dq.relative(q[k], q[k + 1]))
         u, _, vt = np.linalg.svd(r_fast.T @ self.r_slow[k])
         d = 1.0 if np.linalg.det(u @ vt) >= 0 else -1.0
         return k, r_fast - self.r_slow[k] @ (u @ np.diag([1.0, 1.0, d]) @ vt).T
@@ -326,8 +330,7 @@ class _StepRefiner:
         q[inside] = quat
         pairs = q.reshape(len(offsets), 2, len(steps), 4)
         ok = np.asarray(inside.reshape(len(offsets), 2, len(steps)).all(axis=1))
-        r_fast = (Rotation.from_quat(pairs[:, 0].reshape(-1, 4)).inv() * Rotation.from_quat(pairs[:, 1].reshape(-1, 4))
-                  ).as_rotvec().reshape(len(offsets), len(steps), 3)
+        r_fast = dq.to_rotvec(dq.relative(pairs[:, 0], pairs[:, 1]))            # (offsets, steps, 3)
         r_slow = np.where(ok[..., None], self.r_slow[steps][None], 0.0)
         u, _, vt = np.linalg.svd(np.einsum("gsi,gsj->gij", r_fast, r_slow))
         d = np.where(np.linalg.det(u @ vt) >= 0, 1.0, -1.0)
