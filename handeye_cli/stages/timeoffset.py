@@ -120,17 +120,20 @@ def _bad_steps(stream: PoseStream) -> np.ndarray:
 
 def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float) -> _Signal:
     """Body angular velocity [rad/s] of ``stream`` on its uniform grid (see the module docstring),
-    smoothed by a Gaussian of σ = ``smooth_ns``."""
+    smoothed by a Gaussian of σ = ``smooth_ns``; ``window_ns`` is a multiple of two grid steps, so
+    that the orientations at ``t ± w/2`` are those of one interpolation on the grid, ``w`` apart."""
     stamps = stream.stamps_ns
     half = window_ns // 2
+    steps, rest = divmod(half, _GRID_NS)
+    if rest or not steps:
+        raise ValueError(f"window {window_ns} ns is not a positive multiple of {2 * _GRID_NS} ns")
     t0 = int(stamps[0]) + half
     centres = t0 + np.arange(max((int(stamps[-1]) - half - t0) // _GRID_NS + 1, 0), dtype=np.int64) * _GRID_NS
     if len(centres) < 2:
         raise HandEyeError("pose stream too short for its sample rate to estimate a time offset", stream.source,
                            "record more samples while rotating, or give a fixed --time-offset")
-    _, _, q_lo, _ = interpolate(stream, centres - half)
-    _, _, q_hi, _ = interpolate(stream, centres + half)
-    omega = dq.to_rotvec(dq.relative(q_lo, q_hi))
+    _, _, q, _ = interpolate(stream, (t0 - half) + np.arange(len(centres) + 2 * steps, dtype=np.int64) * _GRID_NS)
+    omega = dq.to_rotvec(dq.relative(q[:-2 * steps], q[2 * steps:]))     # within [stamps[0], stamps[-1]]: all inside
     omega /= 2 * half / 1e9
     sigma = smooth_ns / _GRID_NS
     omega = ndimage.gaussian_filter1d(omega, sigma, axis=0, mode="nearest", truncate=_TRUNCATE)
