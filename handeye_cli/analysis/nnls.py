@@ -22,20 +22,17 @@ def _lstsq(A: NDArray[np.float64], b: NDArray[np.float64], cols: NDArray[np.bool
     return z
 
 
-def nnls(A: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
-    """``(x, ‖A x − b‖₂)`` with ``x ≥ 0`` minimising the residual, as :func:`scipy.optimize.nnls`
-    (A: (m, n), b: (m,); any units: x has b's over A's)."""
-    A, b = np.asarray(A, dtype=np.float64), np.asarray(b, dtype=np.float64)
+def _active_set(A: NDArray[np.float64], b: NDArray[np.float64], tol: float) -> NDArray[np.float64] | None:
+    """Lawson and Hanson's iteration on ``(A, b)``; None where it would cycle."""
     n = A.shape[1]
     x = np.zeros(n)
     free = np.zeros(n, dtype=bool)                   # the passive set: columns off their bound
-    tol = 10 * np.finfo(float).eps * max(A.shape) * max(float(np.abs(A).sum(axis=0).max(initial=0.0)), 1.0)
     for _ in range(3 * n + 1):                        # each pass frees a column (at most n) or drops some
         grad = A.T @ (b - A @ x)                      # minus half the gradient of the squared residual
         grad[free] = -np.inf
         j = int(np.argmax(grad)) if not free.all() else 0
         if free.all() or grad[j] <= tol:
-            return x, float(np.linalg.norm(A @ x - b))    # Kuhn-Tucker conditions hold
+            return x                                  # Kuhn-Tucker conditions hold
         free[j] = True
         z = _lstsq(A, b, free)
         for _ in range(n):                            # step back to the boundary, drop the columns it meets
@@ -47,9 +44,27 @@ def nnls(A: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray[np.flo
             x[~free] = 0.0
             z = _lstsq(A, b, free)
         else:
-            break
+            return None
         x = z
-    from scipy.optimize import nnls as scipy_nnls  # cycling on a degenerate fit: scipy's
+    return None
 
-    xs, rnorm = scipy_nnls(A, b)
-    return xs, float(rnorm)
+
+def nnls(A: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """``(x, ‖A x − b‖₂)`` with ``x ≥ 0`` minimising the residual, as :func:`scipy.optimize.nnls`
+    (A: (m, n), b: (m,); any units: x has b's over A's).
+
+    With more rows than columns the iteration runs on the n x n triangle of A's QR factorisation:
+    ``‖A x − b‖² = ‖R x − Qᵀb‖² + const``, the same fit (and conditioning) at the cost of n rows."""
+    A, b = np.asarray(A, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    tol = 10 * np.finfo(float).eps * max(A.shape) * max(float(np.abs(A).sum(axis=0).max(initial=0.0)), 1.0)
+    n = A.shape[1]
+    if A.shape[0] > n:
+        Rb = np.asarray(np.linalg.qr(np.column_stack([A, b]), mode="r"))  # [R, Qᵀb], no Q formed
+        x = _active_set(Rb[:n, :n], Rb[:n, n], tol)
+    else:
+        x = _active_set(A, b, tol)
+    if x is None:                                     # cycling on a degenerate fit: scipy's
+        from scipy.optimize import nnls as scipy_nnls
+
+        x = scipy_nnls(A, b)[0]
+    return x, float(np.linalg.norm(A @ x - b))
