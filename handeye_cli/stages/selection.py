@@ -37,7 +37,7 @@ from ..analysis.covariance import tangent_basis
 from ..analysis.noise_model import NoiseModel, PairFeatures, cost_residuals, fit_noise_model, pair_features
 from ..solvers import Prior, solve
 from ..solvers import dualquat as dq
-from ..solvers.problem import pair_blocks, problem_from_blocks
+from ..solvers.problem import pair_blocks
 from .pairs import Pairs
 from .sync import Synced
 
@@ -155,15 +155,23 @@ def _ml_weights(model: NoiseModel, f: PairFeatures) -> tuple[NDArray[np.float64]
 
 
 def _level_errors(E: NDArray[np.float64], F: NDArray[np.float64], w: NDArray[np.float64], alpha: float,
-                  X: NDArray[np.float64], scale: float) -> tuple[float, float]:
-    """Predicted RMS rotation [rad] and translation [m] error of X from the pairs of blocks ``E``, ``F``
-    (:func:`~handeye_cli.solvers.problem.pair_blocks` at α [1/m]), ``scale`` times over."""
-    problem = problem_from_blocks(E, F, w, alpha=alpha)
-    q, qd = dq.from_transforms(X)
-    D = tangent_basis(q, qd)
-    Q = np.block([[problem.S, problem.W], [problem.W.T, problem.M]])
-    cov = np.linalg.pinv(scale * D.T @ Q @ D, hermitian=True)
-    return float(np.sqrt(max(np.trace(cov[:3, :3]), 0.0))), float(np.sqrt(max(np.trace(cov[3:, 3:]), 0.0)))
+                  X: NDArray[np.float64], level: NDArray[np.int64], scale: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(L, 2) predicted RMS rotation [rad] and translation [m] error of X from each level's pairs
+    (blocks ``E``, ``F`` of :func:`~handeye_cli.solvers.problem.pair_blocks` at α [1/m], weights ``w``,
+    ladder index ``level``), level l's ``scale[l]`` times over: ``tr`` of the blocks of ``H⁻¹``, with
+    ``H = Dᵀ Q D`` the curvature of cost (8) on the level's pairs in the tangent ``δ = (ω, v)``."""
+    rows = np.zeros((len(E), 8, 8))             # per pair, its residual rows [[E, 0], [αF, αE]] on [q; q']
+    rows[:, :4, :4] = E
+    rows[:, 4:, :4] = alpha * F
+    rows[:, 4:, 4:] = alpha * E
+    gram = np.einsum("nij,nik->njk", rows, rows).reshape(len(E), 64) * w[:, None]
+    member = level[:, None] == np.arange(len(scale))
+    Q = (member.T @ gram).reshape(-1, 8, 8)      # each level's cost form, in [q; q'] order
+    D = tangent_basis(*dq.from_transforms(X))
+    cov = np.linalg.pinv(scale[:, None, None] * (D.T @ Q @ D), hermitian=True)
+    traces = np.stack([np.trace(cov[:, :3, :3], axis1=1, axis2=2), np.trace(cov[:, 3:, 3:], axis1=1, axis2=2)], 1)
+    errors: NDArray[np.float64] = np.sqrt(np.maximum(traces, 0.0))
+    return errors
 
 
 @dataclass(frozen=True, eq=False)
@@ -196,24 +204,20 @@ def _overlap(stride: int, available: int, used: int, drift_share: float) -> floa
 def _choose_levels(probe: _Probe, w: NDArray[np.float64], alpha: float, share: NDArray[np.float64],
                    X: NDArray[np.float64], max_pairs: int) -> NDArray[np.int64]:
     """Ladder indices of the levels to keep (see the module docstring, step 4–5)."""
-    errors = np.full((len(probe.strides), 2), np.inf)
-    E, F = pair_blocks(probe.pairs.A, probe.pairs.B, alpha)     # once for all levels
+    counts = np.bincount(probe.level, minlength=len(probe.strides))
     budget = max(max_pairs // 4, _MIN_LEVEL_PAIRS)       # what one level would get when a few are kept
-    for k, (stride, avail) in enumerate(zip(probe.strides, probe.available, strict=True)):
-        sel = probe.level == k
-        if np.count_nonzero(sel) < _MIN_LEVEL_PAIRS:
-            continue
-        used = min(int(avail), budget)
-        overlap = _overlap(int(stride), int(avail), used, float(np.mean(share[sel])))
-        errors[k] = _level_errors(E[sel], F[sel], w[sel], alpha, X,
-                                  used / np.count_nonzero(sel) / overlap)
+    used = np.minimum(probe.available, budget)
+    level_share = np.bincount(probe.level, weights=share, minlength=len(counts)) / np.maximum(counts, 1)
+    overlap = [_overlap(int(k), int(a), int(u), float(s))
+               for k, a, u, s in zip(probe.strides, probe.available, used, level_share, strict=True)]
+    E, F = pair_blocks(probe.pairs.A, probe.pairs.B, alpha)
+    errors = _level_errors(E, F, w, alpha, X, probe.level, used / np.maximum(counts, 1) / np.asarray(overlap))
+    errors[counts < _MIN_LEVEL_PAIRS] = np.inf
     if not np.isfinite(errors).any():
         return np.arange(len(probe.strides))
     ratio = np.max(errors / errors.min(axis=0), axis=1)
     good = np.flatnonzero(ratio <= _KEEP_RATIO * ratio.min())
     lo, hi = int(good[0]), int(good[-1])
-    level_share = np.bincount(probe.level, weights=share, minlength=len(errors)) / np.maximum(
-        np.bincount(probe.level, minlength=len(errors)), 1)
     while hi + 1 < len(errors) and np.isfinite(errors[hi + 1, 0]) and level_share[hi + 1] < _ABSOLUTE_SHARE:
         hi += 1                 # where drift does not dominate, longer spans only add lever and diversity
     return np.arange(lo, hi + 1)
