@@ -123,6 +123,8 @@ def test_fifo_and_devices_are_written_through_not_replaced(capsys, rig, tmp_path
     assert stat.S_ISFIFO(os.stat(fifo).st_mode) and b"matrix:" in data
     code, _, err = run(capsys, "calibrate", rig["a"], rig["b"], "-o", "/dev/null", "--format", "yaml", "-q")
     assert code == 0 and stat.S_ISCHR(os.stat("/dev/null").st_mode), err
+    code, _, err = run(capsys, "calibrate", rig["a"], rig["b"], "-o", "/dev/null", "-q")    # a device: YAML
+    assert code == 0 and stat.S_ISCHR(os.stat("/dev/null").st_mode), err
 
 
 @pytest.mark.parametrize("where, message", [("file/r.yaml", "not a folder"), ("dir", "is a folder"),

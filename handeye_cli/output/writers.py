@@ -39,7 +39,7 @@ def output_format(path: str | Path | None, fmt: str | None, flag: str = "-o") ->
     chosen = next((f for suffix, f in SUFFIXES.items() if name.endswith(suffix)), None)
     if chosen:
         return chosen
-    if not Path(str(path)).suffix or not Path(str(path)).exists() or Path(str(path)).is_file():
+    if not Path(str(path)).exists() or Path(str(path)).is_file():
         raise ConfigError(f"cannot tell the output format from {str(path)!r}", flag,
                           f"name the file {', '.join(SUFFIXES)} or pass --format")
     return "yaml"    # a FIFO or device without a suffix: the default format
