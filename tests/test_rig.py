@@ -177,23 +177,30 @@ def _rms(values: np.ndarray) -> np.ndarray:
 
 def test_bad_stream_is_named() -> None:
     """A stream whose translations are 20 % short (e.g. monocular VO scale) spoils every loop it is in:
-    it is named, informs no other sensor, the others are recovered as well as without it, its own
-    rotation too, and the noise model charges it with the most translation noise."""
+    it is named by the χ² test (the result carries the statistic and p-values), the warning says
+    what to check, it informs no other sensor, the others are recovered as well as without it, its
+    own rotation too; the noise model charges it with the most translation noise, but within 3 times
+    its simulated noise (the hat's short motions: from the solved pairs' own, it was ~30 times in
+    variance, which hid the bias from the test)."""
     T = _mounts(0)
     res = calibrate_rig(simulate_streams(_sensors(T, bad_scale=0.8), duration_s=40, seed=0),
                         RigOptions(time_offsets=KNOWN_OFFSETS))
     assert res.names[res.consistency.suspect] == "wheels" and res.problem.excluded == 3
-    assert any("stream wheels is inconsistent" in w for w in res.warnings)
+    warning = next(w for w in res.warnings if "stream wheels is inconsistent" in w)
+    assert "--time-offset wheels=auto" in warning and "scale" in warning and "mount" in warning
     doc = res.document()
-    assert doc["consistency"]["suspect"] == "wheels" and doc["noise_model"]["excluded"] == "wheels"
-    assert doc["consistency"]["without"]["wheels"] < doc["consistency"]["score"] / 3
+    cons = doc["consistency"]
+    assert cons["suspect"] == "wheels" and doc["noise_model"]["excluded"] == "wheels"
+    assert cons["dof"] == 18 and cons["p_value"] < cons["threshold"] and cons["statistic"] > 100
+    assert cons["streams"]["wheels"]["dof"] == 12 and cons["streams"]["wheels"]["p_value"] < cons["threshold"]
+    assert max(cons["streams"].values(), key=lambda v: v["reduction"]) is cons["streams"]["wheels"]
     for k in (1, 2):
         rot, trans = pose_error(res.matrices[k], T[k])
         assert rot < 0.05 and trans < 0.002, (res.names[k], rot, trans)
     assert pose_error(res.matrices[3], T[3])[0] < 0.1
     assert max(max(c.rotation_deg, c.translation_m) for c in res.joint_closures) < 1e-9    # still consistent
     noise = {s["name"]: s["noise"]["translation_m"] for s in doc["streams"]}
-    assert max(noise, key=noise.get) == "wheels" and noise["wheels"] > 5 * np.sqrt(3) * 0.005
+    assert max(noise, key=noise.get) == "wheels" and noise["wheels"] < 3 * np.sqrt(3) * 0.005
 
 
 def test_bootstrap_uncertainty(noisy_rig) -> None:
