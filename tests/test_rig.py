@@ -195,6 +195,17 @@ def test_bad_stream_named_on_nineteen_of_twenty(fault: str) -> None:
     assert all(res.consistency.inconsistent for _, res in runs)
 
 
+def test_bad_reference_is_named() -> None:
+    """The reference itself scaled by 0.8: it is named, and since every T_ref_k rests on its pairs the
+    warning says to choose another reference."""
+    T = _mounts(1)
+    sensors = _sensors(T, drift=True)
+    sensors[0] = replace(sensors[0], scale=0.8)
+    res = calibrate_rig(simulate_streams(sensors, duration_s=30, seed=1), RigOptions(time_offsets=KNOWN_OFFSETS))
+    assert res.consistency.suspect == 0
+    assert any("stream cam0 is inconsistent" in w and "--reference NAME" in w for w in res.warnings)
+
+
 def test_three_streams_cannot_name_which() -> None:
     """A triangle of pairwise estimates can say that they disagree but not which stream spoils it (each
     stream's removal leaves one pair, consistent by itself): no stream is named, the warning says so."""

@@ -88,7 +88,7 @@ def _raw_stamps(streams: list[PoseStream], offsets: list[ClockOffset], e: Edge
     return streams[e.j].stamps_ns, streams[e.k].stamps_ns - (offsets[e.k].offset_ns - offsets[e.j].offset_ns)
 
 
-def _consistency_warnings(cons: Consistency, names: list[str]) -> list[str]:
+def _consistency_warnings(cons: Consistency, names: list[str], reference: int) -> list[str]:
     """What the χ² test found, and what to check (empty when the rig is consistent)."""
     if not cons.inconsistent:
         return []
@@ -100,11 +100,13 @@ def _consistency_warnings(cons: Consistency, names: list[str]) -> list[str]:
                 "inversion (--invert) and scale, whether a mount is loose, and whether an odometry drifts "
                 "other than at a constant rate"]
     name = names[s]
+    role = (f"; it is the reference, so every T_{name}_k rests on its pairs: choose another (--reference NAME)"
+            if s == reference else ", so its pairs inform no other sensor")
     return [f"stream {name} is inconsistent with the others: {rig}; without {name}'s pairs it falls by "
-            f"{cons.reductions[s]:.4g} on {cons.reduction_dof[s]} (p = {cons.reduction_p[s]:.2g}), so its pairs "
-            f"inform no other sensor. Check {name}'s scale (monocular odometry?), its clock offset "
-            f"(--time-offset {name}=auto), its inversion (--invert {name}), and its mount: a loose mount "
-            "changes the extrinsic mid-log (calibrate the log's halves apart and compare)"]
+            f"{cons.reductions[s]:.4g} on {cons.reduction_dof[s]} (p = {cons.reduction_p[s]:.2g}){role}. Check "
+            f"{name}'s scale (monocular odometry?), its clock offset (--time-offset {name}=auto), its inversion "
+            f"(--invert {name}), and its mount: a loose mount changes the extrinsic mid-log (calibrate the log's "
+            "halves apart and compare)"]
 
 
 def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None = None, *,
@@ -136,7 +138,7 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
     rot_std = problem.edge_std()[:, 0]
     T0 = synchronise(n, pairs, X, np.square(rot_std.min() / np.maximum(rot_std, 1e-300)), ref)
     cons = consistency(problem, T0)
-    warnings += _consistency_warnings(cons, names)
+    warnings += _consistency_warnings(cons, names, ref)
     if cons.suspect is not None:
         problem = replace(problem, excluded=cons.suspect)
     T, covariances = refine(problem, T0)

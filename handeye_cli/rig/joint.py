@@ -173,7 +173,9 @@ def refine(problem: JointProblem, T0: Array, estimates: Array | None = None) -> 
     of each ``T_ref_k``'s perturbation (rotation vector [rad], translation [m]; zero for the reference).
 
     With an ``excluded`` sensor, the others come from the pairs without it, then the excluded one
-    from its own pairs with the others held: a stream known to be inconsistent moves nobody else."""
+    from its own pairs with the others held: a stream known to be inconsistent moves nobody else.
+    An excluded reference (or one whose removal disconnects the others) cannot be set apart: every
+    ``T_ref_k`` is then solved from all pairs, as without exclusion."""
     n, ref = problem.n, problem.reference
     free = np.arange(n) != ref
     edges = np.ones(len(problem.pairs), dtype=bool)
