@@ -15,7 +15,7 @@ from handeye_cli.options import Options
 from handeye_cli.rig import RigOptions, calibrate_rig
 from handeye_cli.rig.graph import chains, synchronise
 from handeye_cli.rig.joint import log_errors
-from handeye_cli.rig.simulate import SimSensor, simulate_streams
+from handeye_cli.rig.simulate import SimSensor, simulate_streams, with_fault
 from handeye_cli.simulation import _smooth_trajectory, random_transform
 from handeye_cli.streams import PoseStream
 
@@ -109,20 +109,14 @@ SEEDS = 20
 
 def _gappy(seed: int, drift: bool, fault: str | None = None) -> tuple[list[np.ndarray], int | None, object]:
     """One simulated rig of seed ``seed`` (30 s, tracking gaps GAPS, clock offsets given) and, with
-    ``fault``, stream 1 + seed % 3 made bad: ``scale`` (translations × 0.8), ``offset`` (its given
-    clock offset 30 ms wrong) or ``slip`` (its mount turns 1° and moves 5 mm, in random directions, at
-    15 s): (truth, the bad stream's index or None, result)."""
+    ``fault``, stream 1 + seed % 3 made bad by :func:`~handeye_cli.rig.simulate.with_fault`: (truth,
+    the bad stream's index or None, result)."""
     T = _mounts(seed)
     sensors = [replace(s, gaps=g) for s, g in zip(_sensors(T, drift=drift), GAPS, strict=True)]
     offsets, bad = dict(KNOWN_OFFSETS), (1 + seed % 3 if fault else None)
-    if fault == "scale":
-        sensors[bad] = replace(sensors[bad], scale=0.8)
-    elif fault == "offset":
-        offsets[sensors[bad].name] += 0.03
-    elif fault == "slip":
-        rng = np.random.default_rng(1000 + seed)
-        axis, shift = (v / np.linalg.norm(v) for v in rng.normal(size=(2, 3)))
-        sensors[bad] = replace(sensors[bad], slip=(*(axis * DEG), *(shift * 0.005)), slip_s=15.0)
+    if fault and bad is not None:
+        sensors, wrong = with_fault(sensors, bad, fault, np.random.default_rng(1000 + seed))
+        offsets[sensors[bad].name] += wrong
     return T, bad, calibrate_rig(simulate_streams(sensors, duration_s=30, seed=seed), RigOptions(time_offsets=offsets))
 
 

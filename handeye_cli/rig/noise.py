@@ -75,6 +75,7 @@ VARIANCE_FLOOR = 1e-18      # (1 nrad)², (1 nm)²: below it a stream is noise-f
 DRIFT_P_VALUE = 0.01        # a pair's relative drift is removed when its χ² is this unlikely under "no drift"
 DRIFT_PROBE = 200           # probe motions per stride of the drift fit (evenly spread over the segments)
 SHORT_STRIDE = 4            # the three-cornered hat's motions span up to this many synced samples
+SHORT_MOTIONS = 2000        # ... at most this many per stride (all of a 30-s log's; a 10-min log's 72000 took 2 s)
 
 
 @dataclass(frozen=True, eq=False)
@@ -233,19 +234,26 @@ def _regressor(synced: Synced, start: NDArray[np.int64], end: NDArray[np.int64])
                       * adjoint(se3.inverse(synced.T_a[end])), dtype=np.float64)
 
 
-def _probe(synced: Synced) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Start and end samples of the drift fit's probe motions: every stride of a √2 ladder up to
-    the longest tracking segment, at most :data:`DRIFT_PROBE` evenly spread per stride."""
-    seg = synced.segment
-    n = len(seg)
-    starts = np.flatnonzero(np.r_[True, seg[1:] != seg[:-1]])
+def _strided(synced: Synced, strides: NDArray[np.int64], most: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Start and end samples of motions of the given strides within the tracking segments, at most
+    ``most`` per stride, evenly spread."""
+    seg, n = synced.segment, len(synced.segment)
     i_all, j_all = [], []
-    for stride in ladder(int(np.diff(np.r_[starts, n]).max())):
+    for stride in strides[strides < n]:
         i = np.flatnonzero(seg[:n - stride] == seg[stride:])
-        i = i[np.linspace(0, len(i) - 1, min(DRIFT_PROBE, len(i))).astype(np.int64)] if len(i) else i
+        i = i[np.linspace(0, len(i) - 1, min(most, len(i))).astype(np.int64)] if len(i) else i
         i_all.append(i)
         j_all.append(i + stride)
-    return np.concatenate(i_all), np.concatenate(j_all)
+    empty = np.zeros(0, dtype=np.int64)
+    return np.concatenate([empty, *i_all]), np.concatenate([empty, *j_all])
+
+
+def _probe(synced: Synced) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The drift fit's probe motions: every stride of a √2 ladder up to the longest tracking
+    segment, :data:`DRIFT_PROBE` per stride."""
+    seg = synced.segment
+    starts = np.flatnonzero(np.r_[True, seg[1:] != seg[:-1]])
+    return _strided(synced, ladder(int(np.diff(np.r_[starts, len(seg)]).max())), DRIFT_PROBE)
 
 
 def _drift(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]], G_b: Array) -> EdgeDrift:
@@ -276,19 +284,20 @@ def _white_energy(M: Array, S: Array, raw_ns: NDArray[np.int64], stamps_ns: NDAr
     ``M`` (sensitivities ``S`` = ∂r/∂ε_M): rotation rows ← rotation, dual ← rotation, dual ←
     translation. A raw sample that both ends of a motion interpolate counts once, its terms added first."""
     _, back, ends = _spread(M, raw_ns, stamps_ns, start, end)
-    idx = np.concatenate([ends[0][0], ends[1][0]]).T                       # (N, 4): end lo, hi; start lo, hi
-    coef = np.concatenate([ends[0][1][:, :, None, None] * S, ends[1][1][:, :, None, None] * (S @ back)]
-                          ).swapaxes(0, 1)                                  # (N, 4, 8, 6)
-    same = (idx[:, :, None] == idx[:, None, :]).astype(float)
-    total = np.einsum("nab,nakc,nbkc->kc", same, coef, coef)                # (8, 6)
+    idx = np.concatenate([ends[0][0], ends[1][0]])                          # (4, N): end lo, hi; start lo, hi
+    share = np.concatenate([ends[0][1], ends[1][1]])
+    blocks = (S, S, S @ back, S @ back)                                     # ∂r/∂n of each term, per unit share
+    total = np.zeros((8, 6))
+    for a in range(4):
+        for b in range(4):
+            same = share[a] * share[b] * (idx[a] == idx[b])
+            total += np.einsum("n,nkc,nkc->kc", same, blocks[a], blocks[b])
     return np.array([total[:4, :3].sum(), total[4:, :3].sum(), total[4:, 3:].sum()])
 
 
 def _short_motions(synced: Synced) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Every motion of a stride up to :data:`SHORT_STRIDE` synced samples within a tracking segment."""
-    seg, n = synced.segment, len(synced.segment)
-    i = [np.flatnonzero(seg[:n - k] == seg[k:]) for k in range(1, min(SHORT_STRIDE, n - 1) + 1)]
-    return np.concatenate(i), np.concatenate([s + k for k, s in enumerate(i, 1)])
+    """The hat's motions: strides 1 to :data:`SHORT_STRIDE` synced samples, :data:`SHORT_MOTIONS` per stride."""
+    return _strided(synced, np.arange(1, SHORT_STRIDE + 1), SHORT_MOTIONS)
 
 
 def _short_energies(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]]) -> tuple[Array, Array]:

@@ -12,7 +12,7 @@ mount: from ``slip_s`` seconds on, the extrinsic is ``T_ref_k Exp(slip)``). Quat
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,9 +21,10 @@ from scipy.spatial.transform import Rotation
 from ..simulation import _smooth_trajectory, perturb, random_transform
 from ..streams import PoseStream
 
-__all__ = ["SimSensor", "simulate_streams", "START_NS"]
+__all__ = ["SimSensor", "simulate_streams", "with_fault", "FAULTS", "START_NS"]
 
 START_NS = 1_700_000_000_000_000_000
+FAULTS = ("scale", "offset", "slip")
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,3 +96,20 @@ def simulate_streams(sensors: list[SimSensor], *, duration_s: float = 60.0, seed
         out[sensor.name] = PoseStream.from_matrices(ns, T, frame_id=f"world_{sensor.name}", child_frame_id=sensor.name,
                                                     source=f"simulated:{sensor.name}")
     return out
+
+
+def with_fault(sensors: list[SimSensor], k: int, fault: str, rng: np.random.Generator
+               ) -> tuple[list[SimSensor], float]:
+    """Sensor k made bad, as the rig tests and benchmark make it: ``scale`` (translations × 0.8),
+    ``offset`` (the clock offset the user gives is 30 ms wrong: returned as the error [s] to add to
+    it; the sensor is unchanged) or ``slip`` (the mount turns 1° about a random axis and moves 5 mm
+    in a random direction at 15 s). Returns the sensors and that clock-offset error (0 but for ``offset``)."""
+    out = list(sensors)
+    if fault == "scale":
+        out[k] = replace(out[k], scale=0.8)
+    elif fault == "slip":
+        axis, shift = (v / np.linalg.norm(v) for v in rng.normal(size=(2, 3)))
+        out[k] = replace(out[k], slip=(*(axis * np.deg2rad(1.0)), *(shift * 0.005)), slip_s=15.0)
+    elif fault != "offset":
+        raise ValueError(f"unknown fault {fault!r}; expected one of {FAULTS}")
+    return out, 0.03 if fault == "offset" else 0.0
