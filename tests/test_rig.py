@@ -3,6 +3,7 @@ with different rates, noise, drift and clock offsets, loop closures, the bad-str
 the bootstrap and the graph synchronisation."""
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -198,6 +199,17 @@ def test_bad_reference_is_named() -> None:
     res = calibrate_rig(simulate_streams(sensors, duration_s=30, seed=1), RigOptions(time_offsets=KNOWN_OFFSETS))
     assert res.consistency.suspect == 0
     assert any("stream cam0 is inconsistent" in w and "--reference NAME" in w for w in res.warnings)
+
+
+def test_two_streams_have_nothing_to_test() -> None:
+    """One pair has no redundancy: no degrees of freedom, no p-value (None in the document, valid JSON)."""
+    T = _mounts(0)
+    sensors = _sensors(T, drift=False)
+    res = calibrate_rig(simulate_streams(sensors[:2], duration_s=20, seed=0),
+                        RigOptions(time_offsets={"cam1": KNOWN_OFFSETS["cam1"]}))
+    assert res.consistency.dof == 0 and not res.consistency.inconsistent and res.consistency.suspect is None
+    cons = json.loads(json.dumps(res.document(), allow_nan=False))["consistency"]
+    assert cons["p_value"] is None and cons["streams"]["cam1"] == {"reduction": None, "dof": 0, "p_value": None}
 
 
 def test_three_streams_cannot_name_which() -> None:

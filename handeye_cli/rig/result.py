@@ -127,12 +127,17 @@ class RigResult:
                             for i, name in enumerate(self.names) if i != self.reference}}
 
     def _consistency(self) -> dict[str, Any]:
+        """The χ² test; a value that cannot be tested (no degrees of freedom) is None."""
         c = self.consistency
+
+        def value(x: float) -> float | None:
+            return None if np.isnan(x) else x
+
         return {"test": "χ² of the pairwise estimates against the joint fit under their joint covariance; per "
                         "stream, how much removing its pairs lowers it",
-                "statistic": c.statistic, "dof": c.dof, "p_value": c.p_value, "threshold": CONSISTENCY_P_VALUE,
-                "streams": {name: {"reduction": c.reductions[k], "dof": c.reduction_dof[k],
-                                   "p_value": c.reduction_p[k]} for k, name in enumerate(self.names)},
+                "statistic": c.statistic, "dof": c.dof, "p_value": value(c.p_value), "threshold": CONSISTENCY_P_VALUE,
+                "streams": {name: {"reduction": value(c.reductions[k]), "dof": c.reduction_dof[k],
+                                   "p_value": value(c.reduction_p[k])} for k, name in enumerate(self.names)},
                 "suspect": None if c.suspect is None else self.names[c.suspect]}
 
     def document(self) -> dict[str, Any]:
