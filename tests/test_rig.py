@@ -280,7 +280,7 @@ def test_bad_stream_is_named() -> None:
     it is named by the χ² test (the result carries the statistic and p-values), the warning says
     what to check, it informs no other sensor, the others are recovered as well as without it, its
     own rotation too; the noise model charges it with the most translation noise, but within 3 times
-    its simulated noise (the hat's short motions: from the solved pairs' own, it was ~30 times in
+    its simulated noise (the hat's short motions: from the solved pairs' own, it was ~40 times in
     variance, which hid the bias from the test)."""
     T = _mounts(0)
     res = calibrate_rig(simulate_streams(_sensors(T, bad_scale=0.8), duration_s=40, seed=0),

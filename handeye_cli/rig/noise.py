@@ -27,14 +27,14 @@ clock comparisons): :func:`stream_variances` solves the non-negative least squar
 rotation first, then translation (the dual rows also carry rotation noise times the lever arm).
 The energies are those of each pair's shortest motions (up to :data:`SHORT_STRIDE` samples),
 where errors that grow with the span (drift, a wrong scale, a mount that slipped) add least: from
-the solved pairs' own motions, a stream scaled by 0.8 was charged ~30 times its noise variance,
+the solved pairs' own motions, a stream scaled by 0.8 was charged ~40 times its noise variance,
 which hid its bias from the consistency test (:func:`handeye_cli.rig.joint.consistency`).
 
 Drift is not white: an odometry whose world turns and slides at a constant rate ``ξ`` (a twist at
 its world's origin [rad/s, m/s]) perturbs every motion by ``ε = Δt Ad(T_end⁻¹) ξ`` — the same
 direction in the world for every motion, growing with its span — so its effect on a pairwise
 estimate does not average out, and pairs sharing the stream are biased alike (measured on the
-simulated rigs: the drift's first-order bias was 60–85 % of the drifting pairs' translation error,
+simulated rigs: the drift's first-order bias was 68–87 % (RMS) of the drifting pairs' translation error,
 their χ² under the white model 11–18 instead of 6; without it, 5.3–6.8). Only the two streams'
 *relative* drift ``d`` shows in a pair (a drift common to both keeps ``A X = X B``), and it is
 linear in the residuals: ``Log(A⁻¹ X B X⁻¹) ≈ Ad(X) ε_B - ε_A = Δt Ad(T_a,end⁻¹) d``.
