@@ -7,13 +7,18 @@
    pairwise results (chosen in hindsight: the chain with the smallest RMS, separately for rotation
    and translation), rotation [deg] / translation [mm], the ratios joint / best chain, and the
    RMS error the joint's noise model predicts (root of the mean predicted variance).
-2. Time: a 4-stream, ``--minutes``-minute MCAP (PoseStamped ×3 + TF), auto clock offsets:
+2. Bad-stream naming: over the same seeds, with gaps (and drift): how often a clean rig names a
+   stream, and how often a rig with one bad stream (cam1, lidar or wheels by turn; translations
+   × 0.8, its given clock offset 30 ms wrong, or its mount slipping 1° / 5 mm mid-log: see
+   ``handeye_cli.rig.simulate.with_fault``) names the right one; the χ² of the pairwise estimates
+   (median p-value of the clean rigs).
+3. Time: a 4-stream, ``--minutes``-minute MCAP (PoseStamped ×3 + TF), auto clock offsets:
    ``handeye rig`` (the log read once, 6 pairs, joint) against 3 separate ``calibrate`` runs of the
    reference against each sensor (the log read 3 times, 3 pairs) — in one warm process (imports
    done first; the reads alone too; the rig's stages: clock offsets, pairwise solves, joint), and
    as command lines (what a user runs: each ``handeye`` process starts, imports and reads once).
 
-    python benchmarks/rig.py [--seeds 12] [--minutes 10] [--skip-accuracy] [--skip-time]
+    python benchmarks/rig.py [--seeds 12] [--minutes 10] [--skip-accuracy] [--skip-detection] [--skip-time]
 """
 from __future__ import annotations
 
@@ -102,6 +107,34 @@ def accuracy(seeds: int, gaps: bool, drift: bool) -> None:
               f"   joint/best {ratio[0]:.3f} / {ratio[1]:.3f}")
 
 
+def detection(seeds: int) -> None:
+    from handeye_cli.rig import RigOptions, calibrate_rig
+    from handeye_cli.rig.joint import CONSISTENCY_P_VALUE
+    from handeye_cli.rig.simulate import FAULTS, simulate_streams, with_fault
+
+    offsets = {"cam1": OFFSETS_NS[1] / 1e9, "lidar": OFFSETS_NS[2] / 1e9, "wheels": OFFSETS_NS[3] / 1e9}
+    print(f"\nbad-stream naming over {seeds} seeds, 30 s, with tracking gaps (p < {CONSISTENCY_P_VALUE:g}):")
+    for drift in (False, True):
+        named, p_values = 0, []
+        for seed in range(seeds):
+            res = calibrate_rig(simulate_streams(sensors(seed, True, drift), duration_s=30, seed=seed),
+                                RigOptions(time_offsets=offsets))
+            named += res.consistency.suspect is not None
+            p_values.append(res.consistency.p_value)
+        print(f"  clean{' and drifting' if drift else ''}: a stream named on {named}/{seeds}, "
+              f"median p {np.median(p_values):.2f}")
+    for fault in FAULTS:
+        right, wrong = 0, 0
+        for seed in range(seeds):
+            bad = 1 + seed % 3
+            sims, error = with_fault(sensors(seed, True, True), bad, fault, np.random.default_rng(1000 + seed))
+            given = {**offsets, sims[bad].name: offsets[sims[bad].name] + error}
+            res = calibrate_rig(simulate_streams(sims, duration_s=30, seed=seed), RigOptions(time_offsets=given))
+            right += res.consistency.suspect == bad
+            wrong += res.consistency.suspect not in (None, bad)
+        print(f"  {fault:<6} (drifting): the bad stream named on {right}/{seeds}, another on {wrong}")
+
+
 def _write_log(path: Path, minutes: float) -> tuple[list, dict]:
     from _logs import POSE, TF, pose_channel, records, write_mcap
 
@@ -179,12 +212,15 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=12)
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--skip-accuracy", action="store_true")
+    ap.add_argument("--skip-detection", action="store_true")
     ap.add_argument("--skip-time", action="store_true")
     args = ap.parse_args()
     if not args.skip_accuracy:
         accuracy(args.seeds, gaps=False, drift=False)
         accuracy(args.seeds, gaps=True, drift=False)
         accuracy(args.seeds, gaps=True, drift=True)
+    if not args.skip_detection:
+        detection(args.seeds)
     if not args.skip_time:
         timing(args.minutes)
 

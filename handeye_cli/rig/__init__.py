@@ -2,10 +2,12 @@
 
 Pipeline: read all streams (one pass per log, :mod:`.read`) → per-stream clock offsets and
 inversion → one optimal calibration per pair of streams (:mod:`.pairwise`) → graph
-synchronisation (chordal rotation averaging, translation least squares, :mod:`.graph`) → the
-streams' noise and the pairwise estimates' joint covariance (:mod:`.noise`) → the generalised
-least squares of all pairwise estimates (:mod:`.joint`; a stream named inconsistent by the loop
-closures informs no other sensor) → the block bootstrap → :class:`RigResult`.
+streams' noise, each pair's relative drift (its bias removed where significant) and the pairwise
+estimates' joint covariance (:mod:`.noise`) → graph synchronisation (chordal rotation averaging,
+translation least squares, :mod:`.graph`) → the χ² test of the pairwise estimates against each
+other, naming the stream that spoils it (:func:`.joint.consistency`) → the generalised least
+squares of all pairwise estimates (:mod:`.joint`; a named stream informs no other sensor) → the
+block bootstrap → :class:`RigResult`.
 
 Frames: stream k holds ``T_wk_k(t)``; ``T_ref_k`` is the pose of sensor k in the reference
 sensor's frame (maps points from k to ref); quaternions x-y-z-w; metres; int64 ns stamps.
@@ -13,7 +15,7 @@ sensor's frame (maps points from k to ref); quaternions x-y-z-w; metres; int64 n
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -22,9 +24,9 @@ from numpy.typing import NDArray
 from ..errors import ConfigError, DataError
 from ..options import Options
 from ..streams import PoseStream
-from .graph import consistency, loop_closures, synchronise
-from .joint import JointProblem, Motions, bootstrap_rig, refine
-from .noise import edge_covariance, edge_noise, stream_variances
+from .graph import loop_closures, synchronise
+from .joint import CONSISTENCY_P_VALUE, Consistency, JointProblem, Motions, bootstrap_rig, consistency, refine
+from .noise import drift_corrections, edge_covariance, edge_noise, stream_variances
 from .pairwise import ClockOffset, Edge, clock_offsets, solve_edges
 from .read import StreamSpec, parse_stream, read_rig
 from .result import RigResult, transform_entry
@@ -86,6 +88,27 @@ def _raw_stamps(streams: list[PoseStream], offsets: list[ClockOffset], e: Edge
     return streams[e.j].stamps_ns, streams[e.k].stamps_ns - (offsets[e.k].offset_ns - offsets[e.j].offset_ns)
 
 
+def _consistency_warnings(cons: Consistency, names: list[str], reference: int) -> list[str]:
+    """What the χ² test found, and what to check (empty when the rig is consistent)."""
+    if not cons.inconsistent:
+        return []
+    rig = (f"the pairwise estimates disagree more than the streams' noise allows: χ² {cons.statistic:.4g} on "
+           f"{cons.dof} degrees of freedom (p = {cons.p_value:.2g} < {CONSISTENCY_P_VALUE:g})")
+    s = cons.suspect
+    if s is None:
+        return [f"{rig}, and no single stream explains it; check every stream's clock offset (--time-offset), "
+                "inversion (--invert) and scale, whether a mount is loose, and whether an odometry drifts "
+                "other than at a constant rate"]
+    name = names[s]
+    role = (f"; it is the reference, so every T_{name}_k rests on its pairs: choose another (--reference NAME)"
+            if s == reference else ", so its pairs inform no other sensor")
+    return [f"stream {name} is inconsistent with the others: {rig}; without {name}'s pairs it falls by "
+            f"{cons.reductions[s]:.4g} on {cons.reduction_dof[s]} (p = {cons.reduction_p[s]:.2g}){role}. Check "
+            f"{name}'s scale (monocular odometry?), its clock offset (--time-offset {name}=auto), its inversion "
+            f"(--invert {name}), and its mount: a loose mount changes the extrinsic mid-log (calibrate the log's "
+            "halves apart and compare)"]
+
+
 def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None = None, *,
                   inputs: dict[str, Any] | None = None) -> RigResult:
     """Calibrate every ``T_ref_k`` of a rig from its pose streams ``{name: T_wk_k(t)}`` (in order;
@@ -104,21 +127,20 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
     if not edges:
         raise DataError("no pair of streams could be calibrated", ", ".join(names), "see the warnings above")
     pairs = [(e.j, e.k) for e in edges]
-    X = np.stack([e.matrix for e in edges])
-    closures = loop_closures(n, dict(zip(pairs, X, strict=True)))
-    alpha = edges[0].calibration.solution.alpha
-    cons = consistency(n, closures, alpha)
-    if cons.suspect is not None:
-        warnings.append(f"stream {names[cons.suspect]} is inconsistent with the others: without it the pairwise "
-                        f"loop closures improve from {cons.score:.4g} to {cons.without[cons.suspect]:.4g} "
-                        "(rad + α·m); its pairs do not inform the other sensors; check its topic, time offset, "
-                        "inversion and mounting")
+    closures = loop_closures(n, {p: e.matrix for p, e in zip(pairs, edges, strict=True)})
     noise = [edge_noise(e, _raw_stamps(used, offsets, e)) for e in edges]
     variances = stream_variances(n, pairs, noise)
-    problem = JointProblem(n, ref, pairs, X, edge_covariance(pairs, noise, variances),
-                           np.stack([e.forms for e in edges]), excluded=cons.suspect)
+    corrections = drift_corrections(pairs, noise, variances)
+    steps = np.stack([c.step for c in corrections])
+    X = steps @ np.stack([e.matrix for e in edges])
+    problem = JointProblem(n, ref, pairs, X, edge_covariance(pairs, noise, variances, corrections),
+                           np.stack([e.forms for e in edges]), steps)
     rot_std = problem.edge_std()[:, 0]
     T0 = synchronise(n, pairs, X, np.square(rot_std.min() / np.maximum(rot_std, 1e-300)), ref)
+    cons = consistency(problem, T0)
+    warnings += _consistency_warnings(cons, names, ref)
+    if cons.suspect is not None:
+        problem = replace(problem, excluded=cons.suspect)
     T, covariances = refine(problem, T0)
     joint = loop_closures(n, {p: Xj for p, Xj in zip(pairs, problem.relative(T), strict=True)})
     unc = None
@@ -127,8 +149,8 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
                             block_s=opts.block_s, seed=cfg.pairs.seed)
     settings = {"reference": names[ref], "time_offsets": dict(opts.time_offsets), "invert": list(opts.invert),
                 "block_seconds": opts.block_s, "options": cfg.flat()}
-    return RigResult(names, ref, used, inverted, offsets, edges, problem, T0, T, closures, joint, cons, variances,
-                     covariances, unc, warnings, dict(inputs or {}), settings)
+    return RigResult(names, ref, used, inverted, offsets, edges, corrections, problem, T0, T, closures, joint, cons,
+                     variances, covariances, unc, warnings, dict(inputs or {}), settings)
 
 
 def calibrate_rig_files(log: str | None, specs: list[StreamSpec], options: RigOptions | None = None, *,

@@ -107,42 +107,6 @@ def loop_closures(n: int, relative: dict[tuple[int, int], Array]) -> list[Closur
     return out
 
 
-@dataclass(frozen=True)
-class Consistency:
-    """How well the pairwise-only results agree around loops, and which sensor spoils it.
-
-    score: mean over triangles of ``rotation [rad] + α · translation [m]`` of the closure errors;
-    without: the same score with each sensor's triangles removed (NaN when no triangle is left);
-    suspect: the sensor whose removal lowers the score at least ``SUSPECT_RATIO`` times, while its
-    own triangles close worse than the noise floor (``SUSPECT_FLOOR_DEG`` / ``SUSPECT_FLOOR_M``), or None.
-    """
-
-    score: float
-    without: tuple[float, ...]
-    suspect: int | None
-
-
-SUSPECT_RATIO = 3.0
-SUSPECT_FLOOR_DEG = 0.2
-SUSPECT_FLOOR_M = 0.01      # 5 mm was within the noise of the shipped 4-sensor sample (a 6 mm closure)
-
-
-def consistency(n: int, closures: list[Closure], alpha: float) -> Consistency:
-    """The consistency score of the pairwise loop closures and the suspect sensor (see :class:`Consistency`)."""
-    err = np.array([np.deg2rad(c.rotation_deg) + alpha * c.translation_m for c in closures])
-    score = float(err.mean()) if len(err) else float("nan")
-    without, suspect, best = [], None, np.inf
-    for s in range(n):
-        keep = np.array([s not in c.nodes for c in closures], dtype=bool)
-        value = float(err[keep].mean()) if keep.any() else float("nan")
-        without.append(value)
-        touching = [c for c, k in zip(closures, keep, strict=True) if not k]
-        large = any(c.rotation_deg > SUSPECT_FLOOR_DEG or c.translation_m > SUSPECT_FLOOR_M for c in touching)
-        if keep.any() and large and value * SUSPECT_RATIO <= score and value < best:
-            suspect, best = s, value
-    return Consistency(score, tuple(without), suspect)
-
-
 def chains(relative: dict[tuple[int, int], Array], n: int, k: int, reference: int = 0) -> dict[tuple[int, ...], Array]:
     """Every simple chain of pairwise results from ``reference`` to sensor ``k``: the path of
     sensors → the composed ``T_reference_k``. ``relative[(j, k)]`` is ``T_j_k`` (either direction

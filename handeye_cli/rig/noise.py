@@ -25,6 +25,27 @@ The variances are not known; each pair's residual energy is their sum weighted b
 sensitivities, so with three or more streams they are separable (the "three-cornered hat" of
 clock comparisons): :func:`stream_variances` solves the non-negative least squares over all pairs,
 rotation first, then translation (the dual rows also carry rotation noise times the lever arm).
+The energies are those of each pair's shortest motions (up to :data:`SHORT_STRIDE` samples),
+where errors that grow with the span (drift, a wrong scale, a mount that slipped) add least: from
+the solved pairs' own motions, a stream scaled by 0.8 was charged ~40 times its noise variance,
+which hid its bias from the consistency test (:func:`handeye_cli.rig.joint.consistency`).
+
+Drift is not white: an odometry whose world turns and slides at a constant rate ``ξ`` (a twist at
+its world's origin [rad/s, m/s]) perturbs every motion by ``ε = Δt Ad(T_end⁻¹) ξ`` — the same
+direction in the world for every motion, growing with its span — so its effect on a pairwise
+estimate does not average out, and pairs sharing the stream are biased alike (measured on the
+simulated rigs: the drift's first-order bias was 68–87 % (RMS) of the drifting pairs' translation error,
+their χ² under the white model 11–18 instead of 6; without it, 5.3–6.8). Only the two streams'
+*relative* drift ``d`` shows in a pair (a drift common to both keeps ``A X = X B``), and it is
+linear in the residuals: ``Log(A⁻¹ X B X⁻¹) ≈ Ad(X) ε_B - ε_A = Δt Ad(T_a,end⁻¹) d``.
+:func:`edge_noise` fits ``d`` by least squares on probe motions of every span (a √2 ladder of
+strides within the tracking segments), maps every raw sample's noise to ``d̂`` as it does to the
+estimate, and gives the estimate's first-order bias ``Ψ d`` (:class:`EdgeDrift`).
+:func:`drift_corrections` tests ``d̂`` against its covariance (χ², 6 degrees of freedom) and
+removes the bias of the pairs whose drift is significant (p < :data:`DRIFT_P_VALUE`); a
+corrected estimate's noise maps are the estimate's minus ``Ψ`` times ``d̂``'s, so
+:func:`edge_covariance` stays exact to first order. A drift that is not a constant rate (a random
+walk) is modelled only by its mean rate over the log.
 """
 from __future__ import annotations
 
@@ -34,17 +55,43 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 from scipy.optimize import nnls
+from scipy.spatial.transform import Rotation
+from scipy.stats import chi2
 
 from .. import se3
 from ..analysis.covariance import constrained_hessian
 from ..solvers import dualquat as dq
 from ..solvers.problem import pair_blocks
+from ..stages.selection import ladder
+from ..stages.sync import Synced
+from .joint import log_errors
 from .pairwise import Edge
 
-__all__ = ["EdgeNoise", "StreamNoise", "edge_noise", "stream_variances", "edge_covariance", "VARIANCE_FLOOR"]
+__all__ = ["EdgeNoise", "EdgeDrift", "Correction", "StreamNoise", "edge_noise", "stream_variances",
+           "drift_corrections", "edge_covariance", "VARIANCE_FLOOR", "DRIFT_P_VALUE", "DRIFT_PROBE"]
 
 Array = NDArray[np.float64]
 VARIANCE_FLOOR = 1e-18      # (1 nrad)², (1 nm)²: below it a stream is noise-free to rounding
+DRIFT_P_VALUE = 0.01        # a pair's relative drift is removed when its χ² is this unlikely under "no drift"
+DRIFT_PROBE = 200           # probe motions per stride of the drift fit (evenly spread over the segments)
+SHORT_STRIDE = 4            # the three-cornered hat's motions span up to this many synced samples
+SHORT_MOTIONS = 2000        # ... at most this many per stride (all of a 30-s log's; a 10-min log's 72000 took 2 s)
+
+
+@dataclass(frozen=True, eq=False)
+class EdgeDrift:
+    """The relative constant-rate drift of a pair's streams (module docstring) and its effect.
+
+    rate: (6,) ``d̂``: how stream k's world turns and slides relative to stream j's, as a twist at
+        j's world origin in its axes (rotation [rad/s], translation [m/s]).
+    maps: per stream (j, k), (M, 6, 6): raw sample m's noise ``(ω, v)`` → the error of ``d̂``.
+    bias: (6, 6) ``Ψ``: the pairwise estimate's first-order error ``δ = Ψ d`` (left perturbation,
+        rotation [rad], translation [m]) caused by a relative drift ``d``.
+    """
+
+    rate: Array
+    maps: tuple[Array, Array]
+    bias: Array
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,15 +99,51 @@ class EdgeNoise:
     """How the noise of streams j and k reaches the pairwise estimate of ``T_j_k``.
 
     maps: per stream (j, k), (M, 6, 6): raw sample m's noise ``(ω, v)`` → the estimate's error ``δ``.
-    energy: (2, 3) per stream (j, k): the expected residual energy (ω-weighted as the pair was
-        solved) per unit variance — rotation rows from rotation noise, dual rows from rotation
-        noise, dual rows from translation noise.
-    observed: (2,) the residual energy at the pairwise optimum: rotation rows, dual rows.
+    energy: (2, 3) per stream (j, k): the expected residual energy of the pair's short motions
+        (:func:`_short_energies`) per unit variance — rotation rows from rotation noise, dual rows
+        from rotation noise, dual rows from translation noise.
+    observed: (2,) their residual energy at the pairwise optimum: rotation rows, dual rows.
+    drift: the fit of the streams' relative drift.
     """
 
     maps: tuple[Array, Array]
     energy: Array
     observed: Array
+    drift: EdgeDrift
+
+
+@dataclass(frozen=True, eq=False)
+class Correction:
+    """A pair's relative drift, its test and the bias removed.
+
+    rate: (6,) ``d̂`` (see :class:`EdgeDrift`); statistic: ``d̂ᵀ Cov(d̂)⁻¹ d̂`` (χ² of 6 degrees of
+    freedom without drift); p_value; applied: ``p_value < DRIFT_P_VALUE``; bias: (6,) ``Ψ d̂``,
+    the estimate's first-order error from that drift (left perturbation, rotation [rad],
+    translation [m]), removed when applied.
+    """
+
+    rate: Array
+    statistic: float
+    p_value: float
+    applied: bool
+    bias: Array
+
+    @property
+    def step(self) -> Array:
+        """``Exp(-Ψ d̂)`` (4x4; the identity when not applied): the corrected estimate is ``step · T̂_j_k``."""
+        step = np.eye(4)
+        if self.applied:
+            step[:3, :3] = Rotation.from_rotvec(-self.bias[:3]).as_matrix()
+            step[:3, 3] = -self.bias[3:]
+        return step
+
+    def as_dict(self) -> dict[str, object]:
+        """The document's view: the rate [deg/s, m/s], the test, the bias [deg, m] and whether it was removed."""
+        return {"rotation_deg_per_s": float(np.rad2deg(np.linalg.norm(self.rate[:3]))),
+                "translation_m_per_s": float(np.linalg.norm(self.rate[3:])),
+                "chi2": self.statistic, "dof": 6, "p_value": self.p_value, "corrected": self.applied,
+                "bias": {"rotation_deg": float(np.rad2deg(np.linalg.norm(self.bias[:3]))),
+                         "translation_m": float(np.linalg.norm(self.bias[3:]))}}
 
 
 @dataclass(frozen=True)
@@ -118,6 +201,122 @@ def _residual_sensitivity(M: Array, q: Array, qd: Array, alpha: float, side: int
     return sign * out
 
 
+def _spread(M: Array, raw_ns: NDArray[np.int64], stamps_ns: NDArray[np.int64], start: NDArray[np.int64],
+            end: NDArray[np.int64]) -> tuple[sparse.csr_array, Array, list[tuple[NDArray[np.int64], Array]]]:
+    """How the raw samples' noise enters the right perturbations ``ε`` of motions ``M`` (N, 4, 4)
+    from synced sample ``start`` to ``end``: ``ε = n(end) - Ad(M⁻¹) n(start)``, each synced
+    sample the interpolation of two raw ones. Returns the sparse (raw sample ← (end, motion) and
+    (start, motion)) shares, ``-Ad(M⁻¹)``, and per motion end (end, start) the raw indices and
+    shares (lo and hi stacked)."""
+    back = -adjoint(se3.inverse(M))
+    lo, hi, frac = interpolation(raw_ns, stamps_ns)
+    n = len(M)
+    rows, cols, vals, ends = [], [], [], []
+    for e, sample in enumerate((end, start)):
+        idx, share = np.stack((lo[sample], hi[sample])), np.stack((1.0 - frac[sample], frac[sample]))
+        rows.append(idx.ravel())
+        cols.append(np.tile(e * n + np.arange(n), 2))
+        vals.append(share.ravel())
+        ends.append((idx, share))
+    spread = sparse.csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                              shape=(len(raw_ns), 2 * n))
+    return spread, back, ends
+
+
+def _sample_maps(spread: sparse.csr_array, back: Array, blocks: Array) -> Array:
+    """(raw samples, 6, 6): Σ over motions of ``blocks`` (N, 6, 6) (∂·/∂ε) times ∂ε/∂n_raw."""
+    return np.asarray((spread @ np.concatenate((blocks, blocks @ back)).reshape(-1, 36)).reshape(-1, 6, 6))
+
+
+def _regressor(synced: Synced, start: NDArray[np.int64], end: NDArray[np.int64]) -> Array:
+    """``Δt Ad(T_a,end⁻¹)`` (N, 6, 6): a relative drift ``d``'s share of the motions' residuals."""
+    return np.asarray(((synced.stamps_ns[end] - synced.stamps_ns[start]) / 1e9)[:, None, None]
+                      * adjoint(se3.inverse(synced.T_a[end])), dtype=np.float64)
+
+
+def _strided(synced: Synced, strides: NDArray[np.int64], most: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Start and end samples of motions of the given strides within the tracking segments, at most
+    ``most`` per stride, evenly spread."""
+    seg, n = synced.segment, len(synced.segment)
+    i_all, j_all = [], []
+    for stride in strides[strides < n]:
+        i = np.flatnonzero(seg[:n - stride] == seg[stride:])
+        i = i[np.linspace(0, len(i) - 1, min(most, len(i))).astype(np.int64)] if len(i) else i
+        i_all.append(i)
+        j_all.append(i + stride)
+    empty = np.zeros(0, dtype=np.int64)
+    return np.concatenate([empty, *i_all]), np.concatenate([empty, *j_all])
+
+
+def _probe(synced: Synced) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The drift fit's probe motions: every stride of a √2 ladder up to the longest tracking
+    segment, :data:`DRIFT_PROBE` per stride."""
+    seg = synced.segment
+    starts = np.flatnonzero(np.r_[True, seg[1:] != seg[:-1]])
+    return _strided(synced, ladder(int(np.diff(np.r_[starts, len(seg)]).max())), DRIFT_PROBE)
+
+
+def _drift(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]], G_b: Array) -> EdgeDrift:
+    """Fit the relative drift of the pair's streams on probe motions (module docstring);
+    ``G_b`` (N, 6, 6): ∂δ/∂ε_B of the estimator's motions, for the bias map."""
+    cal = edge.calibration
+    syn, X, alpha = cal.synced, cal.matrix, cal.solution.alpha
+    i, j = _probe(syn)
+    A, B = se3.relative(syn.T_a[i], syn.T_a[j]), se3.relative(syn.T_b[i], syn.T_b[j])
+    H = _regressor(syn, i, j)
+    r = log_errors(se3.inverse(A) @ X @ B @ se3.inverse(X))      # ≈ Ad(X) ε_B - ε_A = H d
+    W = np.repeat([1.0, alpha ** 2], 3)                            # rotation vs translation, as the pair's cost
+    L = np.linalg.pinv(np.einsum("nai,a,naj->ij", H, W, H), hermitian=True) @ (np.swapaxes(H, 1, 2) * W)
+    rate = np.einsum("nab,nb->a", L, r)
+    AdX = adjoint(X[None])[0]
+    maps = []
+    for side, (M, raw) in enumerate(zip((A, B), raw_ns, strict=True)):
+        spread, back, _ = _spread(M, raw, syn.stamps_ns, i, j)
+        maps.append(_sample_maps(spread, back, -L if side == 0 else L @ AdX))
+    bias = np.einsum("nab,bc,ncd->ad", G_b, adjoint(se3.inverse(X)[None])[0],
+                     _regressor(syn, cal.pairs.i, cal.pairs.j))                     # ε_B = Ad(X⁻¹) H d
+    return EdgeDrift(rate, (maps[0], maps[1]), bias)
+
+
+def _white_energy(M: Array, S: Array, raw_ns: NDArray[np.int64], stamps_ns: NDArray[np.int64],
+                  start: NDArray[np.int64], end: NDArray[np.int64]) -> Array:
+    """(3,) expected residual energy per unit variance of one stream's white noise over motions
+    ``M`` (sensitivities ``S`` = ∂r/∂ε_M): rotation rows ← rotation, dual ← rotation, dual ←
+    translation. A raw sample that both ends of a motion interpolate counts once, its terms added first."""
+    _, back, ends = _spread(M, raw_ns, stamps_ns, start, end)
+    idx = np.concatenate([ends[0][0], ends[1][0]])                          # (4, N): end lo, hi; start lo, hi
+    share = np.concatenate([ends[0][1], ends[1][1]])
+    blocks = (S, S, S @ back, S @ back)                                     # ∂r/∂n of each term, per unit share
+    total = np.zeros((8, 6))
+    for a in range(4):
+        for b in range(4):
+            same = share[a] * share[b] * (idx[a] == idx[b])
+            total += np.einsum("n,nkc,nkc->kc", same, blocks[a], blocks[b])
+    return np.array([total[:4, :3].sum(), total[4:, :3].sum(), total[4:, 3:].sum()])
+
+
+def _short_motions(synced: Synced) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """The hat's motions: strides 1 to :data:`SHORT_STRIDE` synced samples, :data:`SHORT_MOTIONS` per stride."""
+    return _strided(synced, np.arange(1, SHORT_STRIDE + 1), SHORT_MOTIONS)
+
+
+def _short_energies(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]]) -> tuple[Array, Array]:
+    """The three-cornered hat's observations of a pair: over its short motions (:func:`_short_motions`,
+    where errors that grow with the span — drift, a wrong scale, a slipped mount — add least),
+    the expected residual energy per unit variance of each stream (2, 3) and the observed one
+    (2,) at the pairwise estimate: rotation rows, dual rows (α-weighted as the pair was solved)."""
+    cal = edge.calibration
+    syn, alpha = cal.synced, cal.solution.alpha
+    i, j = _short_motions(syn)
+    A, B = se3.relative(syn.T_a[i], syn.T_a[j]), se3.relative(syn.T_b[i], syn.T_b[j])
+    q, qd = dq.from_transforms(cal.matrix)
+    E, F = pair_blocks(A, B, alpha)
+    r = np.concatenate([E @ q, alpha * (F @ q + E @ qd)], axis=1)
+    energy = np.stack([_white_energy(M, _residual_sensitivity(M, q, qd, alpha, side), raw, syn.stamps_ns, i, j)
+                       for side, (M, raw) in enumerate(zip((A, B), raw_ns, strict=True))])
+    return energy, np.array([np.sum(r[:, :4] ** 2), np.sum(r[:, 4:] ** 2)])
+
+
 def edge_noise(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]]) -> EdgeNoise:
     """:class:`EdgeNoise` of a pairwise result; ``raw_ns``: the stamps of streams j and k's raw
     samples in the pair's clock (stream j's: k's shifted by the pair's time offset)."""
@@ -126,40 +325,20 @@ def edge_noise(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]]) 
     w = np.ones(len(A)) if cal.weights is None else np.asarray(cal.weights, dtype=float)
     alpha = cal.solution.alpha
     q, qd = dq.from_transforms(cal.matrix)
-    x = np.concatenate([q, qd])
     E, F = pair_blocks(A, B, alpha)
     Z = np.zeros_like(E)
     K = np.concatenate([np.concatenate([E, Z], axis=2), alpha * np.concatenate([F, E], axis=2)], axis=1)  # rows on x
     D, H, _ = constrained_hessian(np.einsum("n,nki,nkj->ij", w, K, K), q, qd)
     Hinv = np.linalg.pinv(H, hermitian=True)
     KD = K @ D                                                   # (N, 8, 6) ∂r/∂δ
-    r = K @ x
-    stamps = cal.synced.stamps_ns
-    maps, energy = [], np.zeros((2, 3))
+    maps = []
     for side, (M, raw) in enumerate(zip((A, B), raw_ns, strict=True)):
         S = _residual_sensitivity(M, q, qd, alpha, side)         # ∂r/∂ε_M
         G = -Hinv @ (np.swapaxes(KD, 1, 2) @ (w[:, None, None] * S))   # ∂δ/∂ε_M
-        back = -adjoint(se3.inverse(M))                          # ε_M = n(t_j) - Ad(M⁻¹) n(t_i)
-        lo, hi, frac = interpolation(raw, stamps)
-        ends = (cal.pairs.j, cal.pairs.i)                        # a motion's end and start samples
-        blocks = (G, G @ back)
-        n_pairs = len(G)
-        rows, cols, vals = [], [], []
-        for e, (sample, S_end) in enumerate(zip(ends, (S, S @ back), strict=True)):
-            S2 = np.square(S_end)
-            parts = np.stack([S2[:, :4, :3].sum(axis=(1, 2)), S2[:, 4:, :3].sum(axis=(1, 2)),
-                              S2[:, 4:, 3:].sum(axis=(1, 2))], axis=1)          # (N, 3) per unit share²
-            for idx, share in ((lo, 1.0 - frac), (hi, frac)):
-                rows.append(idx[sample])
-                cols.append(e * n_pairs + np.arange(n_pairs))
-                vals.append(share[sample])
-                energy[side] += (w * share[sample] ** 2) @ parts
-        spread = sparse.csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                                  shape=(len(raw), 2 * n_pairs))               # raw sample ← (pair, end)
-        L = spread @ np.concatenate(blocks).reshape(-1, 36)
-        maps.append(L.reshape(-1, 6, 6))
-    observed = np.array([np.sum(w * np.sum(r[:, :4] ** 2, axis=1)), np.sum(w * np.sum(r[:, 4:] ** 2, axis=1))])
-    return EdgeNoise((maps[0], maps[1]), energy, observed)
+        spread, back, _ = _spread(M, raw, cal.synced.stamps_ns, cal.pairs.i, cal.pairs.j)
+        maps.append(_sample_maps(spread, back, G))
+    energy, observed = _short_energies(edge, raw_ns)
+    return EdgeNoise((maps[0], maps[1]), energy, observed, _drift(edge, raw_ns, G))
 
 
 def stream_variances(n: int, pairs: list[tuple[int, int]], noise: list[EdgeNoise]) -> StreamNoise:
@@ -179,19 +358,41 @@ def stream_variances(n: int, pairs: list[tuple[int, int]], noise: list[EdgeNoise
     return StreamNoise(np.maximum(rot, VARIANCE_FLOOR), np.maximum(trans, VARIANCE_FLOOR))
 
 
-def edge_covariance(pairs: list[tuple[int, int]], noise: list[EdgeNoise], variances: StreamNoise) -> Array:
+def _sigma(variances: StreamNoise, s: int) -> Array:
+    """Stream s's per-component variances (6,): rotation [rad²] ×3, translation [m²] ×3."""
+    return np.repeat([variances.rotation[s], variances.translation[s]], 3)
+
+
+def drift_corrections(pairs: list[tuple[int, int]], noise: list[EdgeNoise], variances: StreamNoise
+                      ) -> list[Correction]:
+    """Test each pair's relative drift ``d̂`` against its covariance under the streams' noise (χ²,
+    6 degrees of freedom) and, where ``p < DRIFT_P_VALUE``, the bias ``Ψ d̂`` to remove."""
+    out = []
+    for (j, k), nz in zip(pairs, noise, strict=True):
+        dr = nz.drift
+        cov = sum(np.einsum("mab,b,mcb->ac", L, _sigma(variances, s), L) for L, s in zip(dr.maps, (j, k), strict=True))
+        stat = float(dr.rate @ np.linalg.pinv(cov, hermitian=True) @ dr.rate)
+        p = float(chi2.sf(stat, 6))
+        out.append(Correction(dr.rate, stat, p, p < DRIFT_P_VALUE, dr.bias @ dr.rate))
+    return out
+
+
+def edge_covariance(pairs: list[tuple[int, int]], noise: list[EdgeNoise], variances: StreamNoise,
+                    corrections: list[Correction]) -> Array:
     """The joint covariance (6E, 6E) of the pairwise estimates' errors ``δ`` (rotation [rad],
-    translation [m]; left perturbations of each ``T_j_k``), from the streams they share."""
+    translation [m]; left perturbations of each ``T_j_k``), from the streams they share; a
+    corrected estimate's error is ``δ - Ψ δd̂`` (its maps minus ``Ψ`` times the drift fit's)."""
     E = len(pairs)
+    maps = [tuple(m - nz.drift.bias @ dm if c.applied else m for m, dm in zip(nz.maps, nz.drift.maps, strict=True))
+            for nz, c in zip(noise, corrections, strict=True)]
     C = np.zeros((6 * E, 6 * E))
-    sigma = [np.repeat([variances.rotation[s], variances.translation[s]], 3) for s in range(len(variances.rotation))]
     for e in range(E):
         for f in range(e, E):
             block = np.zeros((6, 6))
             for side_e, s in enumerate(pairs[e]):
                 if s in pairs[f]:
-                    Le, Lf = noise[e].maps[side_e], noise[f].maps[pairs[f].index(s)]
-                    block += np.einsum("mab,b,mcb->ac", Le, sigma[s], Lf)
+                    Le, Lf = maps[e][side_e], maps[f][pairs[f].index(s)]
+                    block += np.einsum("mab,b,mcb->ac", Le, _sigma(variances, s), Lf)
             C[6 * e:6 * e + 6, 6 * f:6 * f + 6] = block
             C[6 * f:6 * f + 6, 6 * e:6 * e + 6] = block.T
     return C

@@ -18,9 +18,9 @@ from .. import __version__, se3
 from ..analysis import extrinsic_error, pair_residuals
 from ..output.document import plain
 from ..streams import PoseStream
-from .graph import Closure, Consistency
-from .joint import JointProblem, RigUncertainty
-from .noise import StreamNoise
+from .graph import Closure
+from .joint import CONSISTENCY_P_VALUE, Consistency, JointProblem, RigUncertainty
+from .noise import Correction, StreamNoise
 from .pairwise import ClockOffset, Edge
 
 __all__ = ["RigResult", "transform_entry"]
@@ -44,11 +44,13 @@ class RigResult:
 
     names, reference: the sensors and the reference's index; streams: as used (after inversion);
     inverted: per stream; offsets: each clock's offset to the reference's; edges: the calibrated
-    pairs (pairwise-only results); problem: the joint cost; synchronised: ``T_ref_k`` (n, 4, 4)
+    pairs (pairwise-only results); corrections: per pair, the test of its streams' relative drift
+    and the bias removed; problem: the joint cost; synchronised: ``T_ref_k`` (n, 4, 4)
     of the graph synchronisation; matrices: the joint ``T_ref_k`` (n, 4, 4); closures: the
-    pairwise-only loop closures; joint_closures: those of the joint result; consistency: the
-    bad-stream diagnostic; noise: every stream's estimated pose noise; covariances: (n, 6, 6) the
-    noise model's covariance of each joint ``T_ref_k`` (rotation [rad], translation [m]);
+    pairwise-only loop closures; joint_closures: those of the joint result; consistency: the χ²
+    test of the pairwise estimates and the bad stream it names; noise: every stream's estimated
+    pose noise; covariances: (n, 6, 6) the noise model's covariance of each joint ``T_ref_k``
+    (rotation [rad], translation [m]);
     uncertainty: bootstrap spread (or None); warnings, inputs, settings.
     """
 
@@ -58,6 +60,7 @@ class RigResult:
     inverted: list[bool]
     offsets: list[ClockOffset]
     edges: list[Edge]
+    corrections: list[Correction]
     problem: JointProblem
     synchronised: Array
     matrices: Array
@@ -76,7 +79,7 @@ class RigResult:
         i, j = self.names.index(parent), self.names.index(child)
         return np.asarray(se3.inverse(self.matrices[i]) @ self.matrices[j], dtype=np.float64)
 
-    def _pair(self, edge: Edge, std: Array) -> dict[str, Any]:
+    def _pair(self, edge: Edge, correction: Correction, std: Array) -> dict[str, Any]:
         names, A, B = self.names, edge.calibration.pairs.A, edge.calibration.pairs.B
         joint = self.T(names[edge.j], names[edge.k])
         mask = None if edge.calibration.weights is None else edge.calibration.weights > 0
@@ -84,7 +87,8 @@ class RigResult:
         return {**transform_entry(names[edge.j], names[edge.k], joint),
                 "pairwise_only": transform_entry(names[edge.j], names[edge.k], edge.matrix),
                 "difference": {"rotation_deg": rot, "translation_m": trans},
-                "pairs_used": len(A),
+                "pairs_used": len(A), "alpha": edge.calibration.solution.alpha,
+                "drift": correction.as_dict(),
                 "pairwise_only_error": {"rotation_deg": float(np.rad2deg(std[0])), "translation_m": float(std[1])},
                 "residuals": {"joint": pair_residuals(A, B, joint).summary(mask).as_dict(),
                               "pairwise_only": pair_residuals(A, B, edge.matrix).summary(mask).as_dict()}}
@@ -122,25 +126,37 @@ class RigResult:
                                    "translation_interval_m": u.translation_interval_m[i].tolist()}
                             for i, name in enumerate(self.names) if i != self.reference}}
 
+    def _consistency(self) -> dict[str, Any]:
+        """The χ² test; a value that cannot be tested (no degrees of freedom) is None."""
+        c = self.consistency
+
+        def value(x: float) -> float | None:
+            return None if np.isnan(x) else x
+
+        return {"test": "χ² of the pairwise estimates against the joint fit under their joint covariance; per "
+                        "stream, how much removing its pairs lowers it",
+                "statistic": c.statistic, "dof": c.dof, "p_value": value(c.p_value), "threshold": CONSISTENCY_P_VALUE,
+                "streams": {name: {"reduction": value(c.reductions[k]), "dof": c.reduction_dof[k],
+                                   "p_value": value(c.reduction_p[k])} for k, name in enumerate(self.names)},
+                "suspect": None if c.suspect is None else self.names[c.suspect]}
+
     def document(self) -> dict[str, Any]:
         """The rig result as a plain dict (see the module docstring)."""
         names, ref = self.names, self.names[self.reference]
-        c = self.consistency
         doc = {
             "reference": ref,
             "transforms": [transform_entry(ref, name, T) for name, T in zip(names, self.matrices, strict=True)
                            if name != ref],
             "method": "pairwise dqopt, graph synchronisation, generalised least squares of the pairwise estimates "
                       "under their joint noise model",
-            "alpha": self.edges[0].calibration.solution.alpha if self.edges else None,
             "noise_model": self._noise_model(),
-            "pairwise": [self._pair(e, s) for e, s in zip(self.edges, self.problem.edge_std(), strict=True)],
+            "pairwise": [self._pair(e, c, s) for e, c, s in
+                         zip(self.edges, self.corrections, self.problem.edge_std(), strict=True)],
             "loop_closures": {
                 "pairwise_only": [_closure(cl, names) for cl in self.closures],
                 "joint_max": {"rotation_deg": max((cl.rotation_deg for cl in self.joint_closures), default=0.0),
                               "translation_m": max((cl.translation_m for cl in self.joint_closures), default=0.0)}},
-            "consistency": {"score": c.score, "without": dict(zip(names, c.without, strict=True)),
-                            "suspect": None if c.suspect is None else names[c.suspect]},
+            "consistency": self._consistency(),
             "streams": self._streams(),
             "uncertainty": self._uncertainty(),
             "inputs": self.inputs, "settings": self.settings, "version": __version__,
