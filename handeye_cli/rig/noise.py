@@ -54,16 +54,16 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
-from scipy.optimize import nnls
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
 from .. import se3
 from ..analysis.covariance import constrained_hessian
+from ..analysis.nnls import nnls
 from ..solvers import dualquat as dq
 from ..solvers.problem import pair_blocks
 from ..stages.selection import ladder
-from ..stages.sync import Synced
+from ..stages.sync import Synced, bracket
 from .joint import log_errors
 from .pairwise import Edge
 
@@ -158,19 +158,6 @@ class StreamNoise:
         return float(np.sqrt(3 * self.rotation[k])), float(np.sqrt(3 * self.translation[k]))
 
 
-def interpolation(raw_ns: NDArray[np.int64], query_ns: NDArray[np.int64]
-                  ) -> tuple[NDArray[np.int64], NDArray[np.int64], Array]:
-    """Raw samples ``lo``, ``hi`` and fraction ``f`` with ``value(query) = (1 - f) raw[lo] + f raw[hi]``
-    (the interpolation of :mod:`handeye_cli.stages.sync`; an exact stamp has ``f = 0``)."""
-    n = len(raw_ns)
-    after = np.searchsorted(raw_ns, query_ns, side="right")
-    lo = np.clip(after - 1, 0, n - 1)
-    hi = np.where(raw_ns[lo] == query_ns, lo, np.clip(after, 0, n - 1))
-    span = np.maximum(raw_ns[hi] - raw_ns[lo], 1)
-    frac = np.where(hi == lo, 0.0, np.clip((query_ns - raw_ns[lo]) / span, 0.0, 1.0))
-    return lo, hi, frac
-
-
 def adjoint(T: Array) -> Array:
     """``Ad_T`` (N, 6, 6) on twists ``(ω, v)``: ``T Exp(ξ) T⁻¹ = Exp(Ad_T ξ)``."""
     R, t = T[:, :3, :3], T[:, :3, 3]
@@ -209,7 +196,7 @@ def _spread(M: Array, raw_ns: NDArray[np.int64], stamps_ns: NDArray[np.int64], s
     (start, motion)) shares, ``-Ad(M⁻¹)``, and per motion end (end, start) the raw indices and
     shares (lo and hi stacked)."""
     back = -adjoint(se3.inverse(M))
-    lo, hi, frac = interpolation(raw_ns, stamps_ns)
+    _, lo, hi, frac = bracket(raw_ns, stamps_ns)      # the synced stamps lie within the raw ones
     n = len(M)
     rows, cols, vals, ends = [], [], [], []
     for e, sample in enumerate((end, start)):

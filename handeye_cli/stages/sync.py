@@ -37,7 +37,8 @@ from ..errors import ConfigError, DataError
 from ..solvers import dualquat as dq
 from ..streams import PoseStream
 
-__all__ = ["Synced", "associate", "interpolate", "median_step_ns", "default_max_dt_ns", "rates_text", "METHODS"]
+__all__ = ["Synced", "associate", "bracket", "interpolate", "median_step_ns", "default_max_dt_ns", "rates_text",
+           "METHODS"]
 
 METHODS = ("auto", "interpolate", "nearest")
 _MIN_MAX_DT_NS = 100_000_000     # the paper's timestamp gate [ns]: the floor of the default
@@ -136,6 +137,21 @@ def rates_text(step_ns: tuple[int, int]) -> str:
     return ", ".join(f"{name} {rate(step)}" for name, step in zip("ab", step_ns, strict=True))
 
 
+def bracket(stamps_ns: Ints, query_ns: Ints) -> tuple[NDArray[np.bool_], Ints, Ints, Floats]:
+    """The samples around each query (int64 ns, the stamps' clock): ``(inside, lo, hi, frac)`` with
+    ``value(query) = (1 - frac) value[lo] + frac value[hi]``, ``hi = lo + 1``, or ``hi = lo`` and
+    ``frac = 0`` at an exact stamp. ``inside`` marks the queries within the stamps' span; the other
+    entries are meaningless for the rest (indices are clipped to the samples)."""
+    n = len(stamps_ns)
+    after = np.searchsorted(stamps_ns, query_ns, side="right")   # first sample strictly after the query
+    lo = np.maximum(after - 1, 0)
+    exact = stamps_ns[lo] == query_ns
+    inside = exact | ((after >= 1) & (after < n))
+    hi = np.where(exact, lo, np.minimum(lo + 1, n - 1))
+    frac = np.where(exact, 0.0, (query_ns - stamps_ns[lo]) / np.maximum(stamps_ns[hi] - stamps_ns[lo], 1))
+    return inside, lo, hi, frac
+
+
 def _lookup(stream: PoseStream, query: Ints, method: str, segment: Ints | None
             ) -> tuple[NDArray[np.bool_], Ints, Floats, Floats, Ints]:
     """:func:`interpolate`, also returning the index of a sample used (for its segment).
@@ -144,21 +160,14 @@ def _lookup(stream: PoseStream, query: Ints, method: str, segment: Ints | None
     such queries count as outside. Returns ``(inside, used, xyz, quat_xyzw, gap_ns)``.
     """
     stamps = stream.stamps_ns
-    n = len(stamps)
-    after = np.searchsorted(stamps, query, side="right")   # first sample strictly after the query
-    lo = after - 1
-    exact = (lo >= 0) & (stamps[np.clip(lo, 0, n - 1)] == query)
-    inside = exact | ((lo >= 0) & (after < n))
+    inside, lo, hi, frac = bracket(stamps, query)
     if segment is not None and method != "nearest":
-        bridge = np.flatnonzero(inside & ~exact)     # lo + 1 < n here
-        inside[bridge] = segment[lo[bridge]] == segment[lo[bridge] + 1]
-    lo, q, exact = lo[inside], query[inside], exact[inside]
-    hi = np.where(exact, lo, np.minimum(lo + 1, n - 1))
+        inside &= segment[lo] == segment[hi]
+    lo, hi, frac, q = lo[inside], hi[inside], frac[inside], query[inside]
     d_lo, d_hi = q - stamps[lo], stamps[hi] - q
     if method == "nearest":
         pick = np.where(d_hi < d_lo, hi, lo)
         return inside, pick, stream.xyz[pick], stream.quat_xyzw[pick], np.minimum(d_lo, d_hi)
-    frac = np.where(exact, 0.0, d_lo / np.maximum(stamps[hi] - stamps[lo], 1))
     xyz = stream.xyz[lo] + frac[:, None] * (stream.xyz[hi] - stream.xyz[lo])
     return inside, lo, xyz, dq.slerp(stream.quat_xyzw[lo], stream.quat_xyzw[hi], frac), np.maximum(d_lo, d_hi)
 
