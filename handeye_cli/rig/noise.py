@@ -253,7 +253,7 @@ def _drift(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]], G_b:
     H = _regressor(syn, i, j)
     r = log_errors(se3.inverse(A) @ X @ B @ se3.inverse(X))      # ≈ Ad(X) ε_B - ε_A = H d
     W = np.repeat([1.0, alpha ** 2], 3)                            # rotation vs translation, as the pair's cost
-    L = np.linalg.pinv(np.einsum("nai,a,naj->ij", H, W, H), hermitian=True) @ (np.swapaxes(H, 1, 2) * W)
+    L = np.linalg.pinv(np.einsum("nai,a,naj->ij", H, W, H, optimize=True), hermitian=True) @ (np.swapaxes(H, 1, 2) * W)
     rate = np.einsum("nab,nb->a", L, r)
     AdX = adjoint(X[None])[0]
     maps = []
@@ -261,7 +261,7 @@ def _drift(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]], G_b:
         spread, back, _ = _spread(M, raw, syn.stamps_ns, i, j)
         maps.append(_sample_maps(spread, back, -L if side == 0 else L @ AdX))
     bias = np.einsum("nab,bc,ncd->ad", G_b, adjoint(se3.inverse(X)[None])[0],
-                     _regressor(syn, cal.pairs.i, cal.pairs.j))                     # ε_B = Ad(X⁻¹) H d
+                     _regressor(syn, cal.pairs.i, cal.pairs.j), optimize=True)      # ε_B = Ad(X⁻¹) H d
     return EdgeDrift(rate, (maps[0], maps[1]), bias)
 
 
@@ -357,7 +357,8 @@ def drift_corrections(pairs: list[tuple[int, int]], noise: list[EdgeNoise], vari
     out = []
     for (j, k), nz in zip(pairs, noise, strict=True):
         dr = nz.drift
-        cov = sum(np.einsum("mab,b,mcb->ac", L, _sigma(variances, s), L) for L, s in zip(dr.maps, (j, k), strict=True))
+        cov = sum(np.einsum("mab,b,mcb->ac", L, _sigma(variances, s), L, optimize=True)
+                  for L, s in zip(dr.maps, (j, k), strict=True))
         stat = float(dr.rate @ np.linalg.pinv(cov, hermitian=True) @ dr.rate)
         p = float(chi2.sf(stat, 6))
         out.append(Correction(dr.rate, stat, p, p < DRIFT_P_VALUE, dr.bias @ dr.rate))
@@ -379,7 +380,7 @@ def edge_covariance(pairs: list[tuple[int, int]], noise: list[EdgeNoise], varian
             for side_e, s in enumerate(pairs[e]):
                 if s in pairs[f]:
                     Le, Lf = maps[e][side_e], maps[f][pairs[f].index(s)]
-                    block += np.einsum("mab,b,mcb->ac", Le, _sigma(variances, s), Lf)
+                    block += np.einsum("mab,b,mcb->ac", Le, _sigma(variances, s), Lf, optimize=True)
             C[6 * e:6 * e + 6, 6 * f:6 * f + 6] = block
             C[6 * f:6 * f + 6, 6 * e:6 * e + 6] = block.T
     return C
