@@ -39,8 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
-from scipy.special import gammaln
-from scipy.stats import chi2
+from scipy.special import chdtrc, gammaln  # the χ² survival function: scipy.stats costs 1 s to import
 
 from .. import se3
 from ..analysis.covariance import constrained_hessian
@@ -223,10 +222,11 @@ class Consistency:
 
 
 def _log_sf(x: float, dof: int) -> float:
-    """``log P(χ²_dof > x)``, finite far into the tail (where ``chi2.logsf`` gives -inf: the leading
+    """``log P(χ²_dof > x)``, finite far into the tail (where the survival function underflows: the leading
     terms of the upper incomplete gamma function's asymptotic series), so that improbable
     reductions still rank."""
-    out = float(chi2.logsf(x, dof))
+    with np.errstate(divide="ignore"):
+        out = float(np.log(chdtrc(dof, x)))
     if np.isfinite(out):
         return out
     a, y = dof / 2, x / 2
@@ -260,9 +260,10 @@ def consistency(problem: JointProblem, T0: Array) -> Consistency:
     ranked = np.argsort(np.where(np.isnan(log_p), np.inf, log_p))
     best = log_p[ranked[0]] if n else float("nan")
     tie = n > 1 and np.isclose(log_p[ranked[1]], best, rtol=1e-9, atol=0.0)
-    if chi2.sf(J, dof) < CONSISTENCY_P_VALUE and best < np.log(CONSISTENCY_P_VALUE) and not tie:
+    p_value = float(chdtrc(dof, J)) if dof > 0 else float("nan")     # no degrees of freedom: nothing to test
+    if p_value < CONSISTENCY_P_VALUE and best < np.log(CONSISTENCY_P_VALUE) and not tie:
         suspect = int(ranked[0])
-    return Consistency(J, dof, float(chi2.sf(J, dof)), tuple(red), tuple(red_dof),
+    return Consistency(J, dof, p_value, tuple(red), tuple(red_dof),
                        tuple(float(np.exp(v)) for v in log_p), suspect)
 
 
