@@ -59,3 +59,12 @@ def test_the_public_api_resolves_lazily() -> None:
     assert set(handeye_cli.__all__) <= set(dir(handeye_cli))
     with pytest.raises(AttributeError):
         handeye_cli.no_such_name  # noqa: B018
+
+
+@pytest.mark.parametrize("module", ["handeye_cli.stages.timeoffset", "handeye_cli.rig"])
+def test_the_time_offset_and_the_rig_leave_out_the_slowest_scipy_modules(module: str) -> None:
+    code = f"import sys, {module}; print(' '.join(sorted(sys.modules)))"
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    loaded = set(run.stdout.split())
+    assert module in loaded
+    assert not {"scipy.signal", "scipy.stats"} & loaded          # 1 s of imports each

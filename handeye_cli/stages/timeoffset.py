@@ -41,7 +41,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import ndimage, optimize, signal
+from scipy import fft, ndimage, optimize
 
 from ..errors import HandEyeError
 from ..solvers import dualquat as dq
@@ -156,7 +156,7 @@ def _masked_ncc(f: np.ndarray, mf: np.ndarray, g: np.ndarray, mg: np.ndarray
     mf, mg = mf.astype(float), mg.astype(float)
 
     def xc(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return signal.correlate(v, u, mode="full", method="fft")
+        return _correlate(v, u)
 
     n = np.round(xc(mf, mg))
     sf, sg = xc(f, mg), xc(mf, g)
@@ -165,7 +165,37 @@ def _masked_ncc(f: np.ndarray, mf: np.ndarray, g: np.ndarray, mg: np.ndarray
     cov = sfg - sf * sg / safe
     var = np.maximum(sff - sf ** 2 / safe, 0) * np.maximum(sgg - sg ** 2 / safe, 0)
     ncc = np.where(var > 0, cov / np.sqrt(np.where(var > 0, var, 1)), 0.0)
-    return signal.correlation_lags(len(g), len(f), mode="full"), ncc, n
+    return np.arange(-(len(f) - 1), len(g)), ncc, n
+
+
+def _correlate(v: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """``Σ_k v[k + L] u[k]`` for every lag ``L`` from ``-(len(u) - 1)`` to ``len(v) - 1``, by FFT: what
+    ``scipy.signal.correlate(v, u, mode="full", method="fft")`` computes (tests check that they agree),
+    without importing ``scipy.signal`` (1 s of start-up)."""
+    size = len(v) + len(u) - 1
+    n = fft.next_fast_len(size, real=True)
+    full = fft.irfft(fft.rfft(v, n) * np.conj(fft.rfft(u, n)), n)
+    return np.concatenate((full[n - len(u) + 1:], full[:len(v)]))
+
+
+def _prominent_peaks(x: np.ndarray, prominence: float, height: float) -> np.ndarray:
+    """Indices of the local maxima of ``x`` at least ``height`` high and ``prominence`` prominent: the
+    peaks ``scipy.signal.find_peaks(x, prominence=prominence)`` finds (tests check that they agree),
+    of that height. A peak's prominence is its height above the higher of the lowest points on
+    each side before the signal first rises above the peak (or ends)."""
+    inner = np.flatnonzero((x[1:-1] > x[:-2]) & (x[1:-1] >= x[2:])) + 1
+    out = []
+    for p in inner[x[inner] >= height]:
+        right = p + 1 + int(np.argmax(x[p + 1:] != x[p]))     # the first sample past a plateau
+        if x[right] >= x[p]:                                  # rises again, or flat to the end: no peak
+            continue
+        mid = (p + right - 1) // 2                            # a plateau's peak is its middle sample
+        above_l, above_r = np.flatnonzero(x[:p] > x[p]), np.flatnonzero(x[right:] > x[p])
+        left_min = x[(above_l[-1] + 1 if len(above_l) else 0):p + 1].min()
+        right_min = x[right - 1:(right + above_r[0] if len(above_r) else len(x))].min()
+        if x[p] - max(left_min, right_min) >= prominence:
+            out.append(mid)
+    return np.asarray(out, dtype=np.int64)
 
 
 def _coarse(sa: _Signal, sb: _Signal, max_offset_ns: int | None) -> tuple[float, float, tuple[str, ...]]:
@@ -190,7 +220,7 @@ def _coarse(sa: _Signal, sb: _Signal, max_offset_ns: int | None) -> tuple[float,
     warnings = []
     if best < _WEAK_CORRELATION:
         warnings.append(f"weak angular-speed correlation {best:.2f}: the time offset may be wrong")
-    peaks, _ = signal.find_peaks(np.where(allowed, ncc, -1.0), prominence=_AMBIGUITY)
+    peaks = _prominent_peaks(np.where(allowed, ncc, -1.0), _AMBIGUITY, best - _AMBIGUITY)
     rivals = peaks[np.abs(offsets[peaks] - offsets[k]) > _PEAK_SEPARATION_NS]
     if len(rivals) and score[rivals].max() >= best - _AMBIGUITY:
         r = rivals[np.argmax(score[rivals])]
