@@ -44,10 +44,10 @@ from scipy.special import chdtrc, gammaln  # the χ² survival function: scipy.s
 from .. import se3
 from ..analysis.covariance import constrained_hessian
 from ..solvers import dualquat as dq
-from ..solvers.problem import pair_blocks
+from ..solvers.problem import split_forms
 from .graph import connected
 
-__all__ = ["Motions", "JointProblem", "refine", "bootstrap_rig", "RigUncertainty", "split_forms", "part_costs",
+__all__ = ["Motions", "JointProblem", "refine", "bootstrap_rig", "RigUncertainty", "part_costs",
            "resolve_pairs", "whitening", "log_errors", "Consistency", "consistency", "CONSISTENCY_P_VALUE"]
 
 Array = NDArray[np.float64]
@@ -58,17 +58,6 @@ _EIGEN_FLOOR = 1e-12      # the smallest eigenvalue of C kept, relative to the l
 # gappy ones): with tracking gaps and drift 1 is called inconsistent (2 at 0.01), with gaps 0, with
 # neither 0, with drift 0; the noise model's residual errors make the tail heavier than a χ²'s.
 CONSISTENCY_P_VALUE = 1e-3
-
-
-def split_forms(A: Array, B: Array, counts: Array, alpha: float) -> Array:
-    """The rotational and dual 8x8 cost matrices (``[q'; q]`` order) of motion pairs ``A_i X = X B_i``
-    (N, 4, 4) weighted by each row of ``counts`` (R, N): (R, 2, 8, 8), the dual part scaled by α²."""
-    E, F = pair_blocks(A, B, alpha)
-    rot = np.zeros((len(E), 8, 8))
-    rot[:, 4:, 4:] = np.einsum("nki,nkj->nij", E, E)
-    EF = np.concatenate((E, F), axis=2)                       # rows E q' + F q on [q'; q]
-    grams = np.stack((rot, alpha ** 2 * np.einsum("nki,nkj->nij", EF, EF)), axis=1).reshape(len(E), -1)
-    return np.asarray((np.asarray(counts, dtype=float) @ grams).reshape(-1, 2, 8, 8), dtype=np.float64)
 
 
 def part_costs(forms: Array, T: Array) -> Array:

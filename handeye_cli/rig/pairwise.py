@@ -19,8 +19,8 @@ from numpy.typing import NDArray
 from ..errors import ConfigError, HandEyeError
 from ..options import Options
 from ..pipeline import Calibration, calibrate
+from ..solvers.problem import split_forms
 from ..streams import PoseStream
-from .joint import split_forms
 
 __all__ = ["ClockOffset", "Edge", "clock_offsets", "solve_edges"]
 

@@ -38,7 +38,7 @@ from . import dualquat as dq
 from .dualquat import _L_INDEX, _L_SIGN
 
 __all__ = ["Prior", "Problem", "build_problem", "checked_arrays", "motion_problem", "pair_blocks",
-           "problem_from_blocks", "validate_motions"]
+           "problem_from_blocks", "split_forms", "validate_motions"]
 
 _G = np.diag([1.0, 1.0, 1.0, 0.0])
 _UPPER8 = np.triu(np.ones((8, 8)))
@@ -362,6 +362,17 @@ def pair_blocks(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1.0
     the sign of ``Q_H`` agrees with ``Q_C``'s dual scalar part weighed by α [1/m]
     (:func:`~handeye_cli.solvers.dualquat.align_signs`)."""
     return dq.pair_difference_blocks(motions_a, motions_b, alpha)
+
+
+def split_forms(A: FloatArray, B: FloatArray, counts: FloatArray, alpha: float) -> FloatArray:
+    """The rotational and dual 8x8 cost matrices (``[q'; q]`` order) of motion pairs ``A_i X = X B_i``
+    (N, 4, 4) weighted by each row of ``counts`` (R, N): (R, 2, 8, 8), the dual part scaled by α²."""
+    E, F = pair_blocks(A, B, alpha)
+    rot = np.zeros((len(E), 8, 8))
+    rot[:, 4:, 4:] = np.einsum("nki,nkj->nij", E, E)
+    EF = np.concatenate((E, F), axis=2)                       # rows E q' + F q on [q'; q]
+    grams = np.stack((rot, alpha ** 2 * np.einsum("nki,nkj->nij", EF, EF)), axis=1).reshape(len(E), -1)
+    return np.asarray((np.asarray(counts, dtype=float) @ grams).reshape(-1, 2, 8, 8), dtype=np.float64)
 
 
 def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float, chunk: int) -> FloatArray:

@@ -37,7 +37,7 @@ from ..analysis.covariance import tangent_basis
 from ..analysis.noise_model import NoiseModel, PairFeatures, cost_residuals, fit_noise_model, pair_features
 from ..solvers import Prior, solve
 from ..solvers import dualquat as dq
-from ..solvers.problem import pair_blocks
+from ..solvers.problem import split_forms
 from .pairs import Pairs
 from .sync import Synced
 
@@ -46,6 +46,7 @@ __all__ = ["Selection", "select_pairs", "ladder"]
 _KEEP_RATIO = 1.5           # levels within this factor of the best predicted error are kept
 _ABSOLUTE_SHARE = 0.5       # ... and every longer level whose variance is mostly the absolute floor
 _MIN_LEVEL_PAIRS = 8
+_Q_PRIME_FIRST = np.r_[4:8, 0:4]   # rows of the tangent basis (x = [q; q']) in the cost forms' [q'; q] order
 _SPREAD_SEED = 0            # the jitter of the evenly spread pairs (fixed: a recording always gives one answer)
 
 
@@ -154,20 +155,15 @@ def _ml_weights(model: NoiseModel, f: PairFeatures) -> tuple[NDArray[np.float64]
     return 1.0 / (np.sqrt(vr * vd) * alpha), alpha
 
 
-def _level_errors(E: NDArray[np.float64], F: NDArray[np.float64], w: NDArray[np.float64], alpha: float,
+def _level_errors(A: NDArray[np.float64], B: NDArray[np.float64], w: NDArray[np.float64], alpha: float,
                   X: NDArray[np.float64], level: NDArray[np.int64], scale: NDArray[np.float64]) -> NDArray[np.float64]:
     """(L, 2) predicted RMS rotation [rad] and translation [m] error of X from each level's pairs
-    (blocks ``E``, ``F`` of :func:`~handeye_cli.solvers.problem.pair_blocks` at α [1/m], weights ``w``,
-    ladder index ``level``), level l's ``scale[l]`` times over: ``tr`` of the blocks of ``H⁻¹``, with
-    ``H = Dᵀ Q D`` the curvature of cost (8) on the level's pairs in the tangent ``δ = (ω, v)``."""
-    rows = np.zeros((len(E), 8, 8))             # per pair, its residual rows [[E, 0], [αF, αE]] on [q; q']
-    rows[:, :4, :4] = E
-    rows[:, 4:, :4] = alpha * F
-    rows[:, 4:, 4:] = alpha * E
-    gram = np.einsum("nij,nik->njk", rows, rows).reshape(len(E), 64) * w[:, None]
-    member = level[:, None] == np.arange(len(scale))
-    Q = (member.T @ gram).reshape(-1, 8, 8)      # each level's cost form, in [q; q'] order
-    D = tangent_basis(*dq.from_transforms(X))
+    (motions ``A``, ``B``, weights ``w``, ladder index ``level``; α [1/m]), level l's ``scale[l]``
+    times over: ``tr`` of the blocks of ``H⁻¹``, with ``H = Dᵀ Q D`` the curvature of cost (8) on the
+    level's pairs in the tangent ``δ = (ω, v)``."""
+    member = (level[None, :] == np.arange(len(scale))[:, None]) * w
+    Q = split_forms(A, B, member, alpha).sum(axis=1)          # each level's cost form, [q'; q] order
+    D = tangent_basis(*dq.from_transforms(X))[_Q_PRIME_FIRST]   # dx/dδ with x = [q'; q]
     cov = np.linalg.pinv(scale[:, None, None] * (D.T @ Q @ D), hermitian=True)
     traces = np.stack([np.trace(cov[:, :3, :3], axis1=1, axis2=2), np.trace(cov[:, 3:, 3:], axis1=1, axis2=2)], 1)
     errors: NDArray[np.float64] = np.sqrt(np.maximum(traces, 0.0))
@@ -210,8 +206,8 @@ def _choose_levels(probe: _Probe, w: NDArray[np.float64], alpha: float, share: N
     level_share = np.bincount(probe.level, weights=share, minlength=len(counts)) / np.maximum(counts, 1)
     overlap = [_overlap(int(k), int(a), int(u), float(s))
                for k, a, u, s in zip(probe.strides, probe.available, used, level_share, strict=True)]
-    E, F = pair_blocks(probe.pairs.A, probe.pairs.B, alpha)
-    errors = _level_errors(E, F, w, alpha, X, probe.level, used / np.maximum(counts, 1) / np.asarray(overlap))
+    errors = _level_errors(probe.pairs.A, probe.pairs.B, w, alpha, X, probe.level,
+                           used / np.maximum(counts, 1) / np.asarray(overlap))
     errors[counts < _MIN_LEVEL_PAIRS] = np.inf
     if not np.isfinite(errors).any():
         return np.arange(len(probe.strides))
