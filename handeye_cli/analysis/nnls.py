@@ -28,10 +28,12 @@ def _active_set(A: NDArray[np.float64], b: NDArray[np.float64], tol: float) -> N
     x = np.zeros(n)
     free = np.zeros(n, dtype=bool)                   # the passive set: columns off their bound
     for _ in range(3 * n + 1):                        # each pass frees a column (at most n) or drops some
+        if free.all():
+            return x
         grad = A.T @ (b - A @ x)                      # minus half the gradient of the squared residual
         grad[free] = -np.inf
-        j = int(np.argmax(grad)) if not free.all() else 0
-        if free.all() or grad[j] <= tol:
+        j = int(np.argmax(grad))
+        if grad[j] <= tol:
             return x                                  # Kuhn-Tucker conditions hold
         free[j] = True
         z = _lstsq(A, b, free)
