@@ -22,9 +22,9 @@ Examples
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ._typing import BoolArray, FloatArray
+from .solvers.dualquat import from_matrix, to_matrix
 
 __all__ = [
     "from_xyz_quat",
@@ -59,7 +59,7 @@ def from_xyz_quat(xyz: FloatArray, quat_xyzw: FloatArray) -> FloatArray:
     single = xyz.ndim == 1
     xyz2, quat2 = np.atleast_2d(xyz), np.atleast_2d(quat)
     out = np.zeros((len(xyz2), 4, 4))
-    out[:, :3, :3] = Rotation.from_quat(quat2).as_matrix()
+    out[:, :3, :3] = to_matrix(quat2)
     out[:, :3, 3] = xyz2
     out[:, 3, 3] = 1.0
     return out[0] if single else out
@@ -80,7 +80,7 @@ def to_xyz_quat(T: FloatArray) -> tuple[FloatArray, FloatArray]:
     T = np.asarray(T, dtype=float)
     single = T.ndim == 2
     T2 = T[None] if single else T
-    quat = Rotation.from_matrix(T2[:, :3, :3]).as_quat(canonical=True)
+    quat = from_matrix(T2[:, :3, :3])
     xyz = T2[:, :3, 3].copy()
     return (xyz[0], quat[0]) if single else (xyz, quat)
 

@@ -92,3 +92,33 @@ def test_slerp_equals_scipys_for_steps_near_zero_near_pi_and_either_sign(frac: s
         np.testing.assert_allclose(got, q_lo, rtol=0, atol=TOL)
     elif frac == 1.0:                                           # q_hi's rotation, with the sign of q_lo's arc
         np.testing.assert_allclose(got * np.sign(np.sum(got * q_hi, axis=1))[:, None], q_hi, rtol=0, atol=TOL)
+
+
+def test_matrices_both_ways_equal_scipys_at_the_edges() -> None:
+    """Quaternion → matrix (of non-unit quaternions too: both normalise) and matrix → quaternion in
+    scipy's canonical sign, on the edge rotations, exact half-turns included (w = 0: the first
+    non-zero of x, y, z positive)."""
+    q = edge_quats(7)
+    np.testing.assert_allclose(dq.to_matrix(3.0 * q), Rotation.from_quat(q).as_matrix(), rtol=0, atol=TOL)
+    stacked = Rotation.from_quat(q).as_matrix().reshape(2, -1, 3, 3)
+    np.testing.assert_allclose(dq.to_matrix(q.reshape(2, -1, 4)), stacked, rtol=0, atol=TOL)
+    R = Rotation.from_quat(q).as_matrix()
+    flips = np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]), np.diag([-1.0, -1.0, 1.0])
+    R = np.concatenate([R, np.array(flips), R[:1]])       # exact half-turns about the axes; one matrix alone
+    np.testing.assert_allclose(dq.from_matrix(R), Rotation.from_matrix(R).as_quat(canonical=True), rtol=0, atol=TOL)
+    assert dq.from_matrix(R[0]).shape == (4,)
+    np.testing.assert_array_equal(dq.from_matrix(np.array(flips))[:, 3], 0.0)
+    assert (dq.from_matrix(np.array(flips))[:, :3].sum(axis=1) == 1.0).all()
+
+
+def test_angles_and_means_equal_scipys() -> None:
+    q = edge_quats(8)
+    np.testing.assert_allclose(dq.angle(q), Rotation.from_quat(q).magnitude(), rtol=0, atol=TOL)
+    rng = np.random.default_rng(9)
+    for spread in (1e-6, 0.1, 1.0, 3.0):      # a tight cluster to rotations all over
+        center = Rotation.random(random_state=int(spread * 10))
+        cloud = center * Rotation.from_rotvec(rng.normal(scale=spread, size=(50, 3)))
+        signs = np.where(rng.random(50) < 0.5, -1.0, 1.0)[:, None]    # mixed signs count alike
+        mean = dq.mean(cloud.as_quat() * signs)
+        assert mean[3] >= 0
+        np.testing.assert_allclose(mean, cloud.mean().as_quat(canonical=True), rtol=0, atol=1e-10)

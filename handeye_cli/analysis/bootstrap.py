@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import ConfigError, DataError
@@ -189,7 +188,7 @@ def _batched_dqopt(Q: FloatArray, iterations: int = 60) -> tuple[FloatArray, Flo
 def _to_transforms(q: FloatArray, qd: FloatArray) -> FloatArray:
     """Transforms (R, 4, 4) of unit dual quaternions (R, 4) x-y-z-w: ``t = 2 q' ⊗ q*`` (eq 2)."""
     X = np.tile(np.eye(4), (len(q), 1, 1))
-    X[:, :3, :3] = Rotation.from_quat(q).as_matrix()
+    X[:, :3, :3] = dq.to_matrix(q)
     X[:, :3, 3] = 2.0 * dq.multiply(qd, dq.conjugate(q))[:, :3]
     return X
 
@@ -207,7 +206,7 @@ def _solve_replicates(Q: FloatArray) -> FloatArray:
 def _deltas(X_hat: FloatArray, Xs: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Rotation vectors ``Log(R R̂ᵀ)`` [deg] (frame a) and translations [m] of transforms (R, 4, 4)."""
     dR = Xs[:, :3, :3] @ X_hat[:3, :3].T
-    return np.rad2deg(Rotation.from_matrix(dR).as_rotvec()), Xs[:, :3, 3].copy()
+    return np.rad2deg(dq.to_rotvec(dq.from_matrix(dR))), Xs[:, :3, 3].copy()
 
 
 def _dof_correction(n: int) -> float:

@@ -22,7 +22,6 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import HandEyeError, UnderdeterminedError
@@ -309,9 +308,8 @@ def assess_observability(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Fl
     samples = select_samples(samples, keep)
     X = np.asarray(T_a_b, dtype=np.float64) if T_a_b is not None else _estimate(A, B, alpha, prior, w)
     R_x = X[:3, :3]
-    rotvec = Rotation.from_matrix(A[:, :3, :3]).as_rotvec()
-    angles = np.degrees(0.5 * (np.linalg.norm(rotvec, axis=1)
-                               + np.linalg.norm(Rotation.from_matrix(B[:, :3, :3]).as_rotvec(), axis=1)))
+    rotvec = dq.to_rotvec(dq.from_matrix(A[:, :3, :3]))
+    angles = np.degrees(0.5 * (np.linalg.norm(rotvec, axis=1) + dq.angle(dq.from_matrix(B[:, :3, :3]))))
     rotating = angles >= min_rotation_deg
     found: list[ObservabilityWarning] = []
     if len(A) < min_pairs:

@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .._typing import BoolArray, FloatArray
 from ..solvers import dualquat as dq
@@ -111,5 +110,5 @@ def summarize(residuals: Residuals, mask: BoolArray | None = None) -> ResidualSu
 def extrinsic_error(T_a_b: FloatArray, truth: FloatArray) -> tuple[float, float]:
     """Error of an estimate against the true ``T_a_b``: geodesic rotation [deg], Euclidean translation [m]."""
     X, Y = np.asarray(T_a_b, dtype=np.float64), np.asarray(truth, dtype=np.float64)
-    rot = Rotation.from_matrix(Y[:3, :3].T @ X[:3, :3]).magnitude()
+    rot = dq.angle(dq.from_matrix(Y[:3, :3].T @ X[:3, :3]))
     return float(np.rad2deg(rot)), float(np.linalg.norm(X[:3, 3] - Y[:3, 3]))

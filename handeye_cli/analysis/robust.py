@@ -24,11 +24,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import TooFewPairsError
 from ..solvers import Prior, Solution, solve
+from ..solvers import dualquat as dq
 from ..solvers.problem import pair_blocks, validate_motions
 from .residuals import Residuals, residuals_batch
 
@@ -96,7 +96,7 @@ def minimal_hypotheses(motions_a: FloatArray, motions_b: FloatArray, sets: IntAr
     E, _ = pair_blocks(motions_a, motions_b)
     EtE = np.einsum("nki,nkj->nij", E, E)
     _, V = np.linalg.eigh(EtE[sets].sum(axis=1))
-    Rx = Rotation.from_quat(V[:, :, 0]).as_matrix()                      # (H, 3, 3)
+    Rx = dq.to_matrix(V[:, :, 0])                                        # (H, 3, 3)
     D = motions_a[sets, :3, :3] - np.eye(3)                              # (H, s, 3, 3)
     rhs = np.einsum("hij,hsj->hsi", Rx, motions_b[sets, :3, 3]) - motions_a[sets, :3, 3]
     N = np.einsum("hski,hskj->hij", D, D)

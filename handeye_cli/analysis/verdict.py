@@ -15,11 +15,11 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from .. import se3
 from ..errors import DataError
 from ..io.nominal import Nominal
+from ..solvers import dualquat as dq
 
 __all__ = ["DEFAULT_MAX_ROTATION_DEG", "DEFAULT_MAX_TRANSLATION_M", "Verdict", "compare", "verdict_for"]
 
@@ -92,7 +92,7 @@ def _significance(X: NDArray[np.float64], N: NDArray[np.float64], uncertainty: d
         t_lo, t_hi = np.array(uncertainty["translation_interval_m"], dtype=np.float64).reshape(2, 3)
     except (KeyError, TypeError, ValueError):
         return None, None
-    d = Rotation.from_matrix(N[:3, :3] @ X[:3, :3].T).as_rotvec(degrees=True)
+    d = np.rad2deg(dq.to_rotvec(dq.from_matrix(N[:3, :3] @ X[:3, :3].T)))
     t = N[:3, 3]
     return bool(((d < r_lo) | (d > r_hi)).any()), bool(((t < t_lo) | (t > t_hi)).any())
 

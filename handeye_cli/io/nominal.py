@@ -23,20 +23,22 @@ from __future__ import annotations
 import ast
 import re
 import shlex
-import xml.etree.ElementTree as ET
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from .. import se3
 from ..errors import ReadError
+from ..solvers import dualquat as dq
 from .pairfile import read_extrinsic
+
+if TYPE_CHECKING:
+    import xml.etree.ElementTree as ET
 
 __all__ = ["Edge", "Nominal", "NOMINAL_KINDS", "read_nominal", "read_result", "static_publisher_transform"]
 
@@ -104,11 +106,18 @@ class Nominal:
         return reached[b]
 
 
-def _transform(xyz: NDArray[np.float64], rotation: Rotation) -> NDArray[np.float64]:
+def _transform(xyz: NDArray[np.float64], rotation: NDArray[np.float64]) -> NDArray[np.float64]:
     T = np.eye(4)
-    T[:3, :3] = rotation.as_matrix()
+    T[:3, :3] = rotation
     T[:3, 3] = xyz
     return T
+
+
+def _rpy(rpy: Any) -> NDArray[np.float64]:
+    """The rotation matrix of roll, pitch, yaw [rad] about the fixed x, y, z axes (URDF's and ROS's rpy)."""
+    from scipy.spatial.transform import Rotation  # 0.3 s to import: only for a nominal given by rpy
+
+    return np.asarray(Rotation.from_euler("xyz", rpy).as_matrix(), dtype=np.float64)
 
 
 def _floats(text: str | None, n: int, where: str) -> NDArray[np.float64]:
@@ -155,14 +164,15 @@ def _flag_args(args: list[str], where: str) -> Edge:
         q = np.array([num.get("qx", 0.0), num.get("qy", 0.0), num.get("qz", 0.0), num.get("qw", 1.0)])
         rotation = _quaternion(q, where)
     else:
-        rotation = Rotation.from_euler("xyz", [num.get(k, 0.0) for k in ("roll", "pitch", "yaw")])
+        rotation = _rpy([num.get(k, 0.0) for k in ("roll", "pitch", "yaw")])
     return Edge(values["frame-id"], values["child-frame-id"], _transform(xyz, rotation))
 
 
-def _quaternion(q: NDArray[np.float64], where: str) -> Rotation:
+def _quaternion(q: NDArray[np.float64], where: str) -> NDArray[np.float64]:
+    """The rotation matrix of the x-y-z-w quaternion ``q`` (normalised)."""
     if not (np.isfinite(q).all() and np.linalg.norm(q) > 1e-9):
         raise ReadError("zero or non-finite quaternion", where, "give a unit quaternion qx qy qz qw")
-    return Rotation.from_quat(q)
+    return dq.to_matrix(q)
 
 
 def static_publisher_transform(args: list[str], where: str = "static_transform_publisher") -> Edge:
@@ -179,7 +189,7 @@ def static_publisher_transform(args: list[str], where: str = "static_transform_p
         raise ReadError(f"cannot parse static_transform_publisher arguments {' '.join(args)!r}", where,
                         "use 'x y z yaw pitch roll frame child' or 'x y z qx qy qz qw frame child'")
     nums = np.array([float(a) for a in args[:n_numbers]])
-    rotation = (Rotation.from_euler("xyz", nums[[5, 4, 3]]) if n_numbers == 6 else _quaternion(nums[3:7], where))
+    rotation = _rpy(nums[[5, 4, 3]]) if n_numbers == 6 else _quaternion(nums[3:7], where)
     return Edge(args[n_numbers], args[n_numbers + 1], _transform(nums[:3], rotation))
 
 
@@ -207,7 +217,7 @@ def _urdf(root: ET.Element, where: str) -> tuple[Edge, ...]:
         xyz = _floats(None if origin is None else origin.get("xyz"), 3, name)
         rpy = _floats(None if origin is None else origin.get("rpy"), 3, name)
         edges.append(Edge(str(parent.get("link")), str(child.get("link")),
-                          _transform(xyz, Rotation.from_euler("xyz", rpy))))
+                          _transform(xyz, _rpy(rpy))))
     return tuple(edges)
 
 
@@ -283,6 +293,8 @@ def _parse_file(path: Path) -> tuple[str, tuple[Edge, ...]]:
         raise ReadError(f"cannot read the nominal: {e}", str(path), _FIX) from None
     where = str(path)
     if text.lstrip().startswith("<"):
+        import xml.etree.ElementTree as ET  # 20 ms to import: only for URDF and launch XML
+
         try:
             root = ET.fromstring(text)
         except ET.ParseError as e:

@@ -12,10 +12,10 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
 
 from .. import se3
 from ..errors import ConfigError, DataError
+from ..stages.sync import interpolate
 from ..streams import PoseStream
 from .common import LOG_STAMPS_FIX, PoseBuffer, make_stream
 from .messages import PoseRecord
@@ -77,18 +77,13 @@ class TfTree:
     def _edge_at(edge: PoseStream, static: bool, t: np.ndarray) -> np.ndarray:
         """(N, 4, 4) ``T_parent_child`` at stamps ``t`` (within the edge's span if dynamic).
 
-        A static edge is its latest broadcast at every stamp; a dynamic one is interpolated
-        (linear translation, SLERP rotation) on float offsets from its first stamp (exact).
+        A static edge is its latest broadcast at every stamp; a dynamic one is interpolated as
+        ``--sync interpolate`` does (linear translation, SLERP rotation).
         """
         if static or len(edge) == 1:
             return np.broadcast_to(edge.matrices()[-1], (len(t), 4, 4))
-        rel = (edge.stamps_ns - edge.stamps_ns[0]).astype(np.float64)
-        x = (t - edge.stamps_ns[0]).astype(np.float64)
-        xyz = np.stack([np.interp(x, rel, edge.xyz[:, k]) for k in range(3)], axis=-1)
-        rot = Slerp(rel, Rotation.from_quat(edge.quat_xyzw))(x)
-        out = np.zeros((len(t), 4, 4))
-        out[:, :3, :3], out[:, :3, 3], out[:, 3, 3] = rot.as_matrix(), xyz, 1.0
-        return out
+        _, xyz, quat, _ = interpolate(edge, t)      # every stamp is inside the span: none left out
+        return se3.from_xyz_quat(xyz, quat)
 
     def _chain(self, parent: str, child: str) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
         """Edges ``(parent_of[f], f)`` from ``parent`` and from ``child`` up to their common ancestor."""

@@ -30,7 +30,6 @@ from typing import Any
 import numpy as np
 import yaml
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from .. import __version__, se3
 from ..errors import ConfigError
@@ -97,6 +96,8 @@ def _flag_args(f: Frame) -> list[str]:
 def _urdf(doc: dict[str, Any], frames: list[Frame]) -> str:
     """One fixed joint per transform; the links in order of appearance (a rig's reference is the root)."""
     from xml.sax.saxutils import quoteattr  # 50 ms of imports (urllib, http, ssl): only for the XML formats
+
+    from scipy.spatial.transform import Rotation  # 0.3 s to import: only for URDF's roll, pitch, yaw
 
     links = "".join(f"  <link name={quoteattr(name)}/>\n"
                     for name in dict.fromkeys(name for f in frames for name in (f.parent, f.child)))

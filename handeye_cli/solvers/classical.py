@@ -31,8 +31,8 @@ from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
+from . import dualquat as dq
 from .problem import eigh, pair_blocks
 
 __all__ = ["CLASSICAL", "tsai", "park", "horaud", "andreff"]
@@ -70,7 +70,7 @@ def _transform(R: Array, t: Array) -> Array:
 
 def _unit_quaternions(T: Array) -> Array:
     """x-y-z-w quaternions of the rotation blocks, scalar part ≥ 0."""
-    return Rotation.from_matrix(T[:, :3, :3]).as_quat(canonical=True)
+    return dq.from_matrix(T[:, :3, :3])
 
 
 def tsai(A: Array, B: Array, w: Array) -> Array:
@@ -78,7 +78,7 @@ def tsai(A: Array, B: Array, w: Array) -> Array:
     pa, pb = 2.0 * _unit_quaternions(A)[:, :3], 2.0 * _unit_quaternions(B)[:, :3]
     p_ = _weighted_lstsq(_skew(pa + pb), pb - pa, w)
     half = p_ / np.sqrt(1.0 + p_ @ p_)              # p_X / 2 = sin(θ/2) n: the quaternion's vector part
-    R = Rotation.from_quat(np.r_[half, np.sqrt(max(1.0 - float(half @ half), 0.0))]).as_matrix()
+    R = dq.to_matrix(np.r_[half, np.sqrt(max(1.0 - float(half @ half), 0.0))])
     return _transform(R, _translation(A, B, R, w))
 
 
@@ -90,8 +90,8 @@ def _procrustes(H: Array) -> Array:
 
 def park(A: Array, B: Array, w: Array) -> Array:
     """Park–Martin: ``X = T_a_b`` (4x4) from motions ``A_i X = X B_i`` (N, 4, 4) and weights (N,)."""
-    a = Rotation.from_matrix(A[:, :3, :3]).as_rotvec()
-    b = Rotation.from_matrix(B[:, :3, :3]).as_rotvec()
+    a = dq.to_rotvec(dq.from_matrix(A[:, :3, :3]))
+    b = dq.to_rotvec(dq.from_matrix(B[:, :3, :3]))
     R = _procrustes((a * w[:, None]).T @ b)          # a_i = R b_i
     return _transform(R, _translation(A, B, R, w))
 
@@ -100,7 +100,7 @@ def horaud(A: Array, B: Array, w: Array) -> Array:
     """Horaud–Dornaika: ``X = T_a_b`` (4x4) from motions ``A_i X = X B_i`` (N, 4, 4) and weights (N,)."""
     E, _ = pair_blocks(A, B)                          # E_i q = q_A ⊗ q - q ⊗ q_B
     _, V = eigh(np.einsum("n,nki,nkj->ij", w, E, E))
-    R = Rotation.from_quat(V[:, 0]).as_matrix()
+    R = dq.to_matrix(V[:, 0])
     return _transform(R, _translation(A, B, R, w))
 
 

@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from ..errors import DataError
+from . import dualquat as dq
 from .problem import pair_blocks, validate_motions
 
 __all__ = ["ScaleSolution", "scale_translations", "solve_with_scale"]
@@ -69,7 +69,7 @@ def _rotation(A: NDArray[np.float64], B: NDArray[np.float64], w: NDArray[np.floa
     """R_X from the rotational residuals only: eigenvector of ``Σ w EᵀE`` with the smallest eigenvalue."""
     E, _ = pair_blocks(A, B)
     _, vectors = np.linalg.eigh(np.einsum("n,nki,nkj->ij", w, E, E))
-    return np.asarray(Rotation.from_quat(vectors[:, 0]).as_matrix(), dtype=np.float64)
+    return dq.to_matrix(vectors[:, 0])
 
 
 def _linear(A: NDArray[np.float64], B: NDArray[np.float64], R_X: NDArray[np.float64],
@@ -84,11 +84,16 @@ def _linear(A: NDArray[np.float64], B: NDArray[np.float64], R_X: NDArray[np.floa
     return np.asarray(sol[:3], dtype=np.float64), float(sol[3])
 
 
-def _residuals(p: NDArray[np.float64], A: NDArray[np.float64], B: NDArray[np.float64], R0: Rotation,
+def _rotation_of(p: NDArray[np.float64], q0: NDArray[np.float64]) -> NDArray[np.float64]:
+    """R_X of ``p``: the rotation ``exp(δθ)`` applied to the initial rotation (x-y-z-w quaternion ``q0``)."""
+    return dq.to_matrix(dq.multiply(dq.from_rotvec(p[:3]), q0))
+
+
+def _residuals(p: NDArray[np.float64], A: NDArray[np.float64], B: NDArray[np.float64], q0: NDArray[np.float64],
                alpha: float, sw: NDArray[np.float64]) -> NDArray[np.float64]:
     """Per-pair rotation [rad] and α-weighted translation residuals for ``p = [δθ (3), t_X (3), log s]``."""
-    R_X = (Rotation.from_rotvec(p[:3]) * R0).as_matrix()
-    rot = Rotation.from_matrix(np.swapaxes(R_X @ B[:, :3, :3], 1, 2) @ A[:, :3, :3] @ R_X).as_rotvec()
+    R_X = _rotation_of(p, q0)
+    rot = dq.to_rotvec(dq.from_matrix(np.swapaxes(R_X @ B[:, :3, :3], 1, 2) @ A[:, :3, :3] @ R_X))
     trans = A[:, :3, :3] @ p[3:6] + A[:, :3, 3] - np.exp(p[6]) * B[:, :3, 3] @ R_X.T - p[3:6]
     return np.asarray(np.c_[rot, alpha * trans] * sw[:, None], dtype=np.float64).ravel()
 
@@ -153,11 +158,11 @@ def solve_with_scale(motions_a: NDArray[np.float64], motions_b: NDArray[np.float
     if not s_lin > 0:
         raise _undetermined(f"the linear estimate is {s_lin:.3g}")
     p0 = np.r_[np.zeros(3), t_X, np.log(s_lin)]
-    R0 = Rotation.from_matrix(R_X)
-    fit = least_squares(_residuals, p0, args=(A, B, R0, alpha, sw), method="lm", x_scale="jac")
+    q0 = dq.from_matrix(R_X)
+    fit = least_squares(_residuals, p0, args=(A, B, q0, alpha, sw), method="lm", x_scale="jac")
 
     def refit(keep: NDArray[np.bool_]) -> float:
-        return float(least_squares(_residuals, fit.x, args=(A[keep], B[keep], R0, alpha, sw[keep]),
+        return float(least_squares(_residuals, fit.x, args=(A[keep], B[keep], q0, alpha, sw[keep]),
                                    method="lm", x_scale="jac").x[6])
 
     var_log_s = _gauss_newton_variance(fit) if samples is None else _jackknife_variance(samples, refit)
@@ -166,6 +171,6 @@ def solve_with_scale(motions_a: NDArray[np.float64], motions_b: NDArray[np.float
     if not std <= _MAX_RELATIVE_STD * scale:
         raise _undetermined(f"estimate {scale:.3g} ± {std:.2g}")
     X = np.eye(4)
-    X[:3, :3] = (Rotation.from_rotvec(fit.x[:3]) * R0).as_matrix()
+    X[:3, :3] = _rotation_of(fit.x, q0)
     X[:3, 3] = fit.x[3:6]
     return ScaleSolution(X, scale, std, s_lin, float(fit.cost))

@@ -37,7 +37,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from ..errors import ConfigError, DataError
 from ..solvers import dualquat as dq
@@ -62,7 +61,7 @@ Mask = NDArray[np.bool_]
 def _motion(xyz: Floats, quat: Floats, i: Ints, j: Ints) -> tuple[Floats, Floats, Floats]:
     """Invariants of the motions ``T(t_i)⁻¹ T(t_j)``: rotation angle [rad], t·r [m·rad], |t| [m]."""
     rotvec = dq.to_rotvec(dq.relative(quat[i], quat[j]))
-    t = Rotation.from_quat(quat[i]).apply(xyz[j] - xyz[i], inverse=True)
+    t = np.einsum("nji,nj->ni", dq.to_matrix(quat[i]), xyz[j] - xyz[i])      # R_iᵀ (p_j - p_i)
     return np.linalg.norm(rotvec, axis=1), np.einsum("ij,ij->i", t, rotvec), np.linalg.norm(t, axis=1)
 
 

@@ -38,7 +38,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from .. import se3
 from ..errors import HandEyeError
@@ -87,8 +86,9 @@ def _parse(strategy: str) -> tuple[str, int]:
                        f"use one of {', '.join(STRATEGIES)} (K, N positive integers)")
 
 
-def _quats(T: np.ndarray) -> np.ndarray:
-    return np.asarray(Rotation.from_matrix(T[:, :3, :3]).as_quat(), dtype=np.float64)
+def _unit(quat: np.ndarray) -> np.ndarray:
+    """The x-y-z-w quaternions (N, 4) scaled to unit length (their sign does not matter here)."""
+    return np.asarray(quat / np.linalg.norm(quat, axis=1, keepdims=True), dtype=np.float64)
 
 
 def _moved(pos: np.ndarray, quat: np.ndarray, seg: np.ndarray, rows: slice, cols: slice, t2: float,
@@ -116,8 +116,8 @@ def keyframes(synced: Synced, rotation_rad: float, translation_m: float) -> np.n
     n = len(synced)
     if n == 0:
         return np.zeros(0, dtype=np.int64)
-    pos = np.stack([synced.T_a[:, :3, 3], synced.T_b[:, :3, 3]], axis=1)        # (n, 2, 3)
-    quat = np.stack([_quats(synced.T_a), _quats(synced.T_b)], axis=1)           # (n, 2, 4)
+    pos = np.stack([synced.xyz_a, synced.xyz_b], axis=1)                          # (n, 2, 3)
+    quat = np.stack([_unit(synced.quat_a), _unit(synced.quat_b)], axis=1)         # (n, 2, 4)
     seg = synced.segment
     cos_half, t2 = np.cos(rotation_rad / 2), translation_m ** 2
     out, k = [0], 0
@@ -248,7 +248,7 @@ def make_pairs(synced: Synced, strategy: str = "keyframes", *, keyframe_rotation
         keep = _spread(total, max_pairs)
         i, j = i[keep], i[keep] + step
     else:
-        args = (_quats(synced.T_a[nodes]), seg, np.cos(min(min_rotation_rad, np.pi) / 2))
+        args = (_unit(synced.quat_a[nodes]), seg, np.cos(min(min_rotation_rad, np.pi) / 2))
         rng = np.random.default_rng(seed) if name == "random" else None
         want = arg if name == "random" else max_pairs
         seg_end = np.searchsorted(seg, seg, side="right")

@@ -21,7 +21,7 @@ Per stream (stamps int64 ns, poses ``T_world_sensor``, positions m, quaternions 
 
 A station is a time interval where a run of a and a run of b overlap (b shifted into a's clock,
 ``max_dt_ns`` of slack). Its pose per stream is a robust average of that stream's samples in the
-overlap: rotation by :meth:`scipy.spatial.transform.Rotation.mean` over the samples within
+overlap: rotation by :func:`.dualquat.mean` (scipy's ``Rotation.mean``) over the samples within
 3 robust σ (at least ``_INLIER_FLOOR_DEG``) of the first mean, translation by the per-axis median
 of those inliers.
 
@@ -43,7 +43,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from .. import se3
 from ..solvers import dualquat as dq
@@ -176,16 +175,17 @@ class _Average:
 
 def _robust_mean(stream: PoseStream, lo: int, hi: int) -> _Average:
     """Robust average of samples ``lo:hi`` (see the module docstring)."""
-    rot = Rotation.from_quat(stream.quat_xyzw[lo:hi])
+    quat = stream.quat_xyzw[lo:hi]
+    quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
     xyz = stream.xyz[lo:hi]
-    angle = np.rad2deg((rot.mean().inv() * rot).magnitude())
+    angle = np.rad2deg(dq.angle(dq.relative(dq.mean(quat), quat)))
     limit = max(_INLIER_FLOOR_DEG, 3 * 1.4826 * float(np.median(angle)))
     inl = angle <= limit
-    mean = rot[inl].mean()
+    mean = dq.mean(quat[inl])
     pos = np.median(xyz[inl], axis=0)
-    spread = np.array([float(np.sqrt(np.mean(np.rad2deg((mean.inv() * rot[inl]).magnitude()) ** 2))),
+    spread = np.array([float(np.sqrt(np.mean(np.rad2deg(dq.angle(dq.relative(mean, quat[inl]))) ** 2))),
                        float(np.sqrt(np.mean(np.sum((xyz[inl] - pos) ** 2, axis=1))))])
-    return _Average(se3.from_xyz_quat(pos, mean.as_quat()), hi - lo, int(inl.sum()), spread)
+    return _Average(se3.from_xyz_quat(pos, mean), hi - lo, int(inl.sum()), spread)
 
 
 def _in_window(stream: PoseStream, runs: _Runs, k: int, t0: int, t1: int, slack: int) -> tuple[int, int]:
