@@ -5,8 +5,11 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
+
+SAMPLES = Path(__file__).resolve().parent.parent / "sample_data"
 
 PROBE = """
 import json, os, sys
@@ -30,6 +33,36 @@ def test_a_command_imports_only_what_it_runs(command: str) -> None:
     for heavy in ("scipy.optimize", "scipy.signal", "matplotlib", "xml.sax.saxutils", "handeye_cli.rig",
                   "handeye_cli.fleet", "handeye_cli.output.report", "rosbags"):
         assert heavy not in modules, f"handeye {command} imports {heavy}"
+
+
+RUN = """
+import json, sys
+from handeye_cli.cli import main
+sys.argv = ["handeye", *{args!r}]
+try:
+    main()
+except SystemExit as end:
+    code = end.code
+print(json.dumps({{"code": code, "scipy": sorted(m for m in sys.modules if m.startswith("scipy"))}}))
+"""
+
+
+@pytest.mark.parametrize("args", [
+    ["calibrate", str(SAMPLES / "rig.mcap"), "--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose", "-q"],
+    ["calibrate", str(SAMPLES / "rig.mcap"), "--frames-a", "world", "cam0", "--frames-b", "world", "cam1",
+     "--format", "json", "-q"],
+    ["calibrate", str(SAMPLES / "rig_a.tum"), str(SAMPLES / "rig_b.tum"), "--format", "tf-static", "-q"],
+    ["calibrate", str(SAMPLES / "rig_ros1.bag"), "--topic-a", "/cam0/odom", "--topic-b", "/cam1/pose", "-q"],
+    ["calibrate", str(SAMPLES / "rig_ros2"), "--topic-a", "/cam0/transform", "--topic-b", "/cam1/odom", "-q"],
+    ["solve", str(SAMPLES / "pairs.csv")],
+])
+def test_a_default_run_imports_no_scipy(args: list[str]) -> None:
+    """A default run (every stage, the analysis, the writers) does not import scipy, whose start-up
+    (0.3 s with scipy.linalg) would be most of a short run's time: numpy does its linear algebra."""
+    run = subprocess.run([sys.executable, "-c", RUN.format(args=[*args, "-o", "-"])],
+                         capture_output=True, text=True, check=True)
+    done = json.loads(run.stdout.splitlines()[-1])
+    assert done["code"] in (0, None) and done["scipy"] == []
 
 
 def test_every_command_is_listed_and_loads() -> None:
