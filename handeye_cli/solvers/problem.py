@@ -21,6 +21,9 @@ The residual rows of all pairs are never held: the motions are read in chunks, e
 (finite, rigid) and reduced at once to the 8x8 R factor of its rows ``√w_i [E_i F_i]``; the
 chunks' factors, stacked, are factorised again (TSQR), which gives the R factor of all rows to
 rounding. Quaternions are x-y-z-w (see :mod:`.dualquat`).
+
+The linear algebra is numpy's (``numpy.linalg``, LAPACK underneath), not scipy's: importing ``scipy.linalg``
+costs a process 0.27 s of start-up on top of numpy's 0.1 s, which every ``handeye calibrate`` would pay.
 """
 from __future__ import annotations
 
@@ -29,7 +32,6 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from scipy.linalg import lapack
 
 from .. import se3
 from .._typing import FloatArray
@@ -43,15 +45,20 @@ __all__ = ["Prior", "Problem", "build_problem", "checked_arrays", "motion_proble
 _G = np.diag([1.0, 1.0, 1.0, 0.0])
 _UPPER8 = np.triu(np.ones((8, 8)))
 _EPS = np.finfo(float).eps
-_LWORK, _IWORK = (int(v) for v in lapack.dgelsd_lwork(4, 3, 1, -1)[:2])      # workspace of the 4x3 lstsq
+_NO_VECTORS = np.empty((0, 0))
+_NO_VECTORS.flags.writeable = False
 _ROTATION_TOL = 1e-6        # a motion's rotation block: |RᵀR - I| and |det R - 1| at most this
 CHUNK = 4096
 """Motion pairs read, checked and converted at once (their rows of scratch fit a cache of a few MB)."""
-# Pairs factorised per LAPACK call: their 1024 x 8 rows stay below the size from which OpenBLAS runs its
-# level-2 BLAS on several threads; on a busy 2-core machine a call that waits for a second thread was
-# measured 100 times slower.
+# Pairs factorised per QR (one LAPACK dgeqrf each, however many one numpy call stacks): their 1024 x 8 rows
+# stay below the size from which OpenBLAS runs its level-2 BLAS on several threads; on a busy 2-core machine
+# a call that waits for a second thread was measured 100 times slower.
 _QR_PAIRS = 256
 _QR_ROWS = 4 * _QR_PAIRS
+# Blocks factorised by one numpy call: a chunk's (1 MB, which numpy copies). With 4 per call a 10^6-motion solve
+# took ~5 % longer (each call costs ~20 µs of its own); with 16, a fresh process's first solve of ~10^4 motions
+# faults in ~470 more pages than the in-place LAPACK calls did (1-4 ms), where 4 per call faulted ~30.
+_QR_STACK = CHUNK // _QR_PAIRS
 
 
 @dataclass(frozen=True)
@@ -63,25 +70,41 @@ class Prior:
     b: float = 1.0
 
 
-def _triangular_factor(J: FloatArray, overwrite: bool = False, out: FloatArray | None = None) -> FloatArray:
-    """The 8x8 R of the thin QR factorisation of ``J`` (n, 8) (zero rows below the n-th when n < 8),
-    written into ``out`` if given. ``overwrite`` lets LAPACK work in place on a Fortran-ordered ``J``."""
-    r, _, _, info = lapack.dgeqrf(J, overwrite_a=overwrite)
-    if info:
-        raise np.linalg.LinAlgError(f"QR factorisation failed (info {info})")
-    R = np.empty((8, 8)) if out is None else out
-    k = min(len(J), 8)
-    np.multiply(r[:k], _UPPER8[:k], out=R[:k])
+def _triangular_factors(J: FloatArray, out: FloatArray | None = None) -> FloatArray:
+    """The 8x8 R factors of the thin QR factorisations of the matrices ``J`` (..., n, 8), (..., 8, 8) (zero rows
+    below the n-th when n < 8), written into ``out`` if given.
+
+    One call of numpy's QR, a gufunc that runs LAPACK's dgeqrf on each matrix; R is the upper triangle of what
+    dgeqrf leaves (``mode="raw"`` returns it transposed, beside the Householder vectors), so R's rows have
+    dgeqrf's signs. ``J`` is left as it is: numpy copies it, and each matrix into LAPACK's layout and back,
+    three passes over the rows that an in-place dgeqrf does not make (~5 % of a 10⁶-motion solve)."""
+    h = np.linalg.qr(J, mode="raw")[0]
+    R = np.empty(J.shape[:-2] + (8, 8)) if out is None else out
+    k = min(J.shape[-2], 8)
+    np.multiply(h.swapaxes(-1, -2)[..., :k, :], _UPPER8[:k], out=R[..., :k, :])
     if k < 8:
-        R[k:] = 0.0
+        R[..., k:, :] = 0.0
     return R
+
+
+def _stacked_factors(J: FloatArray, out: FloatArray) -> FloatArray:
+    """The 8x8 R factors of the matrices ``J`` (k, n, 8) written into ``out`` (k, 8, 8), by numpy calls of
+    ``_QR_STACK`` matrices each (:func:`_triangular_factors`)."""
+    for s in range(0, len(J), _QR_STACK):
+        _triangular_factors(J[s:s + _QR_STACK], out[s:s + _QR_STACK])
+    return out
 
 
 def _tree_factor(J: FloatArray) -> FloatArray:
     """The 8x8 R factor of ``J`` (n, 8) by a tree (TSQR): blocks of at most ``_QR_ROWS`` rows are factorised
     and their R factors stacked, and again, until one is left."""
     while True:
-        J = np.vstack([_triangular_factor(J[s:s + _QR_ROWS]) for s in range(0, len(J), _QR_ROWS)])
+        full = len(J) // _QR_ROWS                                   # full blocks, then one shorter
+        R = np.empty((-(-len(J) // _QR_ROWS), 8, 8))
+        _stacked_factors(J[:full * _QR_ROWS].reshape(full, _QR_ROWS, 8), R[:full])
+        if len(R) > full:
+            _triangular_factors(J[full * _QR_ROWS:], R[full])
+        J = R.reshape(-1, 8)
         if len(J) == 8:
             return J
 
@@ -108,7 +131,7 @@ class Problem:
         """The problem whose cost is ``|J [q'; q]|²`` for residual rows ``J`` (n, 8) in ``(q', q)`` order;
         ``rows`` defaults to n."""
         J = np.asarray(J, dtype=np.float64)
-        return cls(_triangular_factor(J), len(J) if rows is None else rows)
+        return cls(_triangular_factors(J), len(J) if rows is None else rows)
 
     @cached_property
     def form(self) -> FloatArray:
@@ -136,17 +159,21 @@ class Problem:
 
     @cached_property
     def _svd(self) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """SVD ``Re = U Σ Vᵀ`` (Σ: the singular values of E)."""
-        u, s, vt, info = lapack.dgesdd(self.R_factor)
-        if info:
-            raise np.linalg.LinAlgError(f"SVD did not converge (info {info})")
+        """SVD ``Re = U Σ Vᵀ`` (Σ: the singular values of E, descending), by numpy (LAPACK's dgesdd)."""
+        u, s, vt = np.linalg.svd(self.R_factor)
         return u, s, vt
 
     @cached_property
     def _Rinv(self) -> FloatArray | None:
-        """``Re⁻¹``, or None where Re is exactly singular."""
-        Rinv, info = lapack.dtrtri(self.R_factor)
-        return None if info else Rinv
+        """``Re⁻¹``, or None where Re is exactly singular (a zero on its diagonal).
+
+        Solved against the identity by numpy (LAPACK's dgesv): the LU factorisation with partial pivoting of
+        the upper-triangular Re is Re itself, with no row exchanged and no rounding (nothing below the
+        diagonal to eliminate), so this is the back substitution of a triangular inverse."""
+        try:
+            return np.asarray(np.linalg.inv(self.R_factor), dtype=np.float64)
+        except np.linalg.LinAlgError:
+            return None
 
     @cached_property
     def M_is_regular(self) -> bool:
@@ -223,19 +250,16 @@ class Problem:
         """:meth:`dual_part` in a given orthonormal basis (4, 3) of ``q``'s complement, without μ:
         ``q'`` and, for μ, ``Re B``, ``G q`` and the coefficients ``y``.
 
-        ``full_rank`` (M regular, so ``Re B`` has full column rank with ``cond ≤ cond(Re) < 1e8``)
-        lets the least squares be solved by QR (``dgels``) instead of the rank-revealing SVD."""
+        The least squares is numpy's (LAPACK's dgelsd, by the SVD): singular values of ``Re B`` below
+        ``eps · max(rows, 3)`` times the largest count as zero, which gives the least-norm ``y`` where the
+        translation is unobservable. ``full_rank`` (M regular, so ``Re B`` has full column rank with
+        ``cond ≤ cond(Re) < 1e8``) drops that tolerance, which with ~10⁷ pairs would reach 1e-8: the
+        full-rank solution is taken, as a QR solve would."""
         R = self.R
         gq = R[:4, 4:] @ q
         CB = R[:4, :4] @ basis
-        info = 1
-        if full_rank:
-            _, y, info = lapack.dgels(CB, -gq)
-        if info:
-            y, _, _, info = lapack.dgelsd(CB, -gq, _LWORK, _IWORK, _EPS * max(self.rows, 3))
-            if info:
-                raise np.linalg.LinAlgError(f"least squares did not converge (info {info})")
-        y = y[:3]
+        y = np.asarray(np.linalg.lstsq(CB, -gq, rcond=0.0 if full_rank else _EPS * max(self.rows, 3))[0],
+                       dtype=np.float64)
         return basis @ y, CB, gq, y
 
     def dual_part(self, q: FloatArray) -> tuple[FloatArray, float]:
@@ -257,13 +281,13 @@ class Problem:
 
 
 def eigh(A: FloatArray, vectors: bool = True) -> tuple[FloatArray, FloatArray]:
-    """Eigenvalues (ascending) and eigenvectors (columns) of a small symmetric matrix: LAPACK
-    ``dsyev`` called directly, without the per-call overhead of ``np.linalg.eigh`` (several times
-    the work at 4x4). With ``vectors=False`` the second item is meaningless."""
-    lam, V, info = lapack.dsyev(A, compute_v=int(vectors))
-    if info:
-        raise np.linalg.LinAlgError(f"eigenvalue computation did not converge (info {info})")
-    return lam, V
+    """Eigenvalues (ascending) and eigenvectors (columns) of a small symmetric matrix, from its upper
+    triangle: numpy's ``eigh`` (LAPACK's dsyevd, which up to 25 rows runs the implicit QL/QR iteration of
+    dsyev, dsteqr), or ``eigvalsh`` with ``vectors=False``, when the second item is empty."""
+    if not vectors:
+        return np.asarray(np.linalg.eigvalsh(A, UPLO="U"), dtype=np.float64), _NO_VECTORS
+    lam, V = np.linalg.eigh(A, UPLO="U")
+    return np.asarray(lam, dtype=np.float64), np.asarray(V, dtype=np.float64)
 
 
 def _rank_tolerance(sv: FloatArray) -> float:
@@ -382,12 +406,12 @@ def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float, ch
     Per chunk, the pairs' dual quaternions give the blocks by one product
     (:func:`~handeye_cli.solvers.dualquat.difference_blocks`), laid out as the columns of Fortran-ordered
     (4b, 8) matrices of b pairs each (rows in any order: R does not depend on it; the identity pairs
-    that pad the last matrix give zero rows), which LAPACK factorises in place; their R factors,
-    stacked, are factorised again (:func:`_tree_factor`)."""
+    that pad the last matrix give zero rows), factorised a few per QR call; their R factors,
+    stacked, are factorised again (:func:`_tree_factor`), unless there is only one."""
     sw = None if (w == 1.0).all() else np.sqrt(w)
     size = min(chunk, len(A))
     block = min(_QR_PAIRS, size)
-    blocks = -(-size // block)                                      # QR calls per chunk
+    blocks = -(-size // block)                                      # QR blocks per chunk
     factors = np.empty((8 * blocks * -(-len(A) // chunk), 8))
     work, both = np.empty((16, 2 * blocks * block)), np.empty((2, 4, 2 * blocks * block))
     pairs, columns = np.empty((blocks, 2, 8, block)), np.empty((blocks, 2, 16, block))
@@ -401,11 +425,11 @@ def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float, ch
         nb = p // block
         for s, half in ((0, slice(0, 4)), (p, slice(4, 8))):        # per QR block and part: [q_a; q_b]
             pairs[:nb, :, half] = qq[:, :, s:s + p].reshape(2, 4, nb, block).transpose(2, 0, 1, 3)
-        dq.difference_blocks(pairs[:nb], columns[:nb])
-        for cols in columns[:nb]:                                   # (2, 16, b): the columns of [E F]
-            _triangular_factor(cols.reshape(8, 4 * block).T, overwrite=True, out=factors[k:k + 8])
-            k += 8
-    return _tree_factor(factors[:k])
+        dq.difference_blocks(pairs[:nb], columns[:nb])              # (nb, 2, 16, b): the columns of [E F]
+        _stacked_factors(columns[:nb].reshape(nb, 8, 4 * block).swapaxes(1, 2), factors[k:k + 8 * nb].reshape(nb, 8, 8))
+        k += 8 * nb
+    # one block's R is already triangular (a QR of it would change nothing: its reflections are identities)
+    return factors[:8] if k == 8 else _tree_factor(factors[:k])
 
 
 def _reduced_problem(Rm: FloatArray, pairs: int, alpha: float, prior: Prior | None) -> Problem:
