@@ -48,7 +48,9 @@ print(json.dumps({{"code": code, "scipy": sorted(m for m in sys.modules if m.sta
 
 
 @pytest.mark.parametrize("args", [
-    ["calibrate", str(SAMPLES / "rig.mcap"), "--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose", "-q"],
+    ["calibrate", str(SAMPLES / "rig.mcap"), "--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose"],   # + summary line
+    ["calibrate", str(SAMPLES / "rig.mcap"), "--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose", "--format",
+     "ros2-launch", "--against", str(SAMPLES / "truth.yaml"), "-q"],
     ["calibrate", str(SAMPLES / "rig.mcap"), "--frames-a", "world", "cam0", "--frames-b", "world", "cam1",
      "--format", "json", "-q"],
     ["calibrate", str(SAMPLES / "rig_a.tum"), str(SAMPLES / "rig_b.tum"), "--format", "tf-static", "-q"],

@@ -4,12 +4,14 @@ from __future__ import annotations
 from typing import Any
 
 import click
+import numpy as np
 
 from ..analysis.verdict import verdict_for
 from ..errors import ConfigError, HandEyeError
 from ..io.nominal import read_nominal
 from ..output.writers import check_writable, output_format
 from ..pipeline import Calibration, StreamSpec, calibrate_files
+from ..solvers import dualquat as dq
 from .check import verdict_options
 from .common import CONTEXT, Drifted, StrictFailure, emit
 from .params import calibrate_options, options_from_cli, output_options, stream_options
@@ -31,9 +33,7 @@ def stream_specs(inputs: tuple[str, ...], p: dict[str, Any]) -> tuple[StreamSpec
 
 
 def _summary(doc: dict[str, Any]) -> str:
-    from scipy.spatial.transform import Rotation
-
-    rotvec = Rotation.from_quat(doc["quaternion_xyzw"]).as_rotvec(degrees=True)
+    rotvec = np.rad2deg(dq.to_rotvec(np.asarray(doc["quaternion_xyzw"], dtype=np.float64)))
     t = doc["translation"]
     angle = float((rotvec @ rotvec) ** 0.5)
     return (f"T_{doc['frames']['a']}_{doc['frames']['b']}: translation [{t[0]:.4f}, {t[1]:.4f}, {t[2]:.4f}] m, "
