@@ -51,3 +51,26 @@ def test_bounds_and_degenerate_cases() -> None:
     twin = np.column_stack([np.arange(5.0), np.arange(5.0)])             # two equal columns: the fit, not x, is unique
     x, r = nnls(twin, np.arange(5.0) * 2)
     assert (x >= 0).all() and r == pytest.approx(0.0, abs=1e-12) and x.sum() == pytest.approx(2.0)
+
+
+@pytest.mark.parametrize("seed", range(12))
+@pytest.mark.parametrize("units", [1e-6, 1.0, 1e6])
+def test_coefficients_in_any_units_without_scipys_fallback(seed: int, units: float, monkeypatch) -> None:
+    """Large design entries and small coefficients (the noise models' variance fits: entries ~1e6, x ~1e-5,
+    where the gradient's tolerance is far above every x): Lawson and Hanson's steps back to the bound
+    must not drop the columns that are off it. The fits must end without scipy's fallback."""
+    import scipy.optimize
+
+    monkeypatch.setattr(scipy.optimize, "nnls", lambda *a: pytest.fail("fell back to scipy"))
+    rng = np.random.default_rng(100 + seed)
+    m, n = 200, 5
+    base = rng.uniform(0.0, 1.0, (m, 1))
+    A = np.column_stack([np.ones(m), base, base * rng.uniform(0.99, 1.01, (m, 1)), rng.uniform(0, 1, (m, 2))])
+    A *= 1e6 * units                                                     # nearly collinear columns 1 and 2
+    truth = rng.uniform(0.0, 1.0, n) * (rng.random(n) < 0.6)
+    b = A @ truth * 1e-5 / units ** 2 * rng.chisquare(3, m) / 3          # coefficients ~1e-5 / units²
+    x, r = nnls(A, b)
+    xs, rs = scipy_nnls(A, b)
+    assert (x >= 0).all()
+    assert r == pytest.approx(rs, rel=1e-9)
+    np.testing.assert_allclose(A @ x, A @ xs, rtol=1e-7, atol=1e-9 * np.abs(b).max())

@@ -40,9 +40,11 @@ def _active_set(A: NDArray[np.float64], b: NDArray[np.float64], tol: float) -> N
         for _ in range(n):                            # step back to the boundary, drop the columns it meets
             if (z[free] > 0).all():
                 break
-            hit = free & (z <= 0)
-            x += float(np.min(x[hit] / (x[hit] - z[hit]))) * (z - x)
-            free &= x > tol
+            hit = np.flatnonzero(free & (z <= 0))
+            step = x[hit] / (x[hit] - z[hit])
+            x += float(step.min()) * (z - x)
+            x[hit[np.argmin(step)]] = 0.0             # the column that meets the bound first leaves, exactly
+            free &= x > 0.0                           # (a tolerance on x would be in b's units over A's)
             x[~free] = 0.0
             z = _lstsq(A, b, free)
         else:
