@@ -111,9 +111,7 @@ def test_matrices_both_ways_equal_scipys_at_the_edges() -> None:
     assert (dq.from_matrix(np.array(flips))[:, :3].sum(axis=1) == 1.0).all()
 
 
-def test_angles_and_means_equal_scipys() -> None:
-    q = edge_quats(8)
-    np.testing.assert_allclose(dq.angle(q), Rotation.from_quat(q).magnitude(), rtol=0, atol=TOL)
+def test_means_equal_scipys() -> None:
     rng = np.random.default_rng(9)
     for spread in (1e-6, 0.1, 1.0, 3.0):      # a tight cluster to rotations all over
         center = Rotation.random(random_state=int(spread * 10))

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import se3
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import HandEyeError, UnderdeterminedError
 from ..solvers import Prior, build_problem, solve
@@ -309,7 +310,7 @@ def assess_observability(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Fl
     X = np.asarray(T_a_b, dtype=np.float64) if T_a_b is not None else _estimate(A, B, alpha, prior, w)
     R_x = X[:3, :3]
     rotvec = dq.to_rotvec(dq.from_matrix(A[:, :3, :3]))
-    angles = np.degrees(0.5 * (np.linalg.norm(rotvec, axis=1) + dq.angle(dq.from_matrix(B[:, :3, :3]))))
+    angles = np.degrees(0.5 * (np.linalg.norm(rotvec, axis=1) + se3.rotation_angle(B)))
     rotating = angles >= min_rotation_deg
     found: list[ObservabilityWarning] = []
     if len(A) < min_pairs:

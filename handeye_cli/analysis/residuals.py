@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import se3
 from .._typing import BoolArray, FloatArray
 from ..solvers import dualquat as dq
 from ..solvers.problem import validate_motions
@@ -110,5 +111,5 @@ def summarize(residuals: Residuals, mask: BoolArray | None = None) -> ResidualSu
 def extrinsic_error(T_a_b: FloatArray, truth: FloatArray) -> tuple[float, float]:
     """Error of an estimate against the true ``T_a_b``: geodesic rotation [deg], Euclidean translation [m]."""
     X, Y = np.asarray(T_a_b, dtype=np.float64), np.asarray(truth, dtype=np.float64)
-    rot = dq.angle(dq.from_matrix(Y[:3, :3].T @ X[:3, :3]))
+    rot = se3.rotation_angle(Y[:3, :3].T @ X[:3, :3])
     return float(np.rad2deg(rot)), float(np.linalg.norm(X[:3, 3] - Y[:3, 3]))

@@ -7,14 +7,14 @@ quaternion and ``q' = ½ (t, 0) ⊗ q`` (eq 2). The sign is fixed so that the sc
 ``q`` is ≥ 0 (``Q ~ -Q``).
 
 Batched rotations of the stages, the analysis and the writers: :func:`multiply`, :func:`relative`,
-:func:`to_rotvec`, :func:`from_rotvec`, :func:`slerp`, :func:`to_matrix`, :func:`from_matrix`,
-:func:`angle` and :func:`mean` compute what ``scipy.spatial.transform.Rotation``'s ``*``,
-``inv()``, ``as_rotvec``, ``from_rotvec``, ``Slerp``, ``as_matrix``, ``from_matrix``,
-``magnitude`` and ``mean`` do (the same results within 1e-12, the tested reference), several times
-faster on rows of quaternions: each is a few elementwise passes over the components, with no
-per-call object. They also keep ``scipy`` out of ``handeye calibrate``'s start-up: importing
-``scipy.spatial.transform`` (with the ``scipy.linalg`` and ``scipy.sparse`` it pulls in) costs
-0.3 s of every run, three times numpy's own import.
+:func:`to_rotvec`, :func:`from_rotvec`, :func:`slerp`, :func:`to_matrix`, :func:`from_matrix`
+and :func:`mean` compute what ``scipy.spatial.transform.Rotation``'s ``*``, ``inv()``,
+``as_rotvec``, ``from_rotvec``, ``Slerp``, ``as_matrix``, ``from_matrix`` and ``mean`` do (the
+same results within 1e-12, the tested reference), several times faster on rows of quaternions:
+each is a few elementwise passes over the components, with no per-call object. Rotation angles of
+matrices are :func:`handeye_cli.se3.rotation_angle`'s. They also keep ``scipy`` out of ``handeye
+calibrate``'s start-up: importing ``scipy.spatial.transform`` (with the ``scipy.linalg`` and
+``scipy.sparse`` it pulls in) costs 0.3 s of every run, three times numpy's own import.
 """
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ import numpy as np
 from .._typing import FloatArray
 
 __all__ = ["left", "right", "conjugate", "multiply", "relative", "to_rotvec", "from_rotvec", "slerp",
-           "to_matrix", "from_matrix", "angle", "mean", "from_transforms", "to_transform"]
+           "to_matrix", "from_matrix", "mean", "from_transforms", "to_transform"]
 
 
 # L(q)[i, j] = _L_SIGN[i, j] * q[_L_INDEX[i, j]] and likewise for R(q), in x-y-z-w order:
@@ -181,12 +181,6 @@ def from_matrix(R: FloatArray) -> FloatArray:
         lead = v[np.arange(len(v)), np.argmax(v != 0.0, axis=1)]
         q[half_turn[lead < 0]] *= -1.0
     return np.asarray(q.reshape(R.shape[:-2] + (4,)), dtype=np.float64)
-
-
-def angle(q: FloatArray) -> FloatArray:
-    """Rotation angles [rad] in [0, π] (…) of unit x-y-z-w quaternions (…, 4) (scipy's ``magnitude``)."""
-    q = np.asarray(q, dtype=np.float64)
-    return np.asarray(2.0 * np.arctan2(np.linalg.norm(q[..., :3], axis=-1), np.abs(q[..., 3])), dtype=np.float64)
 
 
 def mean(q: FloatArray) -> FloatArray:

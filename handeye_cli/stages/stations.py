@@ -178,12 +178,12 @@ def _robust_mean(stream: PoseStream, lo: int, hi: int) -> _Average:
     quat = stream.quat_xyzw[lo:hi]
     quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
     xyz = stream.xyz[lo:hi]
-    angle = np.rad2deg(dq.angle(dq.relative(dq.mean(quat), quat)))
+    angle = _angle_deg(dq.mean(quat), quat)
     limit = max(_INLIER_FLOOR_DEG, 3 * 1.4826 * float(np.median(angle)))
     inl = angle <= limit
     mean = dq.mean(quat[inl])
     pos = np.median(xyz[inl], axis=0)
-    spread = np.array([float(np.sqrt(np.mean(np.rad2deg(dq.angle(dq.relative(mean, quat[inl]))) ** 2))),
+    spread = np.array([float(np.sqrt(np.mean(_angle_deg(mean, quat[inl]) ** 2))),
                        float(np.sqrt(np.mean(np.sum((xyz[inl] - pos) ** 2, axis=1))))])
     return _Average(se3.from_xyz_quat(pos, mean), hi - lo, int(inl.sum()), spread)
 
