@@ -234,11 +234,13 @@ class SyncOptions:
                                  "Timestamp gate [s]: a sample is kept only if the interpolated stream's samples it "
                                  "uses are this close; auto: max(0.1 s, 2.5 median steps of that stream).",
                                  "SECONDS|auto")
-    time_offset: float | str = option(0.0, real(unit="seconds", word="auto"),
-                                      "How far b's clock is ahead of a's [s], or auto to estimate it.",
+    time_offset: float | str = option("auto", real(unit="seconds", word="auto"),
+                                      "How far b's clock is ahead of a's [s]; auto: estimated from the angular "
+                                      "velocities and applied when it is significant against its own uncertainty "
+                                      "(else 0; both reported in the result's time_offset); 0 forces none.",
                                       "SECONDS|auto")
     max_time_offset: float | None = option(None, number(unit="seconds", word="off"),
-                                           "With --time-offset auto, search only ±this [s] (off: any).",
+                                           "With --time-offset auto (the default), search only ±this [s] (off: any).",
                                            "SECONDS|off")
 
     @property

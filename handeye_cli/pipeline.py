@@ -180,16 +180,75 @@ def _read_one(spec: StreamSpec | PoseStream, read: ReadOptions, quiet: bool, wxy
 
 
 def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, dict[str, Any], list[str]]:
-    """The offset [ns] b's clock is ahead of a's, its report, and warnings about it."""
-    value = options.sync.time_offset
-    if value == "auto":
-        from .stages.timeoffset import estimate_time_offset  # scipy.signal: import only when used
+    """The offset [ns] b's clock is ahead of a's, its report, and warnings about it.
 
+    ``auto`` (the default) estimates it wherever the data allow and applies the estimate when it is
+    significant against its own σ (:attr:`~handeye_cli.stages.timeoffset.TimeOffset.significant`) and
+    the correlation is unambiguous; otherwise the offset is 0 and the report says why. A significant
+    estimate that is ambiguous (a second correlation peak, a weak one) is not applied but warned about:
+    the warning names the estimate and the flag that applies it. A fixed value is used as given."""
+    value = options.sync.time_offset
+    if value != "auto":
+        return int(round(float(value) * 1e9)), {"seconds": float(value), "method": "fixed"}, []
+    from .stages.timeoffset import SIGNIFICANT_SIGMA, estimate_time_offset
+
+    try:
         est = estimate_time_offset(a, b, max_offset_s=options.sync.max_time_offset)
-        return est.offset_ns, {"seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,
-                               "coarse_seconds": est.coarse_ns / 1e9, "correlation": est.correlation,
-                               "method": est.method}, list(est.warnings)
-    return int(round(float(value) * 1e9)), {"seconds": float(value), "method": "fixed"}, []
+    except HandEyeError as e:                 # too short, too gappy or too little rotation to tell: none applied
+        return 0, {"seconds": 0.0, "method": "not estimated", "applied": False, "reason": str(e)}, []
+    applied = est.significant and not est.warnings
+    report = {"seconds": est.offset_ns / 1e9 if applied else 0.0, "applied": applied,
+              "estimated_seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,
+              "coarse_seconds": est.coarse_ns / 1e9, "correlation": est.correlation, "method": est.method,
+              "significant_sigma": SIGNIFICANT_SIGMA}
+    warnings = [f"a clock offset of {est.offset_ns / 1e9:.6g} ± {est.std_ns / 1e9:.2g} s was estimated but not "
+                f"applied ({'; '.join(est.warnings)}): if it is right, pass --time-offset {est.offset_ns / 1e9:.6g}"
+                ] if est.significant and est.warnings else []
+    return (est.offset_ns if applied else 0), report, warnings
+
+
+_Paired = tuple[Synced, Pairs, SampleCounts, Stations | None, Selection | None]
+
+
+def _median_fit(pairs: Pairs) -> tuple[float, float]:
+    """Median residuals (rotation [deg], translation [m]) of a plain dqopt solve (α 1) of the pairs, or
+    infinities when they do not determine X: the yardstick two readings of one recording are compared by."""
+    try:
+        X = solve(pairs.A, pairs.B, method="dqopt", alpha=1.0).matrix
+    except HandEyeError:
+        return np.inf, np.inf
+    summary = pair_residuals(pairs.A, pairs.B, X).summary()
+    return summary.rotation_median_deg, summary.translation_median_m
+
+
+def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Prior | None, report: dict[str, Any],
+                      paired: _Paired) -> _Paired:
+    """A significant clock-offset estimate is kept only when the fit does not contradict it: the pairs it gives
+    must fit a rigid rig no worse (neither median residual higher by ``CONFIRMING_GAIN``) than the pairs without
+    an offset; and where it leaves fewer than ``CONFIRMING_COVERAGE`` of the samples synchronised (an offset that
+    is a large part of the recording), clearly better (a median lower by ``CONFIRMING_GAIN``). It stands without a
+    comparison when the streams do not pair without it (spans that do not overlap). An estimate the fit does not
+    confirm (an alias of periodic motion on a short recording) is not applied: the report says so, with both
+    fits, and the pairs without an offset are returned. ``paired`` is :func:`pairs_of` at the estimate;
+    ``report`` is updated in place."""
+    from .stages.timeoffset import CONFIRMING_COVERAGE, CONFIRMING_GAIN
+
+    try:
+        at_zero = pairs_of(a, b, options, 0, prior)
+    except HandEyeError:
+        report["confirmed_by"] = "no pairs without it"
+        return paired
+    est, zero = _median_fit(paired[1]), _median_fit(at_zero[1])
+    gains = [max(z, 1e-12) / max(e, 1e-12) for z, e in zip(zero, est, strict=True)]
+    coverage = len(paired[0]) / max(len(at_zero[0]), 1)
+    report["fit_median"] = {"applied": {"rotation_deg": est[0], "translation_m": est[1], "samples": len(paired[0])},
+                            "none": {"rotation_deg": zero[0], "translation_m": zero[1], "samples": len(at_zero[0])}}
+    worse = min(gains) < 1 / CONFIRMING_GAIN
+    if not worse and (coverage >= CONFIRMING_COVERAGE or max(gains) >= CONFIRMING_GAIN):
+        report["confirmed_by"] = "fit"
+        return paired
+    report.update(seconds=0.0, applied=False, confirmed_by=None)
+    return at_zero
 
 
 def read_prior(options: Options) -> Prior | None:
@@ -310,6 +369,10 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     warnings = [*stream_a.warnings, *stream_b.warnings, *offset_warnings]       # readers' warnings name their file
     prior = read_prior(opts)                                   # the prior file is read once
     kept, pairs, samples, stations, selection = pairs_of(stream_a, stream_b, opts, offset_ns, prior)
+    if offset_report.get("applied"):
+        kept, pairs, samples, stations, selection = _confirmed_offset(
+            stream_a, stream_b, opts, prior, offset_report, (kept, pairs, samples, stations, selection))
+        offset_ns = int(round(offset_report["seconds"] * 1e9))
     diagnostics: dict[str, Any] = {"time_offset": offset_report}
     if stations is not None:
         diagnostics["stations"] = stations.as_dict()

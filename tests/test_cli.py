@@ -92,13 +92,29 @@ def test_time_offset_auto(capsys, tmp_path):
     a, b = simulate_rig(Rig(X, 100_250_000_000), duration_s=60, rate_a=100, rate_b=30,
                         sigma_r=np.deg2rad(0.1), sigma_t=0.002, seed=5)
     fa, fb = write_tum(tmp_path / "a.tum", a), write_tum(tmp_path / "b.tum", b)
-    code, _, err = run(capsys, "calibrate", fa, fb)
-    assert code == 2 and "--time-offset auto" in err        # the raw spans do not overlap: the error says how to fix it
-    code, out, err = run(capsys, "calibrate", fa, fb, "--time-offset", "auto", "-q")
-    assert code == 0, err
-    doc = yaml.safe_load(out)
-    assert doc["time_offset"]["seconds"] == pytest.approx(100.25, abs=1e-3)
-    assert pose_error(np.array(doc["matrix"]), X)[1] < 0.005
+    code, _, err = run(capsys, "calibrate", fa, fb, "--time-offset", "0")
+    assert code == 2 and "--time-offset" in err             # forced 0: the raw spans do not overlap, the error says so
+    for flags in ([], ["--time-offset", "auto"]):            # the default estimates it, and applies it: significant
+        code, out, err = run(capsys, "calibrate", fa, fb, *flags, "-q")
+        assert code == 0, err
+        doc = yaml.safe_load(out)
+        assert doc["time_offset"]["seconds"] == pytest.approx(100.25, abs=1e-3) and doc["time_offset"]["applied"]
+        assert pose_error(np.array(doc["matrix"]), X)[1] < 0.005
+
+
+def test_default_time_offset_applies_only_a_significant_estimate(capsys, tmp_path):
+    """No clock offset: the default's estimate is reported and, within its σ of 0, not applied; a 30 ms one is."""
+    X = random_transform(np.random.default_rng(6), 0.3)
+    for true_ns, applied in ((0, False), (30_000_000, True)):
+        a, b = simulate_rig(Rig(X, true_ns), duration_s=30, rate_a=100, rate_b=30, sigma_r=np.deg2rad(0.1),
+                            sigma_t=0.002, seed=6)
+        fa, fb = write_tum(tmp_path / "a.tum", a), write_tum(tmp_path / "b.tum", b)
+        code, out, err = run(capsys, "calibrate", fa, fb, "-q")
+        assert code == 0, err
+        report = yaml.safe_load(out)["time_offset"]
+        assert report["applied"] is applied
+        assert report["estimated_seconds"] == pytest.approx(true_ns / 1e9, abs=3 * report["std_seconds"] + 1e-4)
+        assert report["seconds"] == (report["estimated_seconds"] if applied else 0.0)
 
 
 def test_config_file_and_command_line_precedence(capsys, rig, tmp_path):
@@ -212,3 +228,25 @@ def test_bad_logs_give_one_line_exit_2_and_no_output(capsys, tmp_path, make, ext
 def test_a_cap_that_keeps_too_few_pairs_says_so(capsys, rig):
     code, _, err = run(capsys, "calibrate", rig["a"], rig["b"], "--max-pairs", "2")
     assert code == 2 and "raise --max-pairs" in err and err.count("\n") == 1
+
+
+def test_an_estimated_offset_the_fit_contradicts_is_not_applied(capsys, tmp_path, monkeypatch):
+    """A significant estimate that is an alias (periodic motion, a short recording) fits worse than no offset
+    and synchronises a fraction of the samples: it is reported, not applied; the true one (0 here) is used."""
+    from handeye_cli.stages import timeoffset
+
+    X = random_transform(np.random.default_rng(7), 0.3)
+    a, b = simulate_rig(Rig(X, 0), duration_s=20, rate_a=100, rate_b=30, sigma_r=np.deg2rad(0.1), sigma_t=0.002,
+                        seed=7)
+    alias = timeoffset.TimeOffset(offset_ns=-9_000_000_000, std_ns=1e5, coarse_ns=-9_000_000_000, correlation=0.9,
+                                  method="stub")
+    monkeypatch.setattr(timeoffset, "estimate_time_offset", lambda *args, **kw: alias)
+    fa, fb = write_tum(tmp_path / "a.tum", a), write_tum(tmp_path / "b.tum", b)
+    code, out, err = run(capsys, "calibrate", fa, fb, "-q")
+    assert code == 0, err
+    doc = yaml.safe_load(out)
+    report = doc["time_offset"]
+    assert report["estimated_seconds"] == -9.0 and report["applied"] is False and report["seconds"] == 0.0
+    assert report["confirmed_by"] is None
+    assert report["fit_median"]["applied"]["samples"] < 0.8 * report["fit_median"]["none"]["samples"]
+    assert pose_error(np.array(doc["matrix"]), X)[1] < 0.005

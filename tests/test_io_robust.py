@@ -134,10 +134,14 @@ def test_wxyz_quaternions(tmp_path):
     fails(lambda: read_stream(path, quaternion_order="zyxw"), "unknown quaternion order")
 
 
+@pytest.mark.parametrize("fmt", ["tum", "csv"])
 @pytest.mark.parametrize("unit, scale, since_start, warned", [
     ("ns", 1, False, False), ("us", 1_000, False, False), ("ms", 1_000_000, False, False),
     ("ms", 1_000_000, True, True), ("us", 1_000, True, True), ("s", 10**9, True, False)])
-def test_time_units(tmp_path, rig, unit, scale, since_start, warned):
+def test_time_units(tmp_path, rig, fmt, unit, scale, since_start, warned):
+    """Epoch-sized stamps name their unit by magnitude in every format. Small stamps (since start) are
+    seconds in a TUM file, as the format defines them (an arm's stations step seconds apart: read as ms
+    they would be 1000× too close); only a CSV without a unit has its unit guessed from the step, warned."""
     a = rig[0]
     t = (a.stamps_ns - (a.stamps_ns[0] if since_start else 0)) // scale
     rows = [f"{ti} " + " ".join(repr(float(v)) for v in (*p, *q))
@@ -145,10 +149,14 @@ def test_time_units(tmp_path, rig, unit, scale, since_start, warned):
     if unit == "s":
         rows = [f"{ti / 1e9:.9f} " + r.split(" ", 1)[1]
                 for ti, r in zip(a.stamps_ns - a.stamps_ns[0], rows, strict=True)]
-    path = tmp_path / "u.tum"
+    path = tmp_path / f"u.{fmt}"
+    if fmt == "csv":
+        rows = ["t,x,y,z,qx,qy,qz,qw", *(r.replace(" ", ",") for r in rows)]
     path.write_text("\n".join(rows) + "\n")
     s = read_stream(path)
     expected = t * scale if unit != "s" else a.stamps_ns - a.stamps_ns[0]
+    if fmt == "tum" and since_start and unit != "s":
+        expected, warned = t * 10**9, False              # TUM: seconds, as defined
     np.testing.assert_array_equal(s.stamps_ns, expected)
     assert any("--time-unit" in w for w in s.warnings) == warned
     assert read_stream(path, time_unit=unit).warnings == ()

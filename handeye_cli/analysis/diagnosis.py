@@ -41,7 +41,7 @@ def too_few_pairs(n_pairs: int, samples: SampleCounts, options: Options) -> TooF
                "off with --gate off (station captures: --preset robot-arm)")
     else:
         fix = (f"the timestamp gate dropped most samples: widen --max-dt (now {options.sync.max_dt}), let the slower "
-               "stream set the sample times with --sync auto, or estimate the clock offset with --time-offset auto")
+               "stream set the sample times with --sync auto, or give the clock offset with --time-offset SECONDS")
     return TooFewPairsError(f"only {n_pairs} motion pair(s) left, {need} needed", story, fix)
 
 
@@ -56,7 +56,7 @@ def data_warning(res: Residuals, weights: np.ndarray | None, samples: SampleCoun
         return None
     if large:
         return (f"large residuals (median {base.rotation_median_deg:.2f}° / {base.translation_median_m:.3f} m): the "
-                "streams may not be rigidly attached, be mis-synchronised (try --time-offset auto), come from "
+                "streams may not be rigidly attached, be mis-synchronised (give --time-offset SECONDS), come from "
                 "the wrong topics, or b's translations have another scale (monocular odometry: --scale auto)")
     return (f"the pose-jump gate dropped {samples.dropped_pose_jump} of {samples.synced} samples "
             f"({100 * dropped:.0f} %): the sensors move faster than its limits allow at this rate; raise "

@@ -90,13 +90,17 @@ def _table(path: Path | str, *, need: int, expected: str, skip: int = 0, t_col: 
                           comma_only=comma_only, exact=exact)
 
 
-def _auto_unit(t: NDArray[np.float64], name: str, notes: list[str]) -> str:
-    """The time unit of stamps meant as seconds: epoch-sized values name their unit by magnitude
-    (silently); small values (time since start) by their median step, with a warning."""
+def _auto_unit(t: NDArray[np.float64], name: str, notes: list[str], *, seconds_defined: bool) -> str:
+    """The time unit of the stamps: epoch-sized values name their unit by magnitude (silently; no
+    recording is 10¹¹ s long); small values (time since start) are seconds where the format defines
+    them so (``seconds_defined``: TUM — an arm's station capture steps seconds apart), else (a CSV
+    without a unit) read by their median step, with a warning."""
     magnitude = float(np.median(np.abs(t)))
     for limit, unit in ((1e17, "ns"), (1e14, "us"), (1e11, "ms"), (1e8, "s")):
         if magnitude >= limit:
             return unit
+    if seconds_defined:
+        return "s"
     steps = np.diff(t)
     step = float(np.median(steps[steps > 0])) if (steps > 0).any() else 0.0
     if step <= 1.0:
@@ -142,9 +146,10 @@ def read_text(path: Path | str, fmt: str, columns: Mapping[str, str] | None = No
     ``quaternion_order``: the order of the four quaternion columns of a TUM file or of the
     columns mapped to qx, qy, qz, qw in a CSV (``"wxyz"``: scalar first); EuRoC is always w first.
     Reading ``"xyzw"`` data that looks scalar-first gives a warning naming ``--wxyz-a``/``--wxyz-b``.
-    ``time_unit``: ``"auto"`` (EuRoC ns; CSV: the time column's name, e.g. ``t_ns``; otherwise
-    seconds, or ms/us/ns by magnitude, or by the median step for time since start — with a
-    warning naming ``--time-unit``) or one of ``s``, ``ms``, ``us``, ``ns`` for every format.
+    ``time_unit``: ``"auto"`` (EuRoC ns; TUM seconds, as the format defines them, unless epoch-sized
+    values name ns/us/ms by magnitude; CSV: the time column's name, e.g. ``t_ns``; otherwise by
+    magnitude, or by the median step for time since start — with a warning naming ``--time-unit``)
+    or one of ``s``, ``ms``, ``us``, ``ns`` for every format.
     """
     _check_args(quaternion_order, time_unit)
     name, notes = str(path), list[str]()
@@ -165,7 +170,7 @@ def read_text(path: Path | str, fmt: str, columns: Mapping[str, str] | None = No
     if time_unit != "auto":
         unit = time_unit
     elif unit is None:
-        unit = _auto_unit(table.time_float(), name, notes)
+        unit = _auto_unit(table.time_float(), name, notes, seconds_defined=fmt == "tum" and columns is None)
     cols = np.asarray(index[1:])
     xyz = _columns(table.values, cols[:3])
     quat = _columns(table.values, cols[[4, 5, 6, 3]] if order == "wxyz" else cols[3:])

@@ -205,10 +205,10 @@ def _too_few(kept: int, need: int, counts: dict[str, int], gate: str, max_dt_ns:
     if by_jump > by_time:
         fix = ("the pose-jump gate dropped most: try --gate auto (it follows the sampling rate), --gate paper with "
                "--max-jump off --max-jump-deg off, or --gate off; if the streams are not aligned in time, "
-               "--time-offset auto")
+               "--time-offset SECONDS (auto, the default, estimates it where the data allow)")
     else:
         fix = ("the timestamp gate dropped most: let the slower stream set the sample times with --sync auto, widen "
-               "--max-dt, or estimate the clock offset with --time-offset auto")
+               "--max-dt, or give the clock offset with --time-offset SECONDS")
     return DataError(f"only {kept} sample(s) left after the gates, {need} needed", story, fix)
 
 

@@ -199,7 +199,8 @@ def _check(a: PoseStream, b: PoseStream, method: str, time_offset_ns: int) -> No
         raise DataError(
             "the two pose streams do not overlap in time",
             f"a spans {span['a']}, b spans {span['b']} after a time offset of {time_offset_ns / 1e9:.6f} s",
-            "use --time-offset auto to estimate the clock offset, or give a fixed --time-offset")
+            ("the default --time-offset auto found no offset it could apply (too little rotation to correlate, "
+             "or outside --max-time-offset): give it with --time-offset SECONDS"))
 
 
 def associate(a: PoseStream, b: PoseStream, *, method: str = "auto", max_dt_ns: int | None = None,
@@ -259,5 +260,5 @@ def associate(a: PoseStream, b: PoseStream, *, method: str = "auto", max_dt_ns: 
             f"{rates_text(steps)}; max_dt {gate_ns / 1e9:.3f} s; {counts['dropped_timestamp_gate']} samples of "
             f"{reference} too far from {o}'s, {counts['dropped_outside_span']} outside {o}'s span",
             "let the slower stream set the sample times with --sync auto, widen --max-dt, or fix the clock offset "
-            "with --time-offset auto")
+            "with --time-offset SECONDS (auto, the default, estimates it where the data allow)")
     return synced, counts
