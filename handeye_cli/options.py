@@ -213,12 +213,13 @@ class ReadOptions:
                                    "a camera observing a fixed target). Unset: not inverted, and a stream that "
                                    "clearly fits only inverted refuses the result.")
     invert_b: bool | None = option(None, optional_flag, "Invert stream b first.")
-    wxyz_a: bool = option(False, flag, "Stream a's text file (TUM/CSV) stores quaternions w first: w x y z "
-                          "(EuRoC always does).")
-    wxyz_b: bool = option(False, flag, "Stream b's text file stores quaternions w first.")
+    wxyz_a: bool | None = option(None, optional_flag, "Stream a's text file stores quaternions w first: w x y z "
+                                 "(--no-wxyz-a: x y z w). Unset: the format's order (TUM and CSV x y z w, EuRoC "
+                                 "w first), unless the other fits decisively better (the result's interpretation).")
+    wxyz_b: bool | None = option(None, optional_flag, "Stream b's text file stores quaternions w first.")
     time_unit: str = option("auto", choice("auto", "s", "ms", "us", "ns"), "Unit of the stamps in TUM/CSV files: "
-                            "auto picks epoch stamps by magnitude and time since start by the median step, with "
-                            "a warning.")
+                            "auto picks epoch stamps by magnitude; time since start is seconds in TUM (as the "
+                            "format defines) and read by the median step in a CSV, with a warning.")
     csv_columns: Mapping[str, str] | None = option(None, columns, "Generic CSV columns: t=COL,x=COL,…,qw=COL "
                                                    "(keys t, t_unit, x, y, z, qx, qy, qz, qw).", "KEY=COL,…")
 

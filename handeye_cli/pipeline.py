@@ -33,6 +33,7 @@ from .analysis import (
 from .analysis.alpha import noise_model_alpha
 from .analysis.diagnosis import data_warning, too_few_pairs
 from .analysis.inversion import InversionVerdict, check_inversion
+from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit
 from .config import load_options
 from .errors import ConfigError, HandEyeError
 from .io.pairfile import read_extrinsic
@@ -153,8 +154,8 @@ def _spec(source: Source, topic: str | None, frames: tuple[str, str] | None) -> 
 
 def read_streams(spec_a: StreamSpec | PoseStream, spec_b: StreamSpec | PoseStream, options: Options | None = None,
                  *, quiet: bool = True) -> tuple[PoseStream, PoseStream]:
-    """Streams a and b (``T_world_sensor``) from their specs — two streams of one log are read
-    in one pass; a PoseStream is taken as it is — inverted where the options say so."""
+    """Streams a and b from their specs, as the files hold them (:func:`calibrate` inverts them where the
+    options say so) — two streams of one log are read in one pass; a PoseStream is taken as it is."""
     from .io import detect_format, read_log_streams  # mcap/rosbags: import only when reading
     from .io.detect import LOG_FORMATS
 
@@ -165,18 +166,28 @@ def read_streams(spec_a: StreamSpec | PoseStream, spec_b: StreamSpec | PoseStrea
                                 time_source=read.time_source, quiet=quiet)
     else:
         a, b = _read_one(spec_a, read, quiet, read.wxyz_a), _read_one(spec_b, read, quiet, read.wxyz_b)
-    return (a.inverted() if read.invert_a else a), (b.inverted() if read.invert_b else b)
+    return a, b
 
 
-def _read_one(spec: StreamSpec | PoseStream, read: ReadOptions, quiet: bool, wxyz: bool) -> PoseStream:
+def _read_one(spec: StreamSpec | PoseStream, read: ReadOptions, quiet: bool, wxyz: bool | None) -> PoseStream:
     if isinstance(spec, PoseStream):
         return spec
     from .io import read_stream
 
     columns = dict(read.csv_columns) if read.csv_columns else None
     return read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=read.time_source,
-                       columns=columns, quiet=quiet, quaternion_order="wxyz" if wxyz else "xyzw",
+                       columns=columns, quiet=quiet,
+                       quaternion_order="auto" if wxyz is None else "wxyz" if wxyz else "xyzw",
                        time_unit=read.time_unit)
+
+
+def _quaternion_order(a: PoseStream, b: PoseStream, options: Options) -> tuple[PoseStream, PoseStream,
+                                                                               OrderChoice | None]:
+    """Text streams in the quaternion order that fits (:func:`~.analysis.readings.choose_quaternion_order`),
+    compared at the given clock offset (0 when it is still to be estimated)."""
+    offset = options.sync.time_offset
+    return choose_quaternion_order(a, b, time_offset_ns=0 if offset == "auto" else int(round(float(offset) * 1e9)),
+                                   max_dt_ns=options.sync.max_dt_ns, seed=options.pairs.seed)
 
 
 def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, dict[str, Any], list[str]]:
@@ -210,17 +221,6 @@ def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, d
 _Paired = tuple[Synced, Pairs, SampleCounts, Stations | None, Selection | None]
 
 
-def _median_fit(pairs: Pairs) -> tuple[float, float]:
-    """Median residuals (rotation [deg], translation [m]) of a plain dqopt solve (α 1) of the pairs, or
-    infinities when they do not determine X: the yardstick two readings of one recording are compared by."""
-    try:
-        X = solve(pairs.A, pairs.B, method="dqopt", alpha=1.0).matrix
-    except HandEyeError:
-        return np.inf, np.inf
-    summary = pair_residuals(pairs.A, pairs.B, X).summary()
-    return summary.rotation_median_deg, summary.translation_median_m
-
-
 def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Prior | None, report: dict[str, Any],
                       paired: _Paired) -> _Paired:
     """A significant clock-offset estimate is kept only when the fit does not contradict it: the pairs it gives
@@ -238,11 +238,16 @@ def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Pri
     except HandEyeError:
         report["confirmed_by"] = "no pairs without it"
         return paired
-    est, zero = _median_fit(paired[1]), _median_fit(at_zero[1])
-    gains = [max(z, 1e-12) / max(e, 1e-12) for z, e in zip(zero, est, strict=True)]
+    est, zero = (median_fit(p[1].A, p[1].B) for p in (paired, at_zero))
+    if est is None or zero is None:               # one of them does not determine X: the other stands
+        report["confirmed_by"] = "fit" if zero is None else None
+        if est is None:
+            report.update(seconds=0.0, applied=False)
+        return paired if zero is None else at_zero
+    gains = est.gains_over(zero)
     coverage = len(paired[0]) / max(len(at_zero[0]), 1)
-    report["fit_median"] = {"applied": {"rotation_deg": est[0], "translation_m": est[1], "samples": len(paired[0])},
-                            "none": {"rotation_deg": zero[0], "translation_m": zero[1], "samples": len(at_zero[0])}}
+    report["fit_median"] = {name: {"rotation_deg": f.rotation_deg, "translation_m": f.translation_m, "samples": n}
+                            for name, f, n in (("applied", est, len(paired[0])), ("none", zero, len(at_zero[0])))}
     worse = min(gains) < 1 / CONFIRMING_GAIN
     if not worse and (coverage >= CONFIRMING_COVERAGE or max(gains) >= CONFIRMING_GAIN):
         report["confirmed_by"] = "fit"
@@ -358,15 +363,21 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     ``overrides`` given by flat option name (``method="dqopt"``, ``max_jump="off"``…). Raises a
     :class:`~handeye_cli.errors.HandEyeError` subclass on data that cannot be calibrated.
 
-    Order: [fixed scale of b] → time offset → stations, or sync → gates → pairs → [scale auto] →
+    Order: [fixed scale of b] → quaternion order of text files (by the fit) → inversion (``invert_a`` /
+    ``invert_b``) → time offset → stations, or sync → gates → pairs → [scale auto] →
     [robust] → [α auto] → weighted solve → observability warnings, residuals, inversion check
     (first warning; refuses the result when overwhelming) → [bootstrap].
     """
     opts = Options.from_flat(options, **overrides) if overrides else (options or Options())
     if opts.solver.scale not in (1.0, "auto"):
         stream_b = replace(stream_b, xyz=stream_b.xyz * float(opts.solver.scale))
+    stream_a, stream_b, order = _quaternion_order(stream_a, stream_b, opts)
+    stream_a, stream_b = (s.inverted() if invert else s for s, invert in ((stream_a, opts.read.invert_a),
+                                                                         (stream_b, opts.read.invert_b)))
     offset_ns, offset_report, offset_warnings = _time_offset(stream_a, stream_b, opts)
     warnings = [*stream_a.warnings, *stream_b.warnings, *offset_warnings]       # readers' warnings name their file
+    if order is not None and order.chosen_by == "fit":
+        warnings.insert(0, order.message(stream_a, stream_b))
     prior = read_prior(opts)                                   # the prior file is read once
     kept, pairs, samples, stations, selection = pairs_of(stream_a, stream_b, opts, offset_ns, prior)
     if offset_report.get("applied"):
@@ -374,6 +385,8 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
             stream_a, stream_b, opts, prior, offset_report, (kept, pairs, samples, stations, selection))
         offset_ns = int(round(offset_report["seconds"] * 1e9))
     diagnostics: dict[str, Any] = {"time_offset": offset_report}
+    if order is not None:
+        diagnostics["interpretation"] = order.as_dict()
     if stations is not None:
         diagnostics["stations"] = stations.as_dict()
     else:

@@ -37,6 +37,12 @@ class PoseStream:
         line each; the calibration result carries them.
     recovered_truncated:
         How many messages were recovered from a truncated (crashed) recording; 0 for a complete file.
+    quaternion_order:
+        For a text file whose quaternion order came from its format (TUM x-y-z-w, EuRoC w-x-y-z, a CSV's
+        column names) rather than from the user: the order its columns were read in, which the pipeline
+        may overturn when the other order fits decisively better
+        (:func:`handeye_cli.analysis.readings.choose_quaternion_order`). None: not open to question (a
+        log's named fields, ``--wxyz-*`` / ``--no-wxyz-*``, a stream built in memory).
 
     Examples
     --------
@@ -62,6 +68,7 @@ class PoseStream:
     duplicates_dropped: int = 0
     warnings: tuple[str, ...] = ()
     recovered_truncated: int = 0
+    quaternion_order: str | None = None
 
     def __post_init__(self) -> None:
         stamps = np.ascontiguousarray(self.stamps_ns, dtype=np.int64)
@@ -87,10 +94,12 @@ class PoseStream:
         return se3.from_xyz_quat(self.xyz, self.quat_xyzw).reshape(-1, 4, 4)
 
     def inverted(self) -> PoseStream:
-        """The stream of inverse poses ``T_child_frame`` (e.g. camera-observes-target → target-in-camera)."""
+        """The stream of inverse poses ``T_child_frame`` (e.g. camera-observes-target → target-in-camera).
+        The frames swap; where the parent is unnamed (a text file's world) the sensor keeps its name.
+        ``quaternion_order`` is closed: the file's columns no longer map to the stream's quaternions."""
         xyz, quat = se3.to_xyz_quat(se3.inverse(self.matrices()))
-        return replace(self, xyz=xyz, quat_xyzw=quat, frame_id=self.child_frame_id,
-                       child_frame_id=self.frame_id)
+        frame, child = (self.child_frame_id, self.frame_id) if self.frame_id else ("", self.child_frame_id)
+        return replace(self, xyz=xyz, quat_xyzw=quat, frame_id=frame, child_frame_id=child, quaternion_order=None)
 
     def select(self, mask_or_index: np.ndarray) -> PoseStream:
         """A stream with only the samples selected by a boolean mask or index array."""

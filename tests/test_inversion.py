@@ -33,12 +33,15 @@ def test_an_inverted_station_stream_is_named_with_the_numbers():
     assert "--invert-b" in text and "--invert-a" in text and f"{verdict.given[0]:.3g}°" in text
 
 
-def test_refusal_only_without_an_explicit_invert_flag():
+def test_refusal_with_or_without_an_explicit_invert_flag():
+    """Overwhelming evidence refuses the result; an explicit flag the data contradict is named as such."""
     verdict = check_inversion(*_stations(invert_b=False))
-    with pytest.raises(DataError) as info:
-        raise verdict.refusal(False)
-    assert "no result was written" in str(info.value) and "--invert-b or --invert-a" in str(info.value)
-    assert verdict.refusal(True) is None
+    for explicit in (False, True):
+        with pytest.raises(DataError) as info:
+            raise verdict.refusal(explicit)
+        text = str(info.value)
+        assert "no result was written" in text and "--invert-b or --invert-a" in text
+        assert ("contradict the data" in text) is explicit
 
 
 def test_flag_names_the_undo_when_the_user_inverted_the_wrong_stream():
@@ -63,15 +66,14 @@ def test_inverted_station_capture_is_refused_without_an_explicit_flag(capsys, tm
     assert err.count("\n") == 1 and "almost certainly inverted" in err and "--invert-b" in err
 
 
-def test_explicit_no_invert_warns_first_and_strict_exits_3(capsys, station_files):
-    c, fa, fb = station_files
-    code, out, err = run(capsys, "calibrate", fa, fb, "--no-invert-b", "--no-invert-a", "-q")
-    assert code == 0, err
-    doc = yaml.safe_load(out)
-    assert "looks inverted" in doc["warnings"][0] and doc["inversion"]["overwhelming"]
-    assert pose_error(np.array(doc["matrix"]), c.truth)[0] > 1          # the streams as given: a wrong result
-    code, _, _ = run(capsys, "calibrate", fa, fb, "--no-invert-b", "--no-invert-a", "--strict", "-q")
-    assert code == 3
+def test_an_explicit_flag_the_data_contradict_is_refused(capsys, tmp_path, station_files):
+    """--no-invert-b on a capture whose camera stream fits only inverted: exit 2, one line naming the
+    evidence and the flag, nothing written — never a wrong extrinsic with exit 0."""
+    _, fa, fb = station_files
+    out_file = tmp_path / "result.yaml"
+    code, out, err = run(capsys, "calibrate", fa, fb, "--no-invert-b", "--no-invert-a", "-o", out_file)
+    assert code == 2 and not out_file.exists() and out == ""
+    assert err.count("\n") == 1 and "contradict the data" in err and "--invert-b" in err
 
 
 def test_the_right_flag_calibrates_without_an_inversion_warning(capsys, station_files):

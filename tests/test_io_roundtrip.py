@@ -164,7 +164,8 @@ def test_tum_round_trip(tmp_path, truth, sep):
     assert detect_format(path) == "tum"
     s = read_stream(path)
     assert_same(s, truth)
-    assert (s.frame_id, s.child_frame_id) == ("world", "a")
+    assert (s.frame_id, s.child_frame_id) == ("", "a")                     # the world is unnamed
+    assert (s.inverted().frame_id, s.inverted().child_frame_id) == ("", "a")   # the sensor keeps its name
 
 
 def test_tum_messy_whitespace_and_comments(tmp_path, truth):

@@ -17,13 +17,13 @@ median residuals (rotation [deg], translation [m]) with those of the streams as 
   rigid rig (median above ``_PLAUSIBLE_DEG`` or ``_PLAUSIBLE_M``).
 
 Policy (used by the pipeline): an inverted verdict is the first warning, so ``--strict`` exits 3.
-An overwhelming one refuses the result (:meth:`InversionVerdict.refusal`, exit 2) unless the user
-set an ``--invert-*`` / ``--no-invert-*`` flag explicitly. An extrinsic computed from an
-inverted stream is not slightly off but meaningless, and results are consumed by machines that do
-not read warnings; a ≥ 10-fold better fit of the inverted stream does not occur on correct data
-(it needs residuals far above the noise that vanish under inversion), so refusing costs a correct
-capture nothing, and the explicit flag is the way out when the user knows better. Inverting
-silently was rejected: it would hide a set-up error that also affects other tools the user runs.
+An overwhelming one refuses the result (:meth:`InversionVerdict.refusal`, exit 2), also when the
+user set an ``--invert-*`` / ``--no-invert-*`` flag explicitly: the data then contradict the flag,
+and the message says so. An extrinsic computed from an inverted stream is not slightly off but
+meaningless, and results are consumed by machines that do not read warnings; a ≥ 10-fold better fit
+of the inverted stream does not occur on correct data (it needs residuals far above the noise that
+vanish under inversion), so refusing costs a correct capture nothing. Inverting silently was
+rejected: it would hide a set-up error that also affects other tools the user runs.
 """
 from __future__ import annotations
 
@@ -35,8 +35,7 @@ from numpy.typing import NDArray
 
 from .. import se3
 from ..errors import DataError
-from ..solvers import solve
-from .residuals import pair_residuals
+from .readings import median_fit
 
 __all__ = ["Candidate", "InversionVerdict", "check_inversion"]
 
@@ -104,15 +103,17 @@ class InversionVerdict:
                 f"{self._fix(self.candidates)}")
 
     def refusal(self, explicit: bool) -> DataError | None:
-        """The error refusing the result when the verdict is overwhelming and the user set no invert
-        flag explicitly (``explicit``: any of --invert-a/--no-invert-a/--invert-b/--no-invert-b); else None."""
-        if not self.overwhelming or explicit:
+        """The error refusing the result when the verdict is overwhelming, else None. ``explicit``: the user
+        set an invert flag (any of --invert-a/--no-invert-a/--invert-b/--no-invert-b), which the data then
+        contradict: the message says so. Either way an extrinsic the data refute is not written."""
+        if not self.overwhelming:
             return None
-        first = self.candidates[0]
-        keep = f"--{'no-' if first.flag.startswith('--invert') else ''}invert-{first.stream}"
+        if explicit:
+            return DataError("the --invert-*/--no-invert-* flags given contradict the data: a stream fits far "
+                             "better the other way; no result was written", self._evidence(),
+                             f"{self._fix(self.candidates)} (or drop the flag you gave)")
         return DataError("a stream is almost certainly inverted (T_sensor_world instead of T_world_sensor); "
-                         "no result was written", self._evidence(), f"{self._fix(self.candidates)}; or pass "
-                         f"{keep} to use the streams as they are")
+                         "no result was written", self._evidence(), self._fix(self.candidates))
 
     def as_dict(self) -> dict[str, Any]:
         """Plain dict for the result file."""
@@ -123,13 +124,8 @@ class InversionVerdict:
 def _fit(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64], j: NDArray[np.int64],
          method: str, alpha: float) -> tuple[float, float] | None:
     """Median residuals after solving the pairs (i, j) of the absolute poses; None when unsolvable."""
-    A, B = se3.relative(T_a[i], T_a[j]), se3.relative(T_b[i], T_b[j])
-    try:
-        X = solve(A, B, method=method, alpha=alpha).matrix
-    except DataError:
-        return None
-    summary = pair_residuals(A, B, X).summary()
-    return summary.rotation_median_deg, summary.translation_median_m
+    fit = median_fit(se3.relative(T_a[i], T_a[j]), se3.relative(T_b[i], T_b[j]), method=method, alpha=alpha)
+    return None if fit is None else fit.medians
 
 
 def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64],

@@ -34,7 +34,7 @@ def _inputs(paths: str | Path | Sequence[str | Path]) -> tuple[list[Path], list[
 
 def read_stream(paths: str | Path | Sequence[str | Path], *, topic: str | None = None,
                 frames: tuple[str, str] | None = None, time_source: str = "header",
-                columns: Mapping[str, str] | None = None, quiet: bool = True, quaternion_order: str = "xyzw",
+                columns: Mapping[str, str] | None = None, quiet: bool = True, quaternion_order: str = "auto",
                 time_unit: str = "auto") -> PoseStream:
     """Read one pose stream ``T_frame_child(t)``.
 
@@ -44,8 +44,9 @@ def read_stream(paths: str | Path | Sequence[str | Path], *, topic: str | None =
     through ``/tf`` + ``/tf_static`` into ``T_parent_child``. Several paths = split ROS 1 bags.
     Text files (TUM, EuRoC, CSV; ``-`` = stdin, pipes are read once): one path, no topic/frames;
     ``columns`` maps generic CSV columns (keys ``t, t_unit, x, y, z, qx, qy, qz, qw``);
-    ``quaternion_order`` (``"xyzw"`` | ``"wxyz"``) and ``time_unit`` (``"auto"`` | ``"s"`` |
-    ``"ms"`` | ``"us"`` | ``"ns"``) as in :func:`.text.read_text` (ignored for logs).
+    ``quaternion_order`` (``"auto"``: the format's, open to the fit | ``"xyzw"`` | ``"wxyz"``) and
+    ``time_unit`` (``"auto"`` | ``"s"`` | ``"ms"`` | ``"us"`` | ``"ns"``)
+    as in :func:`.text.read_text` (ignored for logs).
 
     ``time_source``: ``"header"`` (header.stamp / each transform's stamp) or ``"log"`` (the
     recorder's log time; logs only). ``quiet=False`` shows a progress bar on stderr when stderr

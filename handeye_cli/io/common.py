@@ -152,7 +152,8 @@ def _longest_run(stamps: np.ndarray, source: str, where: Callable[[int], str], n
 def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source: str,
                 frame_id: str, child_frame_id: str, time_source: str,
                 where: Callable[[int], str] = lambda i: f"message {i}", warnings: Sequence[str] = (),
-                recovered_truncated: int = 0, zero_stamps_fix: str | None = LOG_STAMPS_FIX) -> PoseStream:
+                recovered_truncated: int = 0, zero_stamps_fix: str | None = LOG_STAMPS_FIX,
+                quaternion_order: str | None = None) -> PoseStream:
     """Validate and order reader output (arrays in arrival order) into a :class:`PoseStream`.
 
     Drops invalid poses (warning), keeps the longest run when the clock jumps back (warning),
@@ -160,7 +161,8 @@ def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source
     when a repeat carries a different pose), normalises quaternions (x-y-z-w). ``where(i)`` names
     sample ``i`` (arrival order) in messages, e.g. "line 12". ``warnings`` are the reader's own.
     DataError for an empty stream, no valid pose, or — unless ``zero_stamps_fix`` is None —
-    every stamp zero (``zero_stamps_fix`` says what to do).
+    every stamp zero (``zero_stamps_fix`` says what to do). ``quaternion_order``: see
+    :attr:`PoseStream.quaternion_order`.
     """
     if len(stamps) == 0:
         raise DataError("empty stream: no poses", source,
@@ -188,4 +190,5 @@ def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source
     return PoseStream(t[~repeat], xyz[rows], q / np.sqrt(np.einsum("ij,ij->i", q, q))[:, None],
                       frame_id=frame_id, child_frame_id=child_frame_id, source=source,
                       time_source=time_source, duplicates_dropped=int(repeat.sum()),
-                      warnings=tuple(notes), recovered_truncated=recovered_truncated)
+                      warnings=tuple(notes), recovered_truncated=recovered_truncated,
+                      quaternion_order=quaternion_order)

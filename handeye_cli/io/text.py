@@ -10,7 +10,8 @@
   Common names (``timestamp``, ``tx``, ``pos_x``, ``qw``…) are found without a mapping.
 
 Stamps are parsed exactly into int64 nanoseconds (no float round trip); positions in metres.
-Every line is one pose ``T_world_sensor``; the file stem (``stdin`` for ``-``) becomes the child frame.
+Every line is one pose ``T_world_sensor``; the file stem (``stdin`` for ``-``) becomes the child frame (the
+world is unnamed: ``frame_id`` is empty).
 Numbers are parsed by :mod:`.table` (a vectorised parser, with a line loop for odd input).
 """
 from __future__ import annotations
@@ -32,7 +33,7 @@ __all__ = ["read_text", "CSV_KEYS", "TIME_UNITS", "QUATERNION_ORDERS"]
 
 CSV_KEYS = ("t", "x", "y", "z", "qx", "qy", "qz", "qw")
 TIME_UNITS = ("auto", "s", "ms", "us", "ns")
-QUATERNION_ORDERS = ("xyzw", "wxyz")
+QUATERNION_ORDERS = ("auto", "xyzw", "wxyz")
 _DIGITS = {"s": 9, "ms": 6, "us": 3, "ns": 0}
 _ALIASES = {
     "t": ("t", "time", "timestamp", "stamp", "timestamp_ns", "time_ns", "t_ns", "sec", "seconds"),
@@ -112,17 +113,6 @@ def _auto_unit(t: NDArray[np.float64], name: str, notes: list[str], *, seconds_d
     return unit
 
 
-def _looks_wxyz(q: NDArray[np.float64]) -> bool:
-    """Quaternions read as x-y-z-w whose first component behaves like the scalar part: near ±1 with
-    one sign throughout, while the last component is not."""
-    q = q[np.isfinite(q).all(axis=1)]
-    if len(q) < 3:
-        return False
-    first, last = np.abs(q[:, 0]), np.abs(q[:, 3])
-    one_sign = bool((q[:, 0] > 0).all() or (q[:, 0] < 0).all())
-    return one_sign and float(np.median(first)) > 0.7 > float(np.median(last))
-
-
 def _columns(values: NDArray[np.float64], cols: NDArray[np.intp]) -> NDArray[np.float64]:
     """``values[:, cols]``, as a view when the columns are adjacent and in order (no copy of a large table)."""
     if (np.diff(cols) == 1).all():
@@ -133,19 +123,19 @@ def _columns(values: NDArray[np.float64], cols: NDArray[np.intp]) -> NDArray[np.
 def _check_args(quaternion_order: str, time_unit: str) -> None:
     if quaternion_order not in QUATERNION_ORDERS:
         raise ConfigError(f"unknown quaternion order {quaternion_order!r}", "quaternion_order",
-                          "use xyzw (TUM, ROS) or wxyz (--wxyz-a / --wxyz-b)")
+                          "use auto (the format's), xyzw (--no-wxyz-a / --no-wxyz-b) or wxyz (--wxyz-a / --wxyz-b)")
     if time_unit not in TIME_UNITS:
         raise ConfigError(f"unknown time unit {time_unit!r}", "time_unit", "use --time-unit auto|s|ms|us|ns")
 
 
-def read_text(path: Path | str, fmt: str, columns: Mapping[str, str] | None = None, *, quaternion_order: str = "xyzw",
+def read_text(path: Path | str, fmt: str, columns: Mapping[str, str] | None = None, *, quaternion_order: str = "auto",
               time_unit: str = "auto") -> PoseStream:
     """Read one text trajectory (``fmt`` = ``tum``, ``euroc`` or ``csv``; ``-`` = stdin) as
     ``T_world_<stem>``: int64 ns stamps, positions [m], quaternions x-y-z-w.
 
-    ``quaternion_order``: the order of the four quaternion columns of a TUM file or of the
-    columns mapped to qx, qy, qz, qw in a CSV (``"wxyz"``: scalar first); EuRoC is always w first.
-    Reading ``"xyzw"`` data that looks scalar-first gives a warning naming ``--wxyz-a``/``--wxyz-b``.
+    ``quaternion_order``: the order of the four quaternion columns (``"wxyz"``: scalar first), or
+    ``"auto"``: the format's (TUM and a CSV's qx, qy, qz, qw columns x-y-z-w, EuRoC w first), recorded
+    in the stream's ``quaternion_order`` so that the pipeline can test the other order by the fit.
     ``time_unit``: ``"auto"`` (EuRoC ns; TUM seconds, as the format defines them, unless epoch-sized
     values name ns/us/ms by magnitude; CSV: the time column's name, e.g. ``t_ns``; otherwise by
     magnitude, or by the median step for time since start — with a warning naming ``--time-unit``)
@@ -157,9 +147,9 @@ def read_text(path: Path | str, fmt: str, columns: Mapping[str, str] | None = No
         skip, index, unit, expected = _csv_layout(path, columns)
         table = _table(path, need=max(index) + 1, expected=f"at least {max(index) + 1} fields of {expected}",
                        skip=skip, t_col=index[0], comma_only=True)
-        order = quaternion_order
+        order = "xyzw"                      # the columns named qx, qy, qz, qw
     elif fmt == "tum":
-        index, unit, order = list(range(8)), None, quaternion_order
+        index, unit, order = list(range(8)), None, "xyzw"
         table = _table(path, need=8, expected="8 numbers 'timestamp tx ty tz qx qy qz qw'", exact=True)
     else:
         index, unit, order = list(range(8)), "ns", "wxyz"
@@ -173,11 +163,12 @@ def read_text(path: Path | str, fmt: str, columns: Mapping[str, str] | None = No
         unit = _auto_unit(table.time_float(), name, notes, seconds_defined=fmt == "tum" and columns is None)
     cols = np.asarray(index[1:])
     xyz = _columns(table.values, cols[:3])
+    open_order = quaternion_order == "auto"                 # the format's: the fit may overturn it
+    if not open_order:
+        order = quaternion_order
     quat = _columns(table.values, cols[[4, 5, 6, 3]] if order == "wxyz" else cols[3:])
-    if fmt != "euroc" and order == "xyzw" and _looks_wxyz(quat):
-        notes.append(f"the quaternions of {name} look like w-x-y-z order (the first quaternion column is near "
-                     "±1 with one sign, the last is not); if so, pass --wxyz-a (first stream) or --wxyz-b (second)")
     lines = table.lines
-    return make_stream(table.stamps_ns(_DIGITS[unit], name), xyz, quat, source=name, frame_id="world",
+    return make_stream(table.stamps_ns(_DIGITS[unit], name), xyz, quat, source=name, frame_id="",
                        child_frame_id=valid_frame_id(stem_of(path)), time_source="header",
-                       where=lambda i: f"line {lines[i]}", warnings=notes, zero_stamps_fix=_TEXT_STAMPS_FIX)
+                       where=lambda i: f"line {lines[i]}", warnings=notes, zero_stamps_fix=_TEXT_STAMPS_FIX,
+                       quaternion_order=order if open_order else None)

@@ -1,0 +1,197 @@
+"""Readings of the input chosen by the fit: the quaternion order of text files, tested before anything else.
+
+A text trajectory's quaternion order is a convention of its format (TUM x-y-z-w, EuRoC w-x-y-z, a CSV's
+column names), and exporters get it wrong: a w-x-y-z file read as x-y-z-w still yields an extrinsic, tens of
+degrees wrong, whose residuals are far above the noise. A heuristic on the values (is the first component
+near ±1?) cannot tell: it fires on real ground truth that rotates little about one axis, and misses
+large rotations. The fit can: :func:`choose_quaternion_order` solves the same sample pairs under each
+reading of every stream whose order came from the format (:attr:`PoseStream.quaternion_order`, not the
+user's ``--wxyz-*`` / ``--no-wxyz-*``), each also with either stream inverted (a camera's target detections
+that also need ``--invert-*`` must not hide the order), and keeps
+
+* the format's reading, unless another fits **decisively** better: its median rotation or translation
+  residual lower at least ``BETTER``-fold (3, as the inversion check of :mod:`.inversion`) and neither
+  higher by more than ``NOT_WORSE``;
+* and refuses (:class:`~handeye_cli.errors.DataError`) when another reading fits **alike** (both medians
+  within ``NOT_WORSE``) but gives another extrinsic (beyond ``ALIKE_DEG`` / ``ALIKE_M``): the data cannot
+  decide, and the flag can.
+
+The comparison runs on nearest-sample association (no interpolation, so a reading's synced poses are
+the raw ones reordered) at the given clock offset, on at most ``MAX_PAIRS`` sample pairs drawn with a
+fixed seed, solved by dqopt at α 1 — milliseconds.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from itertools import product
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .. import se3
+from ..errors import DataError, HandEyeError
+from ..solvers import solve
+from ..streams import PoseStream
+from .residuals import extrinsic_error, pair_residuals
+
+__all__ = ["MedianFit", "OrderChoice", "choose_quaternion_order", "median_fit", "BETTER", "NOT_WORSE"]
+
+BETTER = 3.0              # a reading whose median residual is this many times lower fits decisively better
+NOT_WORSE = 1.25          # … if its other median is not higher by more than this; within it both: alike
+ALIKE_DEG, ALIKE_M = 1.0, 0.01   # alike fits whose extrinsics differ by more than this: the data cannot decide
+MAX_PAIRS = 400
+_TINY = (1e-9, 1e-12)     # floors [deg, m] so that noise-free fits compare as finite ratios
+_FLAGS = {"xyzw": "--no-wxyz-{}", "wxyz": "--wxyz-{}"}
+
+
+@dataclass(frozen=True, eq=False)
+class MedianFit:
+    """The dqopt solution of a set of motions and its median residuals: ``matrix`` (4x4 ``T_a_b``),
+    ``rotation_deg`` [deg], ``translation_m`` [m]."""
+
+    matrix: NDArray[np.float64]
+    rotation_deg: float
+    translation_m: float
+
+    @property
+    def medians(self) -> tuple[float, float]:
+        """(rotation [deg], translation [m])."""
+        return self.rotation_deg, self.translation_m
+
+    def gains_over(self, other: MedianFit) -> tuple[float, float]:
+        """How many times lower this fit's medians are than ``other``'s (> 1: this one fits better)."""
+        g = [max(o, tiny) / max(v, tiny) for o, v, tiny in zip(other.medians, self.medians, _TINY, strict=True)]
+        return g[0], g[1]
+
+
+def median_fit(A: NDArray[np.float64], B: NDArray[np.float64], *, method: str = "dqopt",
+               alpha: float = 1.0) -> MedianFit | None:
+    """Solve the motions ``A_i X = X B_i`` (N, 4, 4) and summarise the residuals at X; None when they do not
+    determine X. The yardstick two readings of one recording are compared by."""
+    try:
+        X = solve(A, B, method=method, alpha=alpha).matrix
+    except HandEyeError:
+        return None
+    s = pair_residuals(A, B, X).summary()
+    return MedianFit(X, s.rotation_median_deg, s.translation_median_m)
+
+
+@dataclass(frozen=True)
+class OrderChoice:
+    """The quaternion order of each stream (``"xyzw"`` / ``"wxyz"`` as the file's columns were read, or None
+    where it was not open: a log, the user's flag, a stream in memory), how it was chosen (``"format"`` or
+    ``"fit"``), and the fits of the reading used and of the best other one (``given``/``runner_up``:
+    median rotation [deg], translation [m])."""
+
+    orders: tuple[str | None, str | None]
+    chosen_by: str
+    used: tuple[float, float]
+    runner_up: tuple[float, float] | None
+    runner_up_orders: tuple[str | None, str | None] | None
+
+    def message(self, a: PoseStream, b: PoseStream) -> str:
+        """The warning when the fit overturned the format's order: which file, the two fits, the flag."""
+        changed = [(name, s, o) for name, s, o in zip("ab", (a, b), self.orders, strict=True)
+                   if self.runner_up_orders and o != self.runner_up_orders["ab".index(name)]]
+        files = ", ".join(f"stream {name} ({s.source}) as {o[0]}-{o[1]}-{o[2]}-{o[3]}" for name, s, o in changed
+                          if o)
+        keep = " ".join(_FLAGS[_other(o)].format(name) for name, _, o in changed if o)
+        assert self.runner_up is not None
+        return (f"the quaternions were read in the order that fits: {files} (median residuals "
+                f"{self.used[0]:.3g}° / {self.used[1]:.3g} m, against {self.runner_up[0]:.3g}° / "
+                f"{self.runner_up[1]:.3g} m in the format's order); to read them in the format's order pass {keep}")
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain dict for the result's ``interpretation``."""
+        out: dict[str, Any] = {"quaternion_order": {"a": self.orders[0], "b": self.orders[1]},
+                               "chosen_by": self.chosen_by,
+                               "fit_median": {"rotation_deg": self.used[0], "translation_m": self.used[1]}}
+        if self.runner_up is not None and self.runner_up_orders is not None:
+            out["runner_up"] = {"quaternion_order": {"a": self.runner_up_orders[0], "b": self.runner_up_orders[1]},
+                                "rotation_deg": self.runner_up[0], "translation_m": self.runner_up[1]}
+        return out
+
+
+def _other(order: str) -> str:
+    return "wxyz" if order == "xyzw" else "xyzw"
+
+
+def _reread(quat_xyzw: NDArray[np.float64], order: str) -> NDArray[np.float64]:
+    """x-y-z-w quaternions of a file's columns that were read in ``order``, read in the other order."""
+    return quat_xyzw[:, [1, 2, 3, 0] if order == "xyzw" else [3, 0, 1, 2]]
+
+
+def reordered(stream: PoseStream) -> PoseStream:
+    """The stream with its file's four quaternion columns read in the other order (``quaternion_order``
+    must be set): columns read as x-y-z-w become w-x-y-z, and back."""
+    assert stream.quaternion_order is not None
+    return replace(stream, quat_xyzw=_reread(stream.quat_xyzw, stream.quaternion_order),
+                   quaternion_order=_other(stream.quaternion_order))
+
+
+def _best_over_inversions(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64],
+                          j: NDArray[np.int64]) -> MedianFit | None:
+    """The best fit of the pairs (i, j) with the streams as they are, a inverted, or b inverted."""
+    fits = [median_fit(se3.relative(Ta[i], Ta[j]), se3.relative(Tb[i], Tb[j]))
+            for Ta, Tb in ((T_a, T_b), (se3.inverse(T_a), T_b), (T_a, se3.inverse(T_b)))]
+    found = [f for f in fits if f is not None]
+    return min(found, key=lambda f: f.rotation_deg) if found else None
+
+
+def choose_quaternion_order(a: PoseStream, b: PoseStream, *, time_offset_ns: int = 0, max_dt_ns: int | None = None,
+                            seed: int = 0) -> tuple[PoseStream, PoseStream, OrderChoice | None]:
+    """Streams a and b in the quaternion order that fits (see the module docstring), and the choice; the
+    streams unchanged and None when neither order is open or the streams cannot be paired here (then the
+    later checks judge the fit). Raises DataError when another reading fits alike with another extrinsic."""
+    from ..stages.sync import associate
+
+    open_ = (a.quaternion_order is not None, b.quaternion_order is not None)
+    if not any(open_):
+        return a, b, None
+    try:
+        synced, _ = associate(a, b, method="nearest", max_dt_ns=max_dt_ns, time_offset_ns=time_offset_ns)
+    except HandEyeError:
+        return a, b, None
+    n = len(synced)
+    if n < 4:
+        return a, b, None
+    rng = np.random.default_rng(seed)
+    i, j = rng.integers(0, n, size=(2, min(MAX_PAIRS, n * (n - 1) // 2)))
+    keep = i != j
+    i, j = i[keep], j[keep]
+    poses = {"a": (synced.xyz_a, synced.quat_a), "b": (synced.xyz_b, synced.quat_b)}
+    streams = {"a": a, "b": b}
+
+    def matrices(name: str, order: str | None) -> NDArray[np.float64]:
+        xyz, quat = poses[name]
+        given = streams[name].quaternion_order
+        if order is not None and given is not None and order != given:
+            quat = _reread(quat, given)
+        return se3.from_xyz_quat(xyz, quat)
+
+    given_orders = (a.quaternion_order, b.quaternion_order)
+    options = [[o, _other(o)] if o is not None else [None] for o in given_orders]
+    fits: dict[tuple[str | None, str | None], MedianFit | None] = {
+        (oa, ob): _best_over_inversions(matrices("a", oa), matrices("b", ob), i, j) for oa, ob in product(*options)}
+    base = fits.pop(given_orders)
+    others = sorted(((f, o) for o, f in fits.items() if f is not None), key=lambda fo: fo[0].rotation_deg)
+    if base is None or not others:
+        return a, b, None
+    best, best_orders = others[0]
+    gains = best.gains_over(base)
+    if max(gains) >= BETTER and min(gains) >= 1 / NOT_WORSE:
+        chosen = [reordered(s) if o != s.quaternion_order else s
+                  for s, o in zip((a, b), best_orders, strict=True)]
+        return chosen[0], chosen[1], OrderChoice(best_orders, "fit", best.medians, base.medians, given_orders)
+    if all(1 / NOT_WORSE <= g <= NOT_WORSE for g in gains):
+        rot_deg, trans_m = extrinsic_error(best.matrix, base.matrix)
+        if rot_deg > ALIKE_DEG or trans_m > ALIKE_M:
+            flags = " and ".join(f"{_FLAGS[g].format(name)} or {_FLAGS[o].format(name)}" for name, o, g
+                                 in zip("ab", best_orders, given_orders, strict=True) if o and g and o != g)
+            raise DataError("the quaternion order of the text input cannot be told from the data: the other order "
+                            f"fits as well ({best.rotation_deg:.3g}° / {best.translation_m:.3g} m against "
+                            f"{base.rotation_deg:.3g}° / {base.translation_m:.3g} m) and gives an extrinsic "
+                            f"{rot_deg:.2g}° / {trans_m:.2g} m away", f"{a.source}, {b.source}",
+                            f"say which with {flags}")
+    return a, b, OrderChoice(given_orders, "format", base.medians, best.medians, best_orders)
