@@ -317,12 +317,18 @@ def _with_scale(kept: Synced, pairs: Pairs, options: Options, diagnostics: dict[
             replace(pairs, B=scale_translations(pairs.B, est.scale)))
 
 
-def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float) -> InversionVerdict | None:
-    """The inversion check; raises its refusal when the evidence is overwhelming and the user set no
-    ``--invert-*`` / ``--no-invert-*`` flag explicitly."""
+def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float,
+               inputs: dict[str, Any]) -> InversionVerdict | None:
+    """The inversion check; raises its refusal when the evidence is overwhelming. ``inputs`` (what was
+    read) names a TF stream's frame pair, whose fix is naming the frames the other way round."""
     read = options.read
+    def frames(key: str) -> tuple[str, str] | None:
+        pair = inputs.get(key, {}).get("frames")
+        return (str(pair[0]), str(pair[1])) if pair else None
+
     verdict = check_inversion(kept.T_a, kept.T_b, pairs.i, pairs.j, alpha=alpha,
-                              inverted_now=(bool(read.invert_a), bool(read.invert_b)))
+                              inverted_now=(bool(read.invert_a), bool(read.invert_b)),
+                              frames=(frames("a"), frames("b")))
     refusal = verdict and verdict.refusal(read.invert_a is not None or read.invert_b is not None)
     if refusal:
         raise refusal
@@ -401,7 +407,8 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     diagnostics["observability"] = obs.as_dict()
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    verdict = _inversion(kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha)   # thresholds set at α 1
+    verdict = _inversion(kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha,   # thresholds set at α 1
+                         inputs or {})
     if verdict is not None:
         diagnostics["inversion"] = verdict.as_dict()
     suspect = verdict.message() if verdict else data_warning(res, weights, samples)

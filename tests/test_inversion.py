@@ -83,3 +83,17 @@ def test_the_right_flag_calibrates_without_an_inversion_warning(capsys, station_
     doc = yaml.safe_load(out)
     assert not any("inverted" in w for w in doc["warnings"]) and "inversion" not in doc
     assert pose_error(np.array(doc["matrix"]), c.truth)[1] < 0.005
+
+
+def test_tf_frames_given_child_first_are_refused_naming_parent_child(capsys, tmp_path):
+    """--frames-a cam0 world reads T_cam0_world: refused, and the fix names the frames PARENT CHILD."""
+    from _util import ROOT
+
+    out_file = tmp_path / "r.yaml"
+    code, out, err = run(capsys, "calibrate", ROOT / "sample_data" / "rig.mcap", "--frames-a", "cam0", "world",
+                         "--frames-b", "world", "cam1", "-o", out_file)
+    assert code == 2 and not out_file.exists() and err.count("\n") == 1
+    assert "--frames-a world cam0 (PARENT CHILD)" in err
+    code, _, err = run(capsys, "calibrate", ROOT / "sample_data" / "rig.mcap", "--frames-a", "world", "cam0",
+                       "--frames-b", "world", "cam1", "-o", out_file)
+    assert code == 0, err

@@ -130,7 +130,9 @@ def _fit(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64
 
 def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64],
                     j: NDArray[np.int64], *, method: str = "dqopt", alpha: float = 1.0,
-                    inverted_now: tuple[bool, bool] = (False, False)) -> InversionVerdict | None:
+                    inverted_now: tuple[bool, bool] = (False, False),
+                    frames: tuple[tuple[str, str] | None, tuple[str, str] | None] = (None, None)
+                    ) -> InversionVerdict | None:
     """Whether stream a or b fits far better inverted (see the module docstring).
 
     Parameters
@@ -139,6 +141,8 @@ def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArr
     i, j: int64 (M,) the sample pairs the calibration used (motions ``T(t_i)⁻¹ T(t_j)``).
     method, alpha: the solver used for the comparison fits.
     inverted_now: whether streams a and b were already inverted by the user (to name the right flag).
+    frames: the (parent, child) TF frame pair each stream was read as, if any: inverting such a stream is
+        naming its frames the other way round, and that is the flag named (``--frames-a CHILD PARENT``).
 
     Returns the verdict (both streams as candidates when their inversions fit alike), or None.
     """
@@ -149,14 +153,16 @@ def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArr
     if base is None:
         return None
     found = []
-    for name, Ta, Tb, now in (("a", se3.inverse(T_a), T_b, inverted_now[0]),
-                              ("b", T_a, se3.inverse(T_b), inverted_now[1])):
+    for name, Ta, Tb, now, pair in (("a", se3.inverse(T_a), T_b, inverted_now[0], frames[0]),
+                                    ("b", T_a, se3.inverse(T_b), inverted_now[1], frames[1])):
         alt = _fit(Ta, Tb, i, j, method, alpha)
         if alt is None:
             continue
         gains = [max(g, tiny) / max(v, tiny) for g, v, tiny in zip(base, alt, _TINY, strict=True)]
         if max(gains) >= _BETTER and min(gains) >= 1 / _NOT_WORSE:
-            found.append(Candidate(name, alt, float(max(gains)), f"--no-invert-{name}" if now else f"--invert-{name}"))
+            flag = (f"--frames-{name} {pair[1]} {pair[0]} (PARENT CHILD)" if pair and
+                    not now else f"--no-invert-{name}" if now else f"--invert-{name}")
+            found.append(Candidate(name, alt, float(max(gains)), flag))
     if not found:
         return None
     found.sort(key=lambda c: -c.ratio)
