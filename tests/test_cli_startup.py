@@ -103,3 +103,16 @@ def test_the_time_offset_and_the_rig_leave_out_the_slowest_scipy_modules(module:
     loaded = set(run.stdout.split())
     assert module in loaded
     assert not {"scipy.signal", "scipy.stats"} & loaded          # 1 s of imports each
+
+
+def test_a_time_offset_estimate_imports_no_scipy() -> None:
+    """``--time-offset auto`` estimates the clock offset with numpy alone (FFT, smoothing, Brent's
+    minimiser), so the estimate can run on every calibrate without scipy's start-up."""
+    args = ["calibrate", str(SAMPLES / "rig_a.tum"), str(SAMPLES / "rig_b.tum"), "--time-offset", "auto",
+            "--format", "json", "-q", "-o", "-"]
+    lines = subprocess.run([sys.executable, "-c", RUN.format(args=args)], capture_output=True, text=True,
+                           check=True).stdout.splitlines()
+    done = json.loads(lines[-1])
+    assert done["code"] in (0, None) and done["scipy"] == []
+    offset = json.loads("\n".join(lines[:-1]))["time_offset"]
+    assert "cross-correlation" in offset["method"] and offset["correlation"] > 0.9

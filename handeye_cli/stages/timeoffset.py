@@ -34,15 +34,20 @@ replaced by a scan of every allowed offset (0.25 s grid, median residual, so tra
 count) and a refinement on the steps (measured on a 4-minute hand-held rig with tracking jumps,
 100 Hz against 2–0.5 Hz in both orders: |error| < 0.07 ms, where ω alone erred by 3–90 ms at
 1–0.5 Hz, or found no correlation).
+
+Only numpy: the FFTs are numpy's, and the Gaussian, median and minimum filters (below) and Brent's
+minimiser (:mod:`handeye_cli.analysis.minimize`) are those of ``scipy.ndimage`` and
+``scipy.optimize``, which tests keep as their reference; importing scipy would cost a quarter of
+a second of every estimate's start-up.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
-from scipy import fft, ndimage, optimize
+from numpy.lib.stride_tricks import sliding_window_view
 
+from ..analysis.minimize import minimize_bounded
 from ..errors import HandEyeError
 from ..solvers import dualquat as dq
 from ..streams import PoseStream
@@ -116,6 +121,52 @@ class _Signal:
         return np.arange(len(self.valid)) * (_GRID_NS / 1e9)
 
 
+def _fast_len(n: int) -> int:
+    """The least ``2^a·3^b·5^c ≥ n`` (n ≥ 1): a length numpy's FFTs transform fast, the size
+    ``scipy.fft.next_fast_len(n, real=True)`` gives (tests check that they agree)."""
+    best = 1 << (n - 1).bit_length()                       # the least power of two
+    odd5 = 1
+    while odd5 < best:
+        odd = odd5
+        while odd < best:                                  # odd = 3^b·5^c: times the least power of two reaching n
+            best = min(best, odd << (-(-n // odd) - 1).bit_length())
+            odd *= 3
+        odd5 *= 5
+    return best
+
+
+def _gaussian_filter(x: np.ndarray, sigma: float) -> np.ndarray:
+    """``x`` (M, C) smoothed along axis 0 by a Gaussian of σ = ``sigma`` samples reaching ``_TRUNCATE`` σ,
+    the edge samples repeated beyond the ends: ``scipy.ndimage.gaussian_filter1d(x, sigma, axis=0,
+    mode="nearest", truncate=_TRUNCATE)`` (same kernel and normalisation; tests check that they agree)."""
+    radius = int(_TRUNCATE * sigma + 0.5)
+    weights = np.exp(-0.5 / (sigma * sigma) * np.arange(-radius, radius + 1) ** 2)
+    weights /= weights.sum()
+    padded, m = np.pad(x, ((radius, radius), (0, 0)), mode="edge"), len(x)
+    out: np.ndarray = padded[radius:radius + m] * weights[radius]
+    for k in range(radius, 0, -1):                     # the outer pairs first, each pair summed, as scipy does
+        out += (padded[radius - k:radius - k + m] + padded[radius + k:radius + k + m]) * weights[radius - k]
+    return out
+
+
+def _median_filter(x: np.ndarray, size: int) -> np.ndarray:
+    """The median of each sample's ``size`` (odd) neighbours, the edge samples repeated beyond the
+    ends: ``scipy.ndimage.median_filter(x, size, mode="nearest")`` for 1-D ``x`` (tests check that they agree)."""
+    half = size // 2
+    windows = sliding_window_view(np.pad(x, half, mode="edge"), size)
+    return np.partition(windows, half, axis=1)[:, half]
+
+
+def _erode(mask: np.ndarray, size: int) -> np.ndarray:
+    """bool: ``mask`` true at every sample within ``size // 2`` (size odd) of each one, the window cut at
+    the ends: ``scipy.ndimage.minimum_filter1d(mask, size)`` in mode "nearest" or "reflect" (tests check
+    that they agree)."""
+    n, half = len(mask), size // 2
+    false = np.concatenate([[0], np.cumsum(~mask)])
+    centre = np.arange(n)
+    return np.asarray(false[np.minimum(centre + half + 1, n)] == false[np.maximum(centre - half, 0)])
+
+
 def _step_rotvecs(quat: np.ndarray) -> np.ndarray:
     """(N-1, 3) rotation vectors [rad] of the motions between consecutive x-y-z-w quaternions (N, 4)."""
     return dq.to_rotvec(dq.relative(quat[:-1], quat[1:]))
@@ -126,7 +177,7 @@ def _bad_steps(stream: PoseStream) -> np.ndarray:
     jumps (rate > 5× local median + 1 rad/s)."""
     dt = np.diff(stream.stamps_ns)
     rate = np.linalg.norm(_step_rotvecs(stream.quat_xyzw), axis=1) / np.maximum(dt, 1) * 1e9
-    local = ndimage.median_filter(rate, size=11, mode="nearest")
+    local = _median_filter(rate, 11)
     bad: np.ndarray = (dt > max(_MAX_GAP_NS, _GAP_STEPS * np.median(dt))) | (rate > 5 * local + 1.0)
     return bad
 
@@ -149,13 +200,12 @@ def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float) -> _S
     omega = dq.to_rotvec(dq.relative(q[:-2 * steps], q[2 * steps:]))     # within [stamps[0], stamps[-1]]: all inside
     omega /= 2 * half / 1e9
     sigma = smooth_ns / _GRID_NS
-    omega = ndimage.gaussian_filter1d(omega, sigma, axis=0, mode="nearest", truncate=_TRUNCATE)
+    omega = _gaussian_filter(omega, sigma)
     bad = np.concatenate([[0], np.cumsum(_bad_steps(stream))])
     first = np.searchsorted(stamps, centres - half, side="right") - 1
     last = np.searchsorted(stamps, centres + half, side="left")
     reach = 2 * int(np.ceil(_TRUNCATE * sigma)) + 1       # a smoothed point mixes this many grid points
-    valid = ndimage.minimum_filter1d((bad[last] == bad[first]).astype(np.uint8), reach, mode="nearest")
-    return _Signal(t0, omega, valid.astype(bool))
+    return _Signal(t0, omega, _erode(bad[last] == bad[first], reach))
 
 
 def _masked_ncc(f: np.ndarray, mf: np.ndarray, g: np.ndarray, mg: np.ndarray
@@ -184,10 +234,9 @@ def _masked_ncc(f: np.ndarray, mf: np.ndarray, g: np.ndarray, mg: np.ndarray
 def _correlate(v: np.ndarray, u: np.ndarray) -> np.ndarray:
     """``Σ_k v[k + L] u[k]`` for every lag ``L`` from ``-(len(u) - 1)`` to ``len(v) - 1``, by FFT: what
     ``scipy.signal.correlate(v, u, mode="full", method="fft")`` computes (tests check that they agree),
-    without importing ``scipy.signal`` (1 s of start-up)."""
-    size = len(v) + len(u) - 1
-    n = fft.next_fast_len(size, real=True)
-    full = fft.irfft(fft.rfft(v, n) * np.conj(fft.rfft(u, n)), n)
+    with numpy's FFTs, without importing ``scipy.signal`` (1 s of start-up) or ``scipy.fft``."""
+    n = _fast_len(len(v) + len(u) - 1)
+    full = np.fft.irfft(np.fft.rfft(v, n) * np.conj(np.fft.rfft(u, n)), n)
     return np.concatenate((full[n - len(u) + 1:], full[:len(v)]))
 
 
@@ -258,7 +307,7 @@ class _Refiner:
         self.base_ns = sb.t0_ns - sa.t0_ns          # offset = base + τ, τ in seconds below
         self.tb, self.wb = sb.times_s(), sb.omega
         erode = 2 * _BRACKET_NS // _GRID_NS + 3
-        valid_b = ndimage.minimum_filter1d(sb.valid.astype(np.uint8), erode).astype(bool)
+        valid_b = _erode(sb.valid, erode)
         ta = sa.times_s()
         tau0 = (coarse_ns - self.base_ns) / 1e9
         idx_b = np.round((ta + tau0) / (_GRID_NS / 1e9)).astype(np.int64)
@@ -407,12 +456,10 @@ class _StepRefiner:
     def refine(self, offset_ns: float, span_ns: float) -> tuple[int, float]:
         """(offset [ns], 1-σ [ns]): Brent's method within ±``span_ns`` of ``offset_ns``, first on the
         robust cost, then, without the outlying steps there, on the mean within a tenth of the span."""
-        kw: dict[str, Any] = {"method": "bounded", "options": {"xatol": 1e3}}
-        rough = float(optimize.minimize_scalar(self.robust_cost, bounds=(offset_ns - span_ns, offset_ns + span_ns),
-                                               **kw).x)
+        rough = minimize_bounded(self.robust_cost, offset_ns - span_ns, offset_ns + span_ns, xatol=1e3)
         self.drop_outliers(rough)
-        res = optimize.minimize_scalar(self.cost, bounds=(rough - span_ns / 10, rough + span_ns / 10), **kw)
-        return int(round(res.x)), self.std_ns(float(res.x))
+        best = minimize_bounded(self.cost, rough - span_ns / 10, rough + span_ns / 10, xatol=1e3)
+        return int(round(best)), self.std_ns(best)
 
     def std_ns(self, offset_ns: float) -> float:
         """1-σ [ns] by Gauss–Newton: residual variance over the squared sensitivity to the offset."""
@@ -478,9 +525,7 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
     ref = _Refiner(sa, sb, coarse_ns)
     tau0 = (coarse_ns - ref.base_ns) / 1e9
     span = _BRACKET_NS / 1e9
-    res = optimize.minimize_scalar(ref.cost, bounds=(tau0 - span, tau0 + span), method="bounded",
-                                   options={"xatol": 1e-6})
-    tau = float(res.x)
+    tau = minimize_bounded(ref.cost, tau0 - span, tau0 + span, xatol=1e-6)
     offset_ns, std_ns = int(ref.base_ns + round(tau * 1e9)), ref.std_s(tau) * 1e9
     method = "angular-speed FFT cross-correlation + angular-velocity refinement"
     if max(intervals) > _STEP_REFINE_NS:
