@@ -66,7 +66,7 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
                   max_offset_s: float | None = None) -> list[ClockOffset]:
     """Each stream's clock offset to the reference: ``given[k]`` seconds, or estimated (``'auto'``,
     the default) from the angular velocities of stream k and the reference."""
-    from ..stages.timeoffset import estimate_time_offset  # scipy.signal: import only when used
+    from ..stages.timeoffset import estimate_time_offset
 
     out = []
     for k, stream in enumerate(streams):
