@@ -160,11 +160,12 @@ def _glob(pattern: str) -> list[str]:
 
 def _match(pattern: list[str], names: list[str]) -> bool:
     """Whether the path components ``names`` match the pattern's (``**``: any number of them;
-    ``*`` does not match a leading dot, as in :mod:`glob`)."""
+    neither ``**`` nor ``*`` matches a name with a leading dot, as in :mod:`glob`)."""
     if not pattern:
         return not names
     if pattern[0] == "**":
-        return any(_match(pattern[1:], names[i:]) for i in range(len(names) + 1))
+        shown = next((i for i, name in enumerate(names) if name.startswith(".")), len(names))
+        return any(_match(pattern[1:], names[i:]) for i in range(shown + 1))
     return (bool(names) and (pattern[0].startswith(".") or not names[0].startswith("."))
             and fnmatchcase(names[0], pattern[0]) and _match(pattern[1:], names[1:]))
 
