@@ -27,6 +27,7 @@ from handeye_cli.options import Options
 from handeye_cli.output import writers
 
 LOG = ROOT / "sample_data" / "rig.mcap"
+TRUTH = ROOT / "sample_data" / "truth.yaml"
 TOPICS = ["--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose"]
 
 
@@ -255,7 +256,7 @@ def test_a_result_file_that_cannot_be_written_is_its_records_error(capsys, monke
     assert "matrix" in records[1] and sorted(p.name for p in (tmp_path / "results").iterdir()) == [
         "a.mcap.yaml", "c.mcap.yaml"]
     far = tmp_path / "far.yaml"                          # a nominal 1 m away: every input drifted
-    far.write_text((ROOT / "sample_data" / "truth.yaml").read_text().replace("0.168", "1.168"))
+    far.write_text(TRUTH.read_text().replace("0.168", "1.168"))
     code, out, _ = run(capsys, "batch", *inputs, *TOPICS, "-q", "--jobs", "1", "--output-dir", "results",
                        "--against", far)
     records = _records(out)
@@ -264,7 +265,7 @@ def test_a_result_file_that_cannot_be_written_is_its_records_error(capsys, monke
 
 
 @pytest.mark.parametrize("command", [["calibrate", str(LOG), *TOPICS, "-q"], ["batch", str(LOG), *TOPICS, "-q"],
-                                     ["inspect", str(LOG)]])
+                                     ["inspect", str(LOG)], ["check", str(TRUTH), "--against", str(TRUTH)]])
 def test_stdout_on_a_full_disk_is_one_line_exit_2(command, tmp_path):
     with open("/dev/full", "w") as full:
         done = subprocess.run([sys.executable, "-m", "handeye_cli", *command], stdout=full, stderr=subprocess.PIPE,
