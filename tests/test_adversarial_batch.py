@@ -101,9 +101,11 @@ def test_a_symlink_loop_under_a_glob_gives_one_record_per_log(capsys, monkeypatc
     (tmp_path / "loopy" / "sub" / "up").symlink_to("..")
     (tmp_path / "loopy" / "up2").symlink_to("..")
     (tmp_path / "loopy" / "alias.mcap").symlink_to("sub/log.mcap")
+    os.mkfifo(tmp_path / "loopy" / "pipe.mcap")
     code, out, err = run(capsys, "batch", "loopy/**/*.mcap", *TOPICS, "-q")
     assert code == 0 and [r["input"] for r in _records(out)] == ["loopy/alias.mcap"]
-    assert err.splitlines() == ["warning: skipped loopy/sub/log.mcap: the same input as loopy/alias.mcap"]
+    assert err.splitlines() == ["warning: skipped loopy/pipe.mcap: a FIFO, not a log file",
+                                "warning: skipped loopy/sub/log.mcap: the same input as loopy/alias.mcap"]
 
 
 def test_recursive_glob_matches_what_glob_matches_on_a_tree_without_links(tmp_path, monkeypatch):

@@ -1,21 +1,22 @@
 """Which inputs a batch runs: files, directories searched recursively by content, globs,
 ``@list.txt`` and ``-`` (a list on stdin).
 
-An input is one log (MCAP, ROS 1 bag, ROS 2 bag directory or bare ``.db3``) or two text pose
-files (TUM/EuRoC) of streams a and b. In a list (``@file`` or stdin) a line holds one path or
-two (``A B``, shell-quoted when a path has spaces); blank lines and ``#`` comments are skipped;
-relative paths are relative to the working directory. A directory is searched recursively, in
-name order, by content (not by extension): logs are recognised by their magic bytes, a ROS 2
-bag directory by its ``metadata.yaml``, and a folder holding exactly two text pose files of one
-format (TUM or EuRoC) gives one input of the two, in name order (a, then b). Files named like logs (``.mcap``, ``.bag``,
-``.db3``) are kept even when damaged, so that they are reported rather than silently skipped;
-other files (CSV, YAML, images …) are skipped, and so are FIFOs, sockets and devices, with a
-warning (opening a FIFO no one writes would block forever; they are told apart by ``os.stat``,
-which does not open them). An argument that names nothing, or names such a special file, becomes
-an input that fails with that message. Glob patterns with ``**`` are expanded by a walk that
-follows a symlinked folder only the first time it meets that folder, so a link to ``..`` cannot
-loop; an input met twice (a symlink and its target, overlapping arguments) is kept the first time
-only, told apart by the identity of its files (``st_dev``, ``st_ino``), with a warning.
+An input is one log (MCAP, ROS 1 bag, ROS 2 bag directory or bare ``.db3``) or two text pose files
+(TUM/EuRoC) of streams a and b. In a list (``@file`` or stdin) a line holds one path or two (``A
+B``, shell-quoted when a path has spaces); blank lines and ``#`` comments are skipped; relative
+paths are relative to the working directory. A directory is searched recursively, in name order,
+by content (not by extension): logs are recognised by their magic bytes, a ROS 2 bag directory by
+its ``metadata.yaml``, and a folder holding exactly two text pose files of one format (TUM or
+EuRoC) gives one input of the two, in name order (a, then b). Files named like logs (``.mcap``,
+``.bag``, ``.db3``) are kept even when damaged, so that they are reported rather than silently
+skipped; other files (CSV, YAML, images …) are skipped, and so are FIFOs, sockets and devices
+(found in a folder or matched by a pattern), with a warning (opening a FIFO no one writes would
+block forever; they are told apart by ``os.stat``, which does not open them). An argument that
+names nothing, or names such a special file, becomes an input that fails with that message. Glob
+patterns with ``**`` are expanded by a walk that follows a symlinked folder only the first time it
+meets that folder, so a link to ``..`` cannot loop; an input met twice (a symlink and its target,
+overlapping arguments) is kept the first time only, told apart by the identity of its files
+(``st_dev``, ``st_ino``), with a warning.
 """
 from __future__ import annotations
 
@@ -108,13 +109,17 @@ def _search(root: Path, warn: Warn) -> list[BatchInput]:
     return sorted(found, key=lambda i: i.paths)
 
 
-def _expand(arg: str, warn: Warn) -> list[BatchInput]:
-    """One argument: a file, a directory, or a glob pattern."""
+def _expand(arg: str, warn: Warn, matched: bool = False) -> list[BatchInput]:
+    """One argument (or, ``matched``, a path a glob pattern matched): a file, a directory, or a
+    glob pattern. A special file given is an error input; one a pattern matched is skipped."""
     path = Path(arg)
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         inputs = _search(path, warn)
         return inputs or [BatchInput((arg,), f"no logs found in the folder {arg}")]
     what = _special(path)
+    if what is not None and matched:
+        warn(f"skipped {arg}: {what}, not a log file")
+        return []
     if what is not None:
         return [BatchInput((arg,), _not_a_file(arg, what))]
     if path.exists():
@@ -122,7 +127,7 @@ def _expand(arg: str, warn: Warn) -> list[BatchInput]:
     if glob.has_magic(arg):
         matches = _glob(arg)
         if matches:
-            return [i for m in matches for i in _expand(m, warn)]
+            return [i for m in matches for i in _expand(m, warn, matched=True)]
         return [BatchInput((arg,), f"the pattern {arg} matches no file")]
     return [BatchInput((arg,), f"file not found: {arg}")]
 
