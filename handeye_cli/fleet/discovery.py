@@ -2,8 +2,8 @@
 ``@list.txt`` and ``-`` (a list on stdin).
 
 An input is one log (MCAP, ROS 1 bag, ROS 2 bag directory or bare ``.db3``) or two text pose files
-(TUM/EuRoC) of streams a and b. In a list (``@file`` or stdin) a line holds one path or two (``A
-B``, shell-quoted when a path has spaces); blank lines and ``#`` comments are skipped; relative
+(TUM/EuRoC) of streams a and b. In a list (``@file`` or stdin) a line holds one path or two
+(``A B``, shell-quoted when a path has spaces); blank lines and ``#`` comments are skipped; relative
 paths are relative to the working directory. A directory is searched recursively, in name order,
 by content (not by extension): logs are recognised by their magic bytes, a ROS 2 bag directory by
 its ``metadata.yaml``, and a folder holding exactly two text pose files of one format (TUM or
