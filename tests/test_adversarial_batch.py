@@ -153,6 +153,22 @@ def test_an_input_past_its_time_limit_is_its_error_record(capsys, monkeypatch, t
     assert time.monotonic() - start < 8
 
 
+def test_a_worker_that_dies_is_its_error_record_and_is_replaced(capsys, monkeypatch, tmp_path):
+    monkeypatch.chdir(tmp_path)
+
+    def calibrate(job):
+        if "die" in job.input.label:
+            os._exit(3)
+        return {"method": "stub", "log_span_ns": [0, 1]}
+
+    monkeypatch.setattr(engine, "_calibrate", calibrate)
+    names = [_copy(tmp_path / f"{name}.mcap").name for name in ("die1", "a", "die2", "b", "c")]
+    code, out, _ = run(capsys, "batch", *names, *TOPICS, "-q", "--jobs", "2")
+    records = _records(out)
+    assert code == 2 and [r["status"] for r in records] == ["error", "ok", "error", "ok", "ok"]
+    assert records[0]["error"] == "the worker process died (exit code 3) (die1.mcap): run handeye calibrate on it alone"
+
+
 def test_timeout_values(capsys, tmp_path):
     code, out, err = run(capsys, "batch", tmp_path / "none.mcap", "--timeout", "0", "-q")
     assert code == 2 and out == "" and err.splitlines() == [

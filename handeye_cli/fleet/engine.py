@@ -20,7 +20,6 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
-from multiprocessing.process import BaseProcess
 from typing import Any
 
 from ..errors import ConfigError, HandEyeError
@@ -161,13 +160,18 @@ def _crashed(job: Job, err: BaseException | str) -> Record:
                      "on it alone", "seconds": 0.0}
 
 
-def _child(job: Job, conn: Connection) -> None:
-    """A worker process: one job, its record sent back through ``conn``."""
+def _serve(conn: Connection) -> None:
+    """A worker process: run the jobs that come through ``conn``, sending back each one's record,
+    until the batch closes it (or kills the process)."""
     for signum in _SIGNALS:                  # inherited from the batch (fork): die as a process should
         signal.signal(signum, signal.SIG_DFL)
     _die_with_parent()
-    conn.send(run_job(job))
-    conn.close()
+    while True:
+        try:
+            job = conn.recv()
+        except (EOFError, OSError):
+            return
+        conn.send(run_job(job))
 
 
 def _die_with_parent() -> None:
@@ -179,18 +183,62 @@ def _die_with_parent() -> None:
             ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)       # PR_SET_PDEATHSIG
 
 
-@dataclass(frozen=True)
-class _Running:
-    process: BaseProcess
-    conn: Connection
-    deadline: float                     # [s, monotonic] when the batch kills it: its own limit + a grace
+class _Worker:
+    """A worker process of :func:`_local` and the job it runs (``index``, None when idle), with the
+    time [s, monotonic] after which the batch kills it: the job's own limit plus a grace."""
+
+    def __init__(self, context: Any) -> None:
+        self.conn, theirs = context.Pipe()
+        self.process = context.Process(target=_serve, args=(theirs,), daemon=True)
+        self.process.start()
+        theirs.close()
+        self.index: int | None = None
+        self.deadline = math.inf
+
+    def give(self, index: int, job: Job) -> bool:
+        """Send it ``job``; False (and the worker is stopped) when it cannot take it."""
+        try:
+            self.conn.send(job)
+        except OSError:
+            self.stop()
+            return False
+        self.index = index
+        self.deadline = math.inf if job.timeout is None else time.monotonic() + job.timeout * 1.1 + _GRACE_S
+        return True
+
+    def result(self, job: Job) -> Record | None:
+        """The record of its job once it is done, died or overran (then it is killed), else None."""
+        if self.conn.poll():
+            try:
+                record: Record = self.conn.recv()
+            except (EOFError, OSError):
+                self.stop()
+                return _crashed(job, f"exit code {self.process.exitcode}")
+        elif time.monotonic() >= self.deadline:
+            self.stop()
+            return {"input": job.input.label, **_timed_out(job), "seconds": round(float(job.timeout or 0), 3)}
+        else:
+            return None
+        self.index, self.deadline = None, math.inf
+        return record
+
+    @property
+    def alive(self) -> bool:
+        return self.process.exitcode is None
+
+    def stop(self) -> None:
+        """Kill and reap the process."""
+        if self.alive:
+            self.process.kill()
+        self.process.join()
+        self.conn.close()
 
 
 def _local(jobs: Sequence[Job], workers: int, on_done: OnDone) -> None:
-    """Run the jobs in this process (one worker), else one worker process per job, at most
-    ``workers`` at a time. A worker that dies is its job's error record; one that overruns its
-    time limit (and a grace) is killed; every worker still running when this returns or raises
-    (an error, SIGINT, SIGTERM, SIGHUP) is killed and reaped."""
+    """Run the jobs in this process (one worker), else in up to ``workers`` worker processes. A
+    worker that dies is its job's error record; one that overruns its job's time limit (and a
+    grace) is killed; both are replaced. Every worker is killed and reaped when this returns or
+    raises (an error, SIGINT, SIGTERM, SIGHUP)."""
     if workers <= 1 or len(jobs) <= 1:
         for i, job in enumerate(jobs):
             on_done(i, run_job(job))
@@ -198,50 +246,33 @@ def _local(jobs: Sequence[Job], workers: int, on_done: OnDone) -> None:
     context: Any = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods()
                                                else "spawn")
     waiting = list(range(len(jobs)))[::-1]
-    running: dict[int, _Running] = {}
+    pool: list[_Worker] = []
     try:
-        while waiting or running:
-            while waiting and len(running) < workers:
-                i = waiting.pop()
-                receive, send = context.Pipe(duplex=False)
-                process = context.Process(target=_child, args=(jobs[i], send), daemon=True)
-                process.start()
-                send.close()
-                limit = jobs[i].timeout
-                running[i] = _Running(process, receive, math.inf if limit is None else
-                                      time.monotonic() + limit + _GRACE_S + 0.1 * limit)
-            first = min(r.deadline for r in running.values())
-            wait([r.conn for r in running.values()], None if first == math.inf else
-                 max(0.0, first - time.monotonic()))
-            for i, r in list(running.items()):
-                record = _collect(jobs[i], r)
+        while True:
+            pool = [w for w in pool if w.alive]
+            idle = [w for w in pool if w.index is None]
+            while waiting and (idle or len(pool) < workers):
+                worker = idle.pop() if idle else _Worker(context)
+                if worker not in pool:
+                    pool.append(worker)
+                if not worker.give(waiting[-1], jobs[waiting[-1]]):
+                    pool.remove(worker)              # it died while idle: the job goes to another
+                    continue
+                waiting.pop()
+            busy = [w for w in pool if w.index is not None]
+            if not busy:
+                return
+            first = min(w.deadline for w in busy)
+            wait([w.conn for w in busy], None if first == math.inf else max(0.0, first - time.monotonic()))
+            for worker in busy:
+                index = worker.index
+                assert index is not None
+                record = worker.result(jobs[index])
                 if record is not None:
-                    del running[i]
-                    on_done(i, record)
+                    on_done(index, record)
     finally:
-        for r in running.values():
-            r.process.kill()
-        for r in running.values():
-            r.process.join()
-            r.conn.close()
-
-
-def _collect(job: Job, r: _Running) -> Record | None:
-    """The record of a finished worker (reaped), or None while it runs and is within its deadline."""
-    if r.conn.poll():
-        try:
-            record: Record = r.conn.recv()
-        except (EOFError, OSError):
-            r.process.join()
-            record = _crashed(job, f"exit code {r.process.exitcode}")
-    elif time.monotonic() >= r.deadline:
-        r.process.kill()
-        record = {"input": job.input.label, **_timed_out(job), "seconds": round(float(job.timeout or 0), 3)}
-    else:
-        return None
-    r.process.join()
-    r.conn.close()
-    return record
+        for worker in pool:
+            worker.stop()
 
 
 def _dask(jobs: Sequence[Job], address: str, on_done: OnDone) -> None:
