@@ -2,7 +2,11 @@
 Dask distributed cluster — the same :func:`run_job` everywhere, so the records are identical.
 
 A :class:`Job` is picklable (it travels to worker processes and Dask workers); :func:`run_job`
-never raises for a bad input: it returns a record with ``status: error`` and the one-line message.
+never raises for a bad input: it returns a record with ``status: error`` and the one-line message,
+also when the job overran its time limit (``Job.timeout``, [s]: SIGALRM in a process's main
+thread, which also ends a blocking system call; in a Dask worker's thread the job is left running
+in a daemon thread). Local worker processes that do not report by then (plus a grace) are killed
+and replaced; all of them are killed and reaped when the batch ends, by error or signal.
 Records hold the calibrate result's keys (``matrix`` = ``T_a_b`` …, see docs/design.md), ``log_span_ns``
 (first and last synced stamp, int64 ns) and ``seconds`` (wall time of the job).
 """
