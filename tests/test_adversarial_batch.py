@@ -13,6 +13,7 @@ import signal
 import stat
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -151,6 +152,18 @@ def test_an_input_past_its_time_limit_is_its_error_record(capsys, monkeypatch, t
     assert records[0]["error"].startswith("no result within 0.3 s (slow.mcap): ")
     assert "--timeout SECONDS" in records[0]["error"] and "\n" not in records[0]["error"]
     assert time.monotonic() - start < 8
+
+
+def test_the_time_limit_off_the_main_thread_as_in_a_dask_worker(monkeypatch):
+    release = threading.Event()
+    monkeypatch.setattr(engine, "_calibrate", lambda job: release.wait(10) and {"log_span_ns": [0, 1]})
+    job = Job(BatchInput(("slow.mcap",)), Streams(), Options(), timeout=0.2)
+    records: list[dict] = []
+    worker = threading.Thread(target=lambda: records.append(engine.run_job(job)))
+    worker.start()
+    worker.join(5)
+    release.set()                                     # frees the thread the time limit left behind
+    assert records[0]["status"] == "error" and records[0]["error"].startswith("no result within 0.2 s (slow.mcap)")
 
 
 def test_a_worker_that_dies_is_its_error_record_and_is_replaced(capsys, monkeypatch, tmp_path):
