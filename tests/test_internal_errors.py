@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import importlib
 import json
+import os
+import subprocess
+import sys
 
 import click
 import pytest
@@ -91,3 +94,16 @@ def test_keyboard_interrupt_exits_130(capsys, monkeypatch):
     monkeypatch.setattr(importlib.import_module("handeye_cli.cli.solve"), "read_pairs", interrupted)
     code, out, err = run(capsys, "solve", SAMPLES / "pairs.csv")
     assert code == 130 and out == "" and err.strip() == "aborted"
+
+
+@pytest.mark.parametrize("command", [["--version"], ["inspect", str(SAMPLES / "rig.mcap")]])
+def test_a_closed_stdout_exits_2_not_1(command):
+    read, write = os.pipe()
+    os.close(read)                                    # every write to the pipe fails: EPIPE
+    try:
+        done = subprocess.run([sys.executable, "-m", "handeye_cli", *command], stdout=write,
+                              stderr=subprocess.PIPE, text=True, timeout=60)
+    finally:
+        os.close(write)
+    assert done.returncode == 2 and len(done.stderr.splitlines()) == 1
+    assert done.stderr.startswith("error: cannot write to stdout (Broken pipe)")

@@ -91,8 +91,8 @@ def main(argv: list[str] | None = None) -> None:
             raise
         _fail("error: cannot write to stdout (Broken pipe): read all of the output, or redirect it", 2, debug)
     except (click.Abort, KeyboardInterrupt) as e:    # click turns Ctrl-C into Abort; a batch's SIGTERM too
-        signum = getattr(e.__cause__, "signum", None) or getattr(e, "signum", None)
-        _fail("terminated" if signum else "aborted", 128 + (signum or 2), False)
+        signum = getattr(e.__cause__, "signum", None) or getattr(e, "signum", None) or 2     # 2: SIGINT
+        _fail("aborted" if signum == 2 else "terminated", 128 + signum, False)
     except Exception as e:
         _fail(f"internal error: {type(e).__name__}: {' '.join(str(e).split())} — this is a bug in handeye "
               f"{__version__}; please report it with the command line; rerun with --debug for the traceback",
