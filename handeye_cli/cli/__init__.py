@@ -1,8 +1,11 @@
 """The ``handeye`` command line: click commands that parse options, call the library and print.
 
 One module per command (:data:`COMMANDS`, each imported only when run); :mod:`.params` generates
-the flags from :mod:`handeye_cli.options`. Exit codes: 0 success; 2 bad input or an unsolvable
-problem (one line on stderr, no output file); 3 warnings under ``--strict``.
+the flags from :mod:`handeye_cli.options`. Exit codes: 0 success; 1 a drift verdict; 2 bad input
+or an unsolvable problem, and click's usage errors (one line on stderr, no output file); 3 warnings
+under ``--strict``; 4 an internal error (an exception that is not a :class:`HandEyeError`: a bug,
+one line asking for a report, the traceback with ``--debug``); 130 Ctrl-C, 128 + N when a batch
+is ended by signal N.
 
 Before numpy is first imported, the command line caps BLAS at one thread unless the environment
 sets a thread count: every matrix handeye factorises has 8 columns, where BLAS threads only wait
@@ -15,6 +18,7 @@ import os
 import sys
 import traceback
 from importlib import import_module
+from typing import NoReturn
 
 if not {"OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"} & set(os.environ):
     os.environ["OPENBLAS_NUM_THREADS"] = os.environ["MKL_NUM_THREADS"] = "1"
@@ -66,31 +70,39 @@ def cli(debug: bool) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Entry point of the ``handeye`` script: run the command, map errors to exit codes."""
+    """Entry point of the ``handeye`` script: run the command, map errors to exit codes (see the
+    module docstring); an unexpected exception is a bug: one line asking for a report, exit 4."""
     args = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in args
     try:
         code = cli.main(args=args, prog_name="handeye", standalone_mode=False)
     except HandEyeError as e:
-        if debug:
-            traceback.print_exc()
-        click.echo(f"error: {e}", err=True)
-        sys.exit(2)
-    except click.ClickException as e:
-        if debug:
-            traceback.print_exc()
+        _fail(f"error: {e}", 2, debug)
+    except click.ClickException as e:       # usage errors are 2; click's generic ones would be 1 (= drift)
         ctx = getattr(e, "ctx", None)
         hint = f" (run '{ctx.command_path} --help')" if ctx is not None else ""
-        click.echo(f"error: {e.format_message()}{hint}", err=True)
-        sys.exit(e.exit_code)
+        _fail(f"error: {e.format_message()}{hint}", 2, debug)
     except Drifted as e:
-        click.echo(f"drift: {e}", err=True)
-        sys.exit(1)
+        _fail(f"drift: {e}", 1, False)
     except StrictFailure as e:
-        click.echo(f"error: {e}", err=True)
-        sys.exit(3)
-    except click.Abort:
-        click.echo("aborted", err=True)
-        sys.exit(130)
+        _fail(f"error: {e}", 3, False)
+    except SystemExit as e:                 # click exits 1 by itself only when stdout is a closed pipe
+        if e.code in (0, None):
+            raise
+        _fail("error: cannot write to stdout (Broken pipe): read all of the output, or redirect it", 2, debug)
+    except (click.Abort, KeyboardInterrupt) as e:    # click turns Ctrl-C into Abort; a batch's SIGTERM too
+        signum = getattr(e.__cause__, "signum", None) or getattr(e, "signum", None) or 2     # 2: SIGINT
+        _fail("aborted" if signum == 2 else "terminated", 128 + signum, False)
+    except Exception as e:
+        _fail(f"internal error: {type(e).__name__}: {' '.join(str(e).split())} — this is a bug in handeye "
+              f"{__version__}; please report it with the command line; rerun with --debug for the traceback",
+              4, debug)
     sys.exit(code if isinstance(code, int) else 0)
 
+
+def _fail(line: str, code: int, debug: bool) -> NoReturn:
+    """Print the traceback (under ``--debug``) and ``line`` on stderr; exit with ``code``."""
+    if debug:
+        traceback.print_exc()
+    click.echo(line, err=True)
+    sys.exit(code)

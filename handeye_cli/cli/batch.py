@@ -2,7 +2,9 @@
 (the fleet-trend HTML report of those records).
 
 Exit codes of ``batch``: 1 when any input drifted from the nominal, else 2 when any input
-failed, else 0.
+failed, else 3 with ``--strict`` and warnings, else 0; 4 when the batch itself crashed (a bug; a
+crash while calibrating one input is that input's error record); 128 + N when it was ended by
+signal N (SIGINT, SIGTERM, SIGHUP), its workers killed, the records written so far whole lines.
 """
 from __future__ import annotations
 
@@ -13,12 +15,22 @@ import click
 
 from ..errors import ConfigError
 from ..fleet import BatchSettings, Job, Streams, discover, run_batch
+from ..fleet.engine import DEFAULT_TIMEOUT_S
 from ..fleet.overrides import options_for, read_overrides
+from ..options import number
+from ..output.writers import write_stdout
 from .check import verdict_options
 from .common import CONTEXT
 from .params import calibrate_options, options_from_cli, stream_options
 
 __all__ = ["batch", "report"]
+
+_parse_seconds = number(unit="seconds", word="off")
+
+
+def _timeout(ctx: click.Context, param: click.Parameter, value: str) -> float | None:
+    limit = _parse_seconds(value, "--timeout")
+    return None if limit is None else float(limit)
 
 
 @click.command(context_settings=CONTEXT)
@@ -29,6 +41,9 @@ __all__ = ["batch", "report"]
 @click.option("--per-input", "per_input", type=click.Path(dir_okay=False), help="YAML mapping glob patterns of "
               "input paths to the options that differ for them (flat names as in --config), applied over the "
               "shared options in file order.")
+@click.option("--timeout", default=f"{DEFAULT_TIMEOUT_S:g}", callback=_timeout, metavar="SECONDS|off",
+              show_default=True, help="Time limit of each input [s]: an input still running then (a FIFO no one "
+              "writes, a hung file system) is an error record; off: no limit.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), help="Local worker processes [default: one per core].")
 @click.option("--scheduler", metavar="ADDRESS", help="Run on this Dask distributed scheduler (e.g. tcp://host:8786) "
               "instead of local processes; needs pip install 'handeye-cli[dask]'.")
@@ -53,7 +68,7 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
 
     \b
     Exit codes: 0 all within tolerance, 1 a sensor drifted, 2 some input failed,
-    3 --strict and some result has warnings.
+    3 --strict and some result has warnings, 4 internal error (a bug).
     \b
     Examples:
       handeye batch logs/2026-11-*/ --topic-a /cam0/pose --topic-b /cam1/pose \\
@@ -71,11 +86,12 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
     streams = Streams(o["topic_a"], o["topic_b"], o["frames_a"] or None, o["frames_b"] or None)
     options = options_from_cli(o)
     overrides = read_overrides(o["per_input"]) if o["per_input"] else ()
-    jobs = [Job(i, streams, options_for(i, options, overrides)) for i in discover(inputs, sys.stdin)]
+    found = discover(inputs, sys.stdin, lambda message: click.echo(f"warning: {message}", err=True))
+    jobs = [Job(i, streams, options_for(i, options, overrides), timeout=o["timeout"]) for i in found]
     settings = BatchSettings(nominal, o["max_rotation_deg"], o["max_translation_m"], o["output_dir"], o["fmt"],
                              o["skip_done"], options.analysis.strict, o["jobs"], o["scheduler"],
                              progress=not o["quiet"])
-    summary = run_batch(jobs, settings, click.echo)
+    summary = run_batch(jobs, settings, lambda line: write_stdout(line + "\n"))
     if o["report_file"]:
         from ..output.fleet_report import write_fleet_report
 

@@ -12,6 +12,7 @@ import click
 from ..analysis.verdict import DEFAULT_MAX_ROTATION_DEG, DEFAULT_MAX_TRANSLATION_M, verdict_for
 from ..io.nominal import read_nominal, read_result
 from ..output.document import render
+from ..output.writers import write_stdout
 from .common import CONTEXT
 
 __all__ = ["check", "verdict_options"]
@@ -56,8 +57,5 @@ def check(ctx: click.Context, result_file: str, against: str | None, max_rotatio
     if against is None:
         raise click.UsageError("--against NOMINAL is required", ctx)
     verdict = verdict_for(read_result(result_file), read_nominal(against), max_rotation_deg, max_translation_m)
-    if fmt == "text":
-        click.echo(verdict.summary())
-    else:
-        click.echo(render(verdict.as_dict(), fmt), nl=False)
+    write_stdout(verdict.summary() + "\n" if fmt == "text" else render(verdict.as_dict(), fmt))
     ctx.exit(1 if verdict.drift else 0)

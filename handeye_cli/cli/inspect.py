@@ -6,6 +6,7 @@ from typing import Any
 import click
 
 from ..output.document import plain, render
+from ..output.writers import write_stdout
 from .common import CONTEXT
 
 
@@ -47,4 +48,4 @@ def inspect(input_file: str, fmt: str, all_tf: bool, quiet: bool) -> None:
     from ..io import inspect_log
 
     info = plain(inspect_log(input_file, quiet=quiet, all_tf=all_tf))
-    click.echo(_inspect_text(info) if fmt == "text" else render(info, fmt), nl=False)
+    write_stdout(_inspect_text(info) if fmt == "text" else render(info, fmt))

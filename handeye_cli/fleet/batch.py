@@ -3,8 +3,10 @@
 Records are JSON Lines (one per input, in input order, written as soon as every earlier input is
 done): ``input``, ``status`` (``ok`` | ``drift`` | ``error``), ``error`` (one line) when it failed,
 the calibrate result's keys when it calibrated, ``log_span_ns``, ``verdict`` with a nominal, and
-``seconds`` last (the only field that differs between executors and runs). Exit code: 1 when an
-input drifted, else 2 when an input failed, else 3 when ``strict`` and a result has warnings, else 0.
+``seconds`` last (the only field that differs between executors and runs). A result file that
+cannot be written (a full disk) makes its record an error that says so, keeping the result and
+verdict. Exit code: 1 when an input drifted (its verdict says so), else 2 when an input failed,
+else 3 when ``strict`` and a result has warnings, else 0.
 """
 from __future__ import annotations
 
@@ -58,9 +60,12 @@ class BatchSummary:
 
     @property
     def exit_code(self) -> int:
-        """1 drift, else 2 error, else 3 warnings under ``strict``, else 0."""
-        if self.count("drift") or self.count("error"):
-            return 1 if self.count("drift") else 2
+        """1 drift (also of an error record whose result file could not be written), else 2 error,
+        else 3 warnings under ``strict``, else 0."""
+        if any(r.get("verdict", {}).get("drift") for r in self.records):
+            return 1
+        if self.count("error"):
+            return 2
         return 3 if self.strict and any(r.get("warnings") for r in self.records) else 0
 
     def text(self) -> str:
@@ -111,6 +116,10 @@ def _judge(record: Record, s: BatchSettings) -> Record:
             verdict = verdict_for(record, s.nominal, s.max_rotation_deg, s.max_translation_m)
         except HandEyeError as e:
             record.update(status="error", error=str(e))
+        except Exception as e:  # a bug met by one input's result: that input's error, not the batch's
+            record.update(status="error", error=f"unexpected {type(e).__name__} judging the result: "
+                                                f"{' '.join(str(e).split())} ({record['input']}): this is a bug, "
+                                                "please report it")
         else:
             record.update(status="drift" if verdict.drift else "ok", verdict=verdict.as_dict())
     head: Record = {k: record.pop(k) for k in ("input", "status", "error") if k in record}
@@ -160,7 +169,12 @@ def run_batch(jobs: Sequence[Job], settings: BatchSettings, emit: Callable[[str]
         def finish(i: int, record: Record) -> None:
             record = _judge(record, settings)
             if out_dir is not None and "matrix" in record:
-                store(result_path(out_dir, jobs[i], settings.fmt), record, keys[i], settings.fmt)
+                try:
+                    store(result_path(out_dir, jobs[i], settings.fmt), record, keys[i], settings.fmt)
+                except HandEyeError as e:            # e.g. a full disk: this input's error, not the batch's
+                    status = record.pop("status")
+                    record = {"input": record.pop("input"), "status": "error",
+                              "error": f"calibrated ({status}), but {e}", **record}
             ordered.done(i, record)
 
         todo = []

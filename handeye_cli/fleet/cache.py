@@ -1,7 +1,11 @@
 """Per-input result files in ``--output-dir`` and the key that lets ``--skip-done`` reuse them.
 
-A result file is named after its input (the normalised path with ``/`` → ``__``, two-file inputs
-joined by ``+``; ``.yaml`` or ``.json``) and holds the result document, the verdict when there is
+A result file is named after its input: the normalised path with ``/`` → ``__`` (an absolute path
+starts with ``__``), two-file inputs joined by ``+``, then ``.yaml`` or ``.json``. That name is
+kept only when it cannot be another input's: when a component of the path is ``..``, holds
+``__``, ``+``, ``%`` or ``~``, starts or ends with ``_``, or the name would be long, the name gets
+``~`` and 16 hex digits of the SHA-256 of the path(s) as given — the same on every run, so that
+``--skip-done`` finds it. The file holds the result document, the verdict when there is
 one, and ``batch: {input, key, log_span_ns, seconds}``. The key is the SHA-256 of the handeye
 version, the options, the stream selection and the content of every input file (a ROS 2 bag
 directory: every file in it, by relative name), so a changed log, option or version recomputes.
@@ -56,13 +60,32 @@ def job_key(job: Job) -> str:
     return h.hexdigest()
 
 
+_SEP = "__"
+_MAX_NAME = 180            # bytes of a name kept whole (file names: ≤ 255 bytes); a longer one keeps its tail
+
+
+def _plain(component: str) -> bool:
+    """Whether a path component can be joined by ``__`` and split back unambiguously."""
+    return (component not in ("", ".", "..") and _SEP not in component and not set("+%~") & set(component)
+            and not component.startswith("_") and not component.endswith("_"))
+
+
 def result_path(output_dir: str | Path, job: Job, fmt: str) -> Path:
-    """Where ``--output-dir`` keeps the result of ``job`` (see the module docstring)."""
-    parts = []
+    """Where ``--output-dir`` keeps the result of ``job`` (see the module docstring): distinct
+    inputs get distinct names, the same input the same name."""
+    parts, plain = [], True
     for p in job.input.paths:
-        norm = os.path.normpath(p).lstrip(os.sep)
-        parts.append("__".join(s for s in norm.split(os.sep) if s not in ("", ".", "..")))
-    return Path(output_dir) / f"{'+'.join(parts)}.{fmt}"
+        norm = os.path.normpath(p)
+        components = norm.split(os.sep)
+        absolute = norm.startswith(os.sep)
+        plain = plain and all(map(_plain, components[1:] if absolute else components))
+        parts.append(("" if not absolute else _SEP) + _SEP.join(c for c in components if c not in ("", ".", "..")))
+    name = "+".join(parts)
+    long = len(name.encode("utf-8", "surrogateescape")) > _MAX_NAME
+    if not plain or long:
+        digest = hashlib.sha256("\0".join(job.input.paths).encode("utf-8", "surrogateescape")).hexdigest()
+        name = f"{name[-40:] if long else name}~{digest[:16]}"
+    return Path(output_dir) / f"{name}.{fmt}"
 
 
 def store(path: Path, record: dict[str, Any], key: str, fmt: str) -> None:

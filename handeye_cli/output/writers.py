@@ -2,12 +2,16 @@
 
 ``-`` (or no path) is stdout. A regular file is written to a temporary file in its folder and
 renamed over the target, so a reader never sees half a result and a failure leaves the old file
-as it was. A FIFO, a character device (``/dev/null``, ``/dev/stdout``) or any other non-regular
-file is opened and written through: replacing it would destroy it. Every failure is a
-:class:`~handeye_cli.errors.WriteError` naming the path and the flag that chose it.
+as it was; it keeps the mode of the file it replaces (a new file gets 0666 less the umask). A
+FIFO, a character device (``/dev/null``, ``/dev/stdout``) or any other non-regular file is
+opened and written through: replacing it would destroy it. Every failure is a
+:class:`~handeye_cli.errors.WriteError` naming the path and the flag that chose it; a failure to
+write stdout (a full disk, a closed pipe) is one too, and stdout is then pointed at the null device
+so that the interpreter's last flush does not fail again.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import stat
 import sys
@@ -16,7 +20,7 @@ from pathlib import Path
 
 from ..errors import ConfigError, WriteError
 
-__all__ = ["SUFFIXES", "output_format", "check_writable", "write_output"]
+__all__ = ["SUFFIXES", "output_format", "check_writable", "write_output", "write_stdout"]
 
 # File-name endings that choose the output format (see handeye_cli/output/formats.py); Kalibr YAML
 # needs --format kalibr.
@@ -68,12 +72,13 @@ def _umask() -> int:
     return mask
 
 
-def _replace_atomically(p: Path, text: str) -> None:
+def _replace_atomically(p: Path, text: str, old_mode: int | None) -> None:
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text)
-        os.chmod(tmp, 0o666 & ~_umask())          # mkstemp creates 0600; give the usual file mode
+        # mkstemp creates 0600: keep the replaced file's mode, else give a new file the usual one
+        os.chmod(tmp, stat.S_IMODE(old_mode) if old_mode is not None else 0o666 & ~_umask())
         os.replace(tmp, p)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -84,8 +89,7 @@ def write_output(path: str | Path | None, text: str, flag: str = "-o") -> None:
     """Write ``text`` to stdout (``None`` or ``-``), through to a non-regular file, or atomically
     to a regular file. Raises WriteError (one line, naming ``flag``) on failure."""
     if _is_stdout(path):
-        sys.stdout.write(text)
-        sys.stdout.flush()
+        write_stdout(text)
         return
     p = Path(str(path))
     check_writable(p, flag)
@@ -95,7 +99,22 @@ def write_output(path: str | Path | None, text: str, flag: str = "-o") -> None:
             with open(p, "w", encoding="utf-8") as f:       # FIFO, device, /dev/stdout: write through
                 f.write(text)
         else:
-            _replace_atomically(p, text)
+            _replace_atomically(p, text, mode)
     except OSError as e:
         raise WriteError(f"cannot write ({e.strerror or e.__class__.__name__})", str(p),
                          f"choose another {flag} path") from None
+
+
+def write_stdout(text: str) -> None:
+    """Write ``text`` to stdout and flush it. Raises WriteError (one line) when stdout cannot be
+    written (``> /dev/full``, a closed pipe), after pointing it at the null device."""
+    try:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except OSError as e:
+        with contextlib.suppress(OSError, ValueError, AttributeError):  # what stays buffered must not fail
+            null = os.open(os.devnull, os.O_WRONLY)                     # again at exit
+            os.dup2(null, sys.stdout.fileno())
+            os.close(null)
+        raise WriteError("cannot write to stdout", e.strerror or type(e).__name__,
+                         "free space where it goes, or redirect it elsewhere") from None

@@ -1,0 +1,109 @@
+"""A crash is never read as "a sensor drifted": every exception that is not a HandEyeError exits 4
+with one line asking for a report (the traceback only under --debug), click's own failures exit 2,
+and a crash while calibrating one batch input is that input's error record (exit 2, not 1)."""
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import subprocess
+import sys
+
+import click
+import pytest
+from _util import ROOT, run
+
+from handeye_cli import __version__
+
+SAMPLES = ROOT / "sample_data"
+TOPICS = ["--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose"]
+
+# command → (module, function it calls, arguments that reach that call)
+INJECTED = {
+    "calibrate": ("handeye_cli.cli.calibrate", "calibrate_files", [SAMPLES / "rig.mcap", *TOPICS, "-q"]),
+    "solve": ("handeye_cli.cli.solve", "read_pairs", [SAMPLES / "pairs.csv"]),
+    "inspect": ("handeye_cli.io", "inspect_log", [SAMPLES / "rig.mcap"]),
+    "rig": ("handeye_cli.cli.rig", "options_from_cli", [SAMPLES / "rig4.mcap", "--stream", "cam0=/cam0/pose",
+                                                        "--stream", "cam1=/cam1/pose"]),
+    "compare": ("handeye_cli.cli.compare", "calibrate_files", [SAMPLES / "rig.mcap", *TOPICS, "-q"]),
+    "check": ("handeye_cli.cli.check", "read_result", [SAMPLES / "truth.yaml", "--against", SAMPLES / "truth.yaml"]),
+    "batch": ("handeye_cli.cli.batch", "run_batch", [SAMPLES / "rig.mcap", *TOPICS, "-q"]),
+    "report": ("handeye_cli.output.fleet_report", "read_records", [SAMPLES / "truth.yaml", "-o", "r.html"]),
+}
+
+
+def _boom(*args: object, **kwargs: object) -> None:
+    raise RuntimeError("injected\nfailure")
+
+
+@pytest.mark.parametrize("command", sorted(INJECTED))
+def test_a_crash_exits_4_with_one_line_and_the_traceback_only_under_debug(command, capsys, monkeypatch, tmp_path):
+    module, name, args = INJECTED[command]
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(importlib.import_module(module), name, _boom)
+    code, out, err = run(capsys, command, *args)
+    assert code == 4 and out == ""
+    assert err.splitlines() == [f"internal error: RuntimeError: injected failure — this is a bug in handeye "
+                                f"{__version__}; please report it with the command line; rerun with --debug "
+                                "for the traceback"]
+    code, _, err = run(capsys, "--debug", command, *args)
+    assert code == 4 and err.startswith("Traceback")
+    assert "RuntimeError: injected" in err and err.splitlines()[-1].startswith("internal error: RuntimeError")
+    assert not (tmp_path / "r.html").exists()
+
+
+def test_a_crash_in_one_batch_input_is_its_error_record_not_a_drift(capsys, monkeypatch):
+    from handeye_cli.fleet import engine
+
+    real = engine._calibrate
+
+    def crash_on_ros1(job):
+        if job.input.paths[0].endswith(".bag"):
+            raise RuntimeError("injected")
+        return real(job)
+
+    monkeypatch.setattr(engine, "_calibrate", crash_on_ros1)
+    for jobs in ("1", "2"):                              # in this process, and in worker processes
+        code, out, err = run(capsys, "batch", SAMPLES / "rig.mcap", SAMPLES / "rig_ros1.bag", *TOPICS, "-q",
+                             "--jobs", jobs)
+        records = [json.loads(line) for line in out.splitlines()]
+        assert code == 2 and err == "" and [r["status"] for r in records] == ["ok", "error"]
+        error = records[1]["error"]
+        assert error.startswith("unexpected RuntimeError: injected (") and "--debug" in error
+
+
+def test_click_failures_exit_2_never_1(capsys, monkeypatch):
+    code, out, err = run(capsys, "calibrate")                                  # a usage error
+    assert code == 2 and out == "" and "Missing argument" in err
+    code, _, err = run(capsys, "batch", SAMPLES / "rig.mcap", "--jobs", "0")   # a bad parameter
+    assert code == 2 and "--jobs" in err
+    module = importlib.import_module("handeye_cli.cli.check")
+
+    def generic(*args: object, **kwargs: object) -> None:
+        raise click.ClickException("something click-ish")                     # exit_code 1 by default
+
+    monkeypatch.setattr(module, "read_result", generic)
+    code, _, err = run(capsys, "check", SAMPLES / "truth.yaml", "--against", SAMPLES / "truth.yaml")
+    assert code == 2 and err.strip() == "error: something click-ish"
+
+
+def test_keyboard_interrupt_exits_130(capsys, monkeypatch):
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(importlib.import_module("handeye_cli.cli.solve"), "read_pairs", interrupted)
+    code, out, err = run(capsys, "solve", SAMPLES / "pairs.csv")
+    assert code == 130 and out == "" and err.strip() == "aborted"
+
+
+@pytest.mark.parametrize("command", [["--version"], ["inspect", str(SAMPLES / "rig.mcap")]])
+def test_a_closed_stdout_exits_2_not_1(command):
+    read, write = os.pipe()
+    os.close(read)                                    # every write to the pipe fails: EPIPE
+    try:
+        done = subprocess.run([sys.executable, "-m", "handeye_cli", *command], stdout=write,
+                              stderr=subprocess.PIPE, text=True, timeout=60)
+    finally:
+        os.close(write)
+    assert done.returncode == 2 and len(done.stderr.splitlines()) == 1
+    assert done.stderr.startswith("error: cannot write to stdout (Broken pipe)")
