@@ -243,8 +243,8 @@ def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source
     DataError for an empty stream, no valid pose, or — unless ``zero_stamps_fix`` is None —
     every stamp zero (``zero_stamps_fix`` says what to do).
     """
-    if len(stamps) == 0:
-        raise DataError("empty stream: no poses", source,
+    if len(stamps) == 0:     # the reader's first warning may say why (a chunk skipped, a cut-off file)
+        raise DataError("empty stream: no poses" + "".join(f" ({w})" for w in warnings[:1]), source,
                         "choose a topic, frame pair or file that carries poses (handeye inspect FILE)")
     notes = list(warnings)
     stamps = np.asarray(stamps, dtype=np.int64)

@@ -254,6 +254,10 @@ class _Chunks:
         if last + 9 > index.uncompressed_size:
             raise _Decline("message index beyond the chunk's records")
         if compression == "zstd":
+            held = zstandard.frame_content_size(data)      # from the frame header; -1 if it does not say
+            if held not in (-1, index.uncompressed_size):
+                raise ChunkError(f"the zstd chunk's frame holds {held} bytes, not the {index.uncompressed_size} "
+                                 "it declares")
             raw = self._zstd(data, last, index.uncompressed_size)
         elif compression == "lz4":
             raw = memoryview(inflate("lz4", data, index.uncompressed_size))

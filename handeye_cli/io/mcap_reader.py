@@ -29,7 +29,7 @@ from mcap.records import Channel, Chunk, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 
 from ..errors import ReadError
-from .common import ChunkError, decode_errors, inflate, open_clamped, unreadable
+from .common import CHUNK_LIMIT, ChunkError, decode_errors, inflate, open_clamped, unreadable
 from .mcap_fast import FastTopics, read_fast
 from .messages import normalize_type, pose_decoder
 from .source import Decoder, TopicInfo
@@ -211,6 +211,8 @@ class McapSource:
         return pose_decoder(name, lambda b: store.deserialize_ros1(b, name))
 
     def read(self, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes, Decoder]]:
+        if self._skipped or any(ix.uncompressed_size > CHUNK_LIMIT for ix in self._chunks):
+            self._ros2 = False      # rosbags cannot skip a chunk: its read would end at the bomb
         if self._ros2 and self._bag is None:
             from .rosbag_reader import BagSource
 
