@@ -339,9 +339,9 @@ def test_endless_fifo(tmp_path, capsys, monkeypatch):
 
 
 # --- degenerate data --------------------------------------------------------------------------
-def test_a_million_identical_stamps(tmp_path):
+def test_identical_stamps(tmp_path):
     same = tmp_path / "same.tum"
-    same.write_bytes(b"1.0 0 0 0 0 0 0 1\n" * 1_000_000)
+    same.write_bytes(b"1.0 0 0 0 0 0 0 1\n" * 200_000)
     line = refused(tmp_path, same, same)
     assert "same stamp" in line or "identical" in line, line
 

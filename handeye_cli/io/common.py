@@ -240,8 +240,8 @@ def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source
     sorts by stamp, drops repeated stamps keeping the first (``duplicates_dropped``; a warning
     when a repeat carries a different pose), normalises quaternions (x-y-z-w). ``where(i)`` names
     sample ``i`` (arrival order) in messages, e.g. "line 12". ``warnings`` are the reader's own.
-    DataError for an empty stream, no valid pose, or — unless ``zero_stamps_fix`` is None —
-    every stamp zero (``zero_stamps_fix`` says what to do).
+    DataError for an empty stream, no valid pose, every sample at one stamp, or — unless
+    ``zero_stamps_fix`` is None — every stamp zero (``zero_stamps_fix`` says what to do).
     """
     if len(stamps) == 0:     # the reader's first warning may say why (a chunk skipped, a cut-off file)
         raise DataError("empty stream: no poses" + "".join(f" ({w})" for w in warnings[:1]), source,
@@ -250,6 +250,9 @@ def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source
     stamps = np.asarray(stamps, dtype=np.int64)
     if zero_stamps_fix is not None and len(stamps) > 1 and not stamps.any():
         raise DataError(f"the stamps are all zero ({len(stamps)} samples)", source, zero_stamps_fix)
+    if len(stamps) > 1 and (stamps == stamps[0]).all():     # before the per-sample copies below
+        raise DataError(f"all {len(stamps)} samples carry the same stamp ({int(stamps[0])} ns): one pose, no motion",
+                        source, "record a trajectory: stamps must advance (wrong time column? --csv-columns t=COL)")
     idx = _drop_invalid(np.arange(len(stamps)), xyz, quat, source, where, notes)
     idx = idx[_longest_run(stamps[idx], source, lambda i: where(int(idx[i])), notes)]
     idx = idx[np.argsort(stamps[idx], kind="stable")]
