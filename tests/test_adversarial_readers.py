@@ -13,7 +13,6 @@ import subprocess
 import sys
 import threading
 import time
-import zlib
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -22,15 +21,13 @@ import lz4.frame
 import numpy as np
 import pytest
 import zstandard
-from mcap.data_stream import RecordBuilder
-from mcap.records import (Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Message, MessageIndex, Schema,
-                          Statistics)
-
 from _logs import POSE, ROS2_STORE, _serialize, pose_channel, write_bag1, write_bag2, write_mcap
 from _util import run
+from mcap.data_stream import RecordBuilder
+from mcap.records import Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Message, MessageIndex, Schema, Statistics
 
-from handeye_cli.io import read_stream
-from handeye_cli.io import common, inputs
+from handeye_cli.io import common, inputs, read_stream
+from handeye_cli.io.rosbag1_scan import check_lengths
 
 ADDRESS_LIMIT = 1536 << 20      # [B] a bomb asking for gigabytes dies with MemoryError under this
 PEAK_LIMIT_MB = 500             # peak RSS [MB] of a refused input
@@ -87,13 +84,12 @@ def _pose(t: int, frame: str = "world", x: float = 0.0) -> bytes:
     return bytes(_serialize(ROS2_STORE, POSE, [(t, frame, "", x, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)]))
 
 
-def _records(messages: list[tuple[int, int, bytes]]) -> tuple[bytes, dict[int, list[tuple[int, int]]]]:
-    """Message records (channel, log time, data) as a chunk's records and each channel's (time, offset)."""
-    b, index = RecordBuilder(), {}
+def _records(messages: list[tuple[int, int, bytes]]) -> bytes:
+    """Message records (channel, log time, data) as a chunk's records."""
+    b = RecordBuilder()
     for seq, (cid, t, data) in enumerate(messages):
-        index.setdefault(cid, []).append((t, b.count))
         Message(channel_id=cid, log_time=t, data=data, publish_time=t, sequence=seq).write(b)
-    return b.end(), index
+    return b.end()
 
 
 def hostile_mcap(path: Path, chunks: list[tuple[str, bytes, int, bytes]], *, summary: bool = True,
@@ -157,7 +153,7 @@ def _index_of(records: bytes) -> dict[int, list[tuple[int, int]]]:
 
 
 def _messages(n: int = 40) -> bytes:
-    return _records([(1 + k % 2, k * 10**7, _pose(k * 10**7, x=0.01 * k)) for k in range(n)])[0]
+    return _records([(1 + k % 2, k * 10**7, _pose(k * 10**7, x=0.01 * k)) for k in range(n)])
 
 
 BOMB_BYTES = 2 << 30      # [B] what the bombs inflate to: past ADDRESS_LIMIT, so an unbounded read fails
@@ -217,8 +213,8 @@ def test_lz4_chunk_inflating_to_2_gib(tmp_path):
 @pytest.mark.parametrize("summary", [True, False])
 @pytest.mark.parametrize("fast", [True, False])
 def test_a_bomb_chunk_is_skipped_and_the_rest_read(tmp_path, summary, fast, monkeypatch):
-    good = _records([(1, k * 10**7, _pose(k * 10**7, x=0.01 * k)) for k in range(30)])[0]
-    bad = _records([(1, 10**9 + k * 10**7, _pose(10**9 + k * 10**7)) for k in range(30)])[0]
+    good = _records([(1, k * 10**7, _pose(k * 10**7, x=0.01 * k)) for k in range(30)])
+    bad = _records([(1, 10**9 + k * 10**7, _pose(10**9 + k * 10**7)) for k in range(30)])
     log = hostile_mcap(tmp_path / "mixed.mcap", [("zstd", zstandard.compress(good), len(good), good),
                                                  ("zstd", _unsized_zstd(bad), 10**12, bad)], summary=summary)
     if not fast:
@@ -235,8 +231,8 @@ def test_inflate_bounds():
         common.inflate("zstd", data, 999)
     with pytest.raises(common.ChunkError, match="over the 256 MiB limit"):
         common.inflate("lz4", lz4.frame.compress(b"x"), common.CHUNK_LIMIT + 1)
-    assert common.inflate("zstd", data[:len(data) // 2], 1000, partial=True) == bytes(
-        len(common.inflate("zstd", data[:len(data) // 2], 1000, partial=True)))
+    cut = common.inflate("zstd", data[:len(data) // 2], 1000, partial=True)    # a crash cut the frame
+    assert len(cut) <= 1000 and not any(cut)
 
 
 # --- frame ids --------------------------------------------------------------------------------
@@ -271,9 +267,7 @@ def test_bag_chunk_data_claiming_4_gb(tmp_path):
     at = chunk + 4 + int.from_bytes(data[chunk:chunk + 4], "little")
     data[at:at + 4] = (0xFFFFFFF0).to_bytes(4, "little")
     bag.write_bytes(data)
-    assert "4294967280 bytes, past the end" in (common_reason := __import__(
-        "handeye_cli.io.rosbag1_scan", fromlist=["check_lengths"]).check_lengths(bag))
-    assert common_reason
+    assert "4294967280 bytes, past the end of the file" in check_lengths(bag)
     s = read_stream(bag, topic="/a")       # the chunk's records are there: read by the linear scan
     assert len(s) == 50 and any("linear scan" in w for w in s.warnings)
     line = refused(tmp_path, bag, *TOPICS)
@@ -362,6 +356,3 @@ def test_zero_positions_rotation_only(tmp_path):
         if r.code == 2:
             assert len(r.err.strip().splitlines()[-1:]) == 1 and r.err.strip().splitlines()[-1].startswith("error:")
 
-
-def test_crc_helper_is_zlib():  # the hand-built chunks above carry CRC 0 ("not computed"), as the spec allows
-    assert zlib.crc32(b"") == 0
