@@ -1,22 +1,103 @@
 """Shared reader plumbing: turning decoder failures into HandEyeErrors, building a PoseStream."""
 from __future__ import annotations
 
+import bz2
 import functools
 import importlib
+import io
 import json
+import os
 import struct
 from array import array
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from typing import Any
+from typing import Any, BinaryIO
 
+import lz4.frame  # type: ignore[import-untyped]
 import numpy as np
+import zstandard
 from mcap.exceptions import McapError
 
 from ..errors import DataError, HandEyeError, ReadError
 from ..streams import PoseStream
 
-__all__ = ["decode_errors", "unreadable", "PoseBuffer", "make_stream"]
+__all__ = ["decode_errors", "unreadable", "PoseBuffer", "make_stream", "CHUNK_LIMIT", "ChunkError", "check_declared",
+           "inflate", "open_clamped"]
+
+CHUNK_LIMIT = 256 * 2**20
+"""The most bytes [B] one compressed chunk (MCAP, ROS 1 bag) may decompress to. Recorders write
+chunks of 1-4 MiB (MCAP) and 768 kB (ROS 1); a chunk that declares more, or inflates past what it
+declares, is damaged or hostile (a 0.3 MB zstd chunk can inflate to 3 GiB), and is skipped or
+refused rather than decompressed."""
+
+
+class ChunkError(ValueError):
+    """A chunk that cannot be decompressed within its bounds: it declares more than
+    :data:`CHUNK_LIMIT`, inflates past its declared size, or has an unknown compression."""
+
+
+def check_declared(size: int) -> None:
+    """ChunkError if a chunk declaring ``size`` [B] uncompressed is over :data:`CHUNK_LIMIT`."""
+    if size > CHUNK_LIMIT:
+        raise ChunkError(f"the chunk declares {size} bytes uncompressed, over the {CHUNK_LIMIT >> 20} MiB limit "
+                         "(handeye_cli.io.common.CHUNK_LIMIT)")
+
+
+def inflate(compression: str, data: bytes | memoryview, size: int, *, partial: bool = False) -> bytes:
+    """The records [B] in a chunk's compressed ``data`` (``compression``: ``zstd``, ``lz4``, ``bz2``,
+    or ``""`` / ``none``), which declares ``size`` [B] uncompressed; never more than ``size`` bytes
+    are produced, and ``size`` is at most :data:`CHUNK_LIMIT`. ChunkError if it is larger, if the
+    data inflates past it, or for an unknown compression; fewer bytes than declared come back as
+    they are (``partial``: data cut off by a crash, decompressed as far as it goes)."""
+    check_declared(size)
+    if compression in ("", "none"):
+        return data if isinstance(data, bytes) else bytes(data)
+    if compression == "zstd":
+        buf = bytearray(size + 1)
+        view, done = memoryview(buf), 0
+        with zstandard.ZstdDecompressor().stream_reader(data, read_size=max(1, len(data))) as reader:
+            try:
+                while done <= size and (got := reader.readinto(view[done:])):
+                    done += got
+            except zstandard.ZstdError:
+                if not partial:
+                    raise
+        out = bytes(view[:done])
+        view.release()
+    elif compression in ("lz4", "bz2"):
+        stream: Any = lz4.frame.LZ4FrameDecompressor() if compression == "lz4" else bz2.BZ2Decompressor()
+        try:
+            out = bytes(stream.decompress(data, max_length=size + 1))
+        except (OSError, EOFError, RuntimeError, ValueError):
+            if not partial:
+                raise
+            out = b""
+    else:
+        raise ChunkError(f"unsupported chunk compression {compression!r}")
+    if len(out) > size:
+        raise ChunkError(f"the {compression} chunk inflates past the {size} bytes it declares")
+    return out
+
+
+class _Clamped(io.BufferedReader):
+    """A binary file whose ``read(n)`` never asks for more than is left in it: a length field
+    read from a damaged file (0xFFFFFFF0, 2**63) cannot make a read allocate gigabytes."""
+
+    def __init__(self, raw: io.FileIO) -> None:
+        super().__init__(raw)
+        self._size = os.fstat(raw.fileno()).st_size
+
+    def read(self, n: int | None = -1) -> bytes:
+        if n is not None and n > 0:
+            n = min(n, max(0, self._size - self.tell()))
+            if n == 0:
+                return b""
+        return super().read(n)
+
+
+def open_clamped(path: str | os.PathLike[str]) -> BinaryIO:
+    """``path`` opened for reading as a seekable binary file whose reads are clamped to its size."""
+    return _Clamped(io.FileIO(path, "rb"))
 
 
 def _optional_error(module: str) -> tuple[type[BaseException], ...]:
@@ -43,7 +124,7 @@ def decode_errors() -> tuple[type[BaseException], ...]:
     zstd_errors = sum(map(_optional_error, ("zstandard", "compression.zstd", "backports.zstd")), ())
     return (McapError, struct.error, OSError, EOFError, AnyReaderError, Bag1ReaderError, Bag2ReaderError,
             SerdeError, TypesysError, KeyError, IndexError, UnicodeDecodeError, json.JSONDecodeError,
-            RuntimeError, *zstd_errors)
+            RuntimeError, ChunkError, *zstd_errors)
 
 
 @contextmanager
@@ -160,17 +241,20 @@ def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source
     sorts by stamp, drops repeated stamps keeping the first (``duplicates_dropped``; a warning
     when a repeat carries a different pose), normalises quaternions (x-y-z-w). ``where(i)`` names
     sample ``i`` (arrival order) in messages, e.g. "line 12". ``warnings`` are the reader's own.
-    DataError for an empty stream, no valid pose, or — unless ``zero_stamps_fix`` is None —
-    every stamp zero (``zero_stamps_fix`` says what to do). ``quaternion_order``: see
-    :attr:`PoseStream.quaternion_order`.
+    DataError for an empty stream, no valid pose, every sample at one stamp, or — unless
+    ``zero_stamps_fix`` is None — every stamp zero (``zero_stamps_fix`` says what to do).
+    ``quaternion_order``: see :attr:`PoseStream.quaternion_order`.
     """
-    if len(stamps) == 0:
-        raise DataError("empty stream: no poses", source,
+    if len(stamps) == 0:     # the reader's first warning may say why (a chunk skipped, a cut-off file)
+        raise DataError("empty stream: no poses" + "".join(f" ({w})" for w in warnings[:1]), source,
                         "choose a topic, frame pair or file that carries poses (handeye inspect FILE)")
     notes = list(warnings)
     stamps = np.asarray(stamps, dtype=np.int64)
     if zero_stamps_fix is not None and len(stamps) > 1 and not stamps.any():
         raise DataError(f"the stamps are all zero ({len(stamps)} samples)", source, zero_stamps_fix)
+    if len(stamps) > 1 and (stamps == stamps[0]).all():     # before the per-sample copies below
+        raise DataError(f"all {len(stamps)} samples carry the same stamp ({int(stamps[0])} ns): one pose, no motion",
+                        source, "record a trajectory: stamps must advance (wrong time column? --csv-columns t=COL)")
     idx = _drop_invalid(np.arange(len(stamps)), xyz, quat, source, where, notes)
     idx = idx[_longest_run(stamps[idx], source, lambda i: where(int(idx[i])), notes)]
     idx = idx[np.argsort(stamps[idx], kind="stable")]

@@ -1,27 +1,38 @@
 """Input paths that can be read only once: ``-`` (stdin) and pipes (``<(cat a.tum)``, FIFOs).
 
-Their bytes are read on first use and kept for the process, so detecting the format and reading
-the stream both see the same bytes and nothing is opened twice. A log (MCAP, bag) arriving on a
-pipe is spooled to a temporary file, because its readers seek.
+Their bytes are copied on first use to a temporary file kept for the process (in 1 MiB pieces:
+memory holds one piece), so detecting the format and reading the stream both see the same bytes,
+nothing is read twice, and the readers that seek (MCAP, bags) get a regular file. The copy stops
+with a one-line error past :data:`STREAM_LIMIT` (an endless input such as ``yes |``); a named
+FIFO is opened without blocking and waits at most :data:`FIFO_WAIT_S` for data (no writer, or a
+writer gone quiet, is an error, not a hang). Other special files (``/dev/zero``, block devices,
+sockets) are refused: they are no recording.
 """
 from __future__ import annotations
 
 import atexit
-import io
+import os
 import re
+import select
 import shutil
 import stat
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import BinaryIO
 
 from ..errors import ReadError
 
-__all__ = ["STDIN", "is_stream", "existing", "read_head", "open_binary", "spooled", "stem_of", "valid_frame_id"]
+__all__ = ["STDIN", "STREAM_LIMIT", "FIFO_WAIT_S", "is_stream", "existing", "read_head", "open_binary", "spooled",
+           "stem_of", "valid_frame_id"]
 
 STDIN = "-"
-_BYTES: dict[str, bytes] = {}
+STREAM_LIMIT = 4 << 30
+"""The most bytes [B] copied from stdin or a pipe; past it the input is refused (endless input)."""
+FIFO_WAIT_S = 10.0
+"""How long [s] reading a named FIFO waits for its writer, and then for each next piece of data."""
+_PIECE = 1 << 20            # [B] read and written at a time
 _SPOOLED: dict[str, Path] = {}
 _FRAME_CHARS = re.compile(r"[^A-Za-z0-9_.\-]")
 
@@ -45,47 +56,85 @@ def existing(path: str | Path) -> Path:
     return p
 
 
-def _slurp(path: str | Path) -> bytes:
+def _copy(read: Callable[[int], bytes], dst: BinaryIO, name: str) -> None:
+    """The bytes ``read(n)`` gives to ``dst`` until it gives none, at most :data:`STREAM_LIMIT`."""
+    total = 0
+    while piece := read(_PIECE):
+        total += len(piece)
+        if total > STREAM_LIMIT:
+            raise ReadError(f"input without end: more than {STREAM_LIMIT >> 20} MiB "
+                            "(handeye_cli.io.inputs.STREAM_LIMIT)", name,
+                            "write the recording to a file and pass its path")
+        dst.write(piece)
+
+
+def _fifo_reader(fd: int, name: str) -> Callable[[int], bytes]:
+    """``read(n)`` of the FIFO ``fd`` opened non-blocking: each piece waited for at most :data:`FIFO_WAIT_S`."""
+    poll = select.poll()
+    poll.register(fd, select.POLLIN)
+
+    def read(n: int) -> bytes:
+        while True:
+            if not poll.poll(FIFO_WAIT_S * 1000):
+                raise ReadError(f"no one wrote to the FIFO for {FIFO_WAIT_S:g} s", name,
+                                "start the writer first, or pass a regular file")
+            try:
+                return os.read(fd, n)
+            except BlockingIOError:
+                continue
+
+    return read
+
+
+def _spool(path: str | Path) -> Path:
+    """The temporary regular file holding the content of the stream ``path`` (copied on first use)."""
     key = str(path)
-    if key not in _BYTES:
-        try:
-            if key == STDIN:
-                _BYTES[key] = sys.stdin.buffer.read()
-            else:
-                with open(path, "rb") as f:
-                    _BYTES[key] = f.read()
-        except OSError as exc:
-            raise ReadError(f"cannot read: {exc.strerror or exc}", key, "check the path and permissions") from exc
-    return _BYTES[key]
+    if key in _SPOOLED:
+        return _SPOOLED[key]
+    tmp = Path(tempfile.mkdtemp(prefix="handeye-stdin-"))
+    atexit.register(shutil.rmtree, tmp, True)
+    target = tmp / stem_of(path)
+    try:
+        if key == STDIN:
+            with open(target, "wb") as dst:
+                _copy(sys.stdin.buffer.read, dst, key)
+        else:
+            mode = os.stat(key).st_mode
+            if not stat.S_ISFIFO(mode):
+                kind = "a character device" if stat.S_ISCHR(mode) else "a special file"
+                raise ReadError(f"{kind}, not a file or a pipe", key, "pass a recording or trajectory file")
+            fd = os.open(key, os.O_RDONLY | os.O_NONBLOCK)      # a plain open would wait for a writer forever
+            try:
+                with open(target, "wb") as dst:
+                    _copy(_fifo_reader(fd, key), dst, key)
+            finally:
+                os.close(fd)
+    except OSError as exc:
+        raise ReadError(f"cannot read: {exc.strerror or exc}", key, "check the path and permissions") from exc
+    _SPOOLED[key] = target
+    return target
 
 
 def read_head(path: str | Path, n: int) -> bytes:
     """The first ``n`` bytes (of a stream: without losing the rest)."""
-    if is_stream(path):
-        return _slurp(path)[:n]
-    with open(path, "rb") as f:
+    with open_binary(path) as f:
         return f.read(n)
 
 
 def open_binary(path: str | Path) -> BinaryIO:
     """The whole content as a binary file object, positioned at the start."""
-    if is_stream(path):
-        return io.BytesIO(_slurp(path))
-    return open(path, "rb")
+    return open(_spool(path) if is_stream(path) else path, "rb")
 
 
 def spooled(path: Path, suffix: str) -> Path:
-    """A seekable regular file with the content of ``path`` (a stream is copied once to a temporary file)."""
+    """A seekable regular file with the content of ``path`` (a stream's copy, named with ``suffix``)."""
     if not is_stream(path):
         return path
-    key = str(path)
-    if key not in _SPOOLED:
-        tmp = Path(tempfile.mkdtemp(prefix="handeye-stdin-"))
-        atexit.register(shutil.rmtree, tmp, True)
-        target = tmp / f"{stem_of(path)}{suffix}"
-        target.write_bytes(_slurp(path))
-        _SPOOLED[key] = target
-    return _SPOOLED[key]
+    target = _spool(path)
+    named = target.with_name(f"{stem_of(path)}{suffix}")
+    if not named.exists():
+        os.link(target, named)
+    return named
 
 
 def stem_of(path: str | Path) -> str:

@@ -79,10 +79,15 @@ def _truncation(src: LogSource, n: int) -> list[str]:
     return notes
 
 
+def _clip(name: str, n: int = 60) -> str:
+    """``name`` for a message: a damaged log's frame id may be 256 kB long."""
+    return name if len(name) <= n else f"{name[:n]}… ({len(name)} characters)"
+
+
 def _topic_stream(src: LogSource, topic: str, buf: PoseBuffer | FastPoses, time_source: str) -> PoseStream:
     source = f"{src.name}:{topic}"
     if len(buf.pairs) > 1:
-        pairs = ", ".join(f"{p or '?'}->{c or '?'}" for p, c in list(buf.pairs)[:8])
+        pairs = ", ".join(f"{_clip(p) or '?'}->{_clip(c) or '?'}" for p, c in list(buf.pairs)[:8])
         raise DataError(f"topic carries poses of several frame pairs ({pairs})", source,
                         "select one pair with frames=(PARENT, CHILD) / --frames-a PARENT CHILD")
     frame, child = next(iter(buf.pairs), ("", ""))

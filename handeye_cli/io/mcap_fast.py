@@ -27,11 +27,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import lz4.frame  # type: ignore[import-untyped]
 import numpy as np
 import zstandard
 from numpy.typing import NDArray
 
+from .common import ChunkError, check_declared, inflate
 from .messages import LISTS, SPECS
 
 __all__ = ["FastPoses", "FastTopics", "read_fast", "FAST_TYPES"]
@@ -152,22 +152,21 @@ def _decode(u: NDArray[np.uint8], o: NDArray[np.int64], end: NDArray[np.int64], 
 
 
 def _names(u: NDArray[np.uint8], start: Ints, length: Ints) -> tuple[NDArray[np.intp], list[str]]:
-    """(code per string, distinct strings) of the strings at ``start`` of ``length`` bytes."""
+    """(code per string, distinct strings) of the strings at ``start`` of ``length`` bytes. Memory
+    and time follow the strings' bytes, not count x longest (one 256 kB frame id among short ones
+    once made a dense matrix of gigabytes)."""
     width = int(length.max(initial=0))
     if width == 0:
         return np.zeros(len(start), np.intp), [""]
-    cols = np.arange(width)
-    if (length == width).all():         # the usual case: one frame id throughout, checked byte by byte
-        mat = _at(u, start, width)
-        if (mat == mat[0]).all():
-            try:
-                return np.zeros(len(start), np.intp), [bytes(mat[0]).decode()]
-            except UnicodeDecodeError as exc:
-                raise _Decline("frame id is not UTF-8") from exc
-    mat = np.where(cols < length[:, None], u[np.minimum(start[:, None] + cols, len(u) - 1)], 0).astype(np.uint8)
-    rows, codes = np.unique(mat, axis=0, return_inverse=True)
     try:
-        return codes.ravel(), [bytes(r).rstrip(b"\0").decode() for r in rows]
+        if (length == width).all():         # the usual case: one frame id throughout, checked byte by byte
+            mat = _at(u, start, width)
+            if (mat == mat[0]).all():
+                return np.zeros(len(start), np.intp), [bytes(mat[0]).decode()]
+        index: dict[bytes, int] = {}
+        codes = np.fromiter((index.setdefault(u[s:s + n].tobytes(), len(index))
+                             for s, n in zip(start.tolist(), length.tolist(), strict=True)), np.intp, len(start))
+        return codes, [k.decode() for k in index]
     except UnicodeDecodeError as exc:
         raise _Decline("frame id is not UTF-8") from exc
 
@@ -246,15 +245,22 @@ class _Chunks:
             return [], np.zeros(0, np.uint8)
         if view[0] != 0x06:
             raise _Decline("chunk index does not point at a chunk")
+        check_declared(index.uncompressed_size)
         crc = int.from_bytes(view[33:37], "little")
         n = int.from_bytes(view[37:41], "little")
         compression = bytes(view[41:41 + n]).decode()
         data = view[49 + n:49 + n + _U64.unpack_from(view, 41 + n)[0]]
         last = max(int(e[:, 1].max()) for _, e in entries)
+        if last + 9 > index.uncompressed_size:
+            raise _Decline("message index beyond the chunk's records")
         if compression == "zstd":
+            held = zstandard.frame_content_size(data)      # from the frame header; -1 if it does not say
+            if held not in (-1, index.uncompressed_size):
+                raise ChunkError(f"the zstd chunk's frame holds {held} bytes, not the {index.uncompressed_size} "
+                                 "it declares")
             raw = self._zstd(data, last, index.uncompressed_size)
         elif compression == "lz4":
-            raw = memoryview(lz4.frame.decompress(data))
+            raw = memoryview(inflate("lz4", data, index.uncompressed_size))
         elif compression == "":
             raw = data
         else:
@@ -284,7 +290,7 @@ class _Chunks:
             self._raw = self._grown(self._raw, last + _MSG_HEADER)
             done = self._fill(reader, 0, last + 9)
             if done == last + 9:
-                stop = last + 9 + _U64.unpack_from(self._raw, last + 1)[0]
+                stop = min(total, last + 9 + _U64.unpack_from(self._raw, last + 1)[0])
                 self._raw = self._grown(self._raw, stop, done)
                 done = self._fill(reader, done, stop)
         return memoryview(self._raw)[:done]
@@ -351,9 +357,10 @@ class _Collect:
         stamp, fs, fl, cs, cl, values = col
         fcode, fnames = _names(u, fs, fl)
         ccode, cnames = _names(u, cs, cl)
+        combos, inverse = np.unique(fcode * len(cnames) + ccode, return_inverse=True)   # the pairs present
         local = [self.names.setdefault((fnames[a], cnames[b]), len(self.names))
-                 for a, b in zip(*np.divmod(np.arange(len(fnames) * len(cnames)), len(cnames)), strict=True)]
-        self.pairs.append(np.asarray(local, np.intp)[fcode * len(cnames) + ccode])
+                 for a, b in zip(*np.divmod(combos.tolist(), len(cnames)), strict=True)]
+        self.pairs.append(np.asarray(local, np.intp)[inverse.ravel()])
         self.stamps.append(log_times[msg[order]] if self.log else stamp)
         self.values.append(values)
 
@@ -370,9 +377,11 @@ class _Collect:
 
 
 def read_fast(path: Path, chunks: Sequence[Any], channels: dict[int, tuple[str, str]], *,
-              log_time: bool = False) -> FastTopics:
+              log_time: bool = False, skipped: list[tuple[int, str]] | None = None) -> FastTopics:
     """Pose records of the channels ``{id: (topic, type)}`` whose type is in :data:`FAST_TYPES`
-    (header stamps, or log times with ``log_time``); topics it cannot decode exactly are left out."""
+    (header stamps, or log times with ``log_time``); topics it cannot decode exactly are left out.
+    A chunk declaring more than :data:`.common.CHUNK_LIMIT` uncompressed, or an lz4 chunk inflating
+    past its declared size, is skipped: (its offset [B], why) is appended to ``skipped``."""
     wanted = {cid: tt for cid, tt in channels.items() if tt[1] in FAST_TYPES}
     types = {topic: {t for tp, t in wanted.values() if tp == topic} for topic, _ in wanted.values()}
     wanted = {cid: tt for cid, tt in wanted.items() if len(types[tt[0]]) == 1}
@@ -390,6 +399,10 @@ def read_fast(path: Path, chunks: Sequence[Any], channels: dict[int, tuple[str, 
                 continue
             try:
                 entries, u = chunk_reader.read(index, cids)
+            except ChunkError as exc:
+                if skipped is not None:
+                    skipped.append((index.chunk_start_offset, str(exc)))
+                continue
             except (_Decline, zstandard.ZstdError, RuntimeError, struct.error, ValueError):
                 return {}
             for topic in {wanted[c][0] for c, _ in entries} - declined:

@@ -19,17 +19,17 @@ import io
 import json
 from collections import Counter
 from collections.abc import Iterator, Sequence
+from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, BinaryIO
 
-import lz4.frame  # type: ignore[import-untyped]
-import zstandard
+from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
-from mcap.records import Channel, Footer, Message, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Channel, Chunk, Footer, Message, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
 
 from ..errors import ReadError
-from .common import decode_errors, unreadable
+from .common import CHUNK_LIMIT, ChunkError, decode_errors, inflate, open_clamped, unreadable
 from .mcap_fast import FastTopics, read_fast
 from .messages import normalize_type, pose_decoder
 from .source import Decoder, TopicInfo
@@ -48,7 +48,9 @@ class McapSource:
     """An open MCAP file (use as a context manager). Message types are normalised to ``pkg/msg/T``.
 
     ``truncated``: the file ends before its footer (a crashed recording); ``fast=False`` disables
-    the numpy fast path (tests compare both paths).
+    the numpy fast path (tests compare both paths). Chunks are decompressed by
+    :func:`.common.inflate`, never past their declared size nor :data:`.common.CHUNK_LIMIT`: a chunk
+    beyond either is skipped, its messages lost, with a line in ``notes``.
     """
 
     _schemas: dict[int, Schema]
@@ -61,10 +63,12 @@ class McapSource:
         self._path = path
         self._fast = fast
         self.truncated = False
+        self._skipped: dict[str, None] = {}     # one line per chunk skipped (see :meth:`_chunk_records`)
+        self._notes: tuple[str, ...] = ()
         self._bag: BagSource | None = None      # AnyReader on this file, opened by the first read()
         summary, profile = None, ""
         try:
-            with open(path, "rb") as f:
+            with open_clamped(path) as f:
                 reader = make_reader(f)
                 profile = reader.get_header().profile
                 summary = reader.get_summary()
@@ -86,18 +90,41 @@ class McapSource:
     def _records(self) -> Iterator[Any]:
         """Every record of a linear scan; at the first damaged or cut-off one, the intact records of
         a chunk cut in the middle are salvaged and the scan stops (``truncated`` set)."""
-        with open(self._path, "rb") as f:
+        with open_clamped(self._path) as f:
             end_of_last = f.tell()
             try:
-                for record in StreamReader(f).records:
-                    yield record
+                for record in StreamReader(f, emit_chunks=True, record_size_limit=None).records:
+                    if isinstance(record, Chunk):
+                        yield from self._chunk_records(record, end_of_last)
+                    else:
+                        yield record
                     if isinstance(record, Footer):
                         return
                     end_of_last = f.tell()
             except decode_errors():
                 self.truncated = True
                 f.seek(end_of_last)
-                yield from _salvage_chunk(f.read())
+                yield from _salvage_chunk(f)
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """Warnings for every stream read: the opener's (see :func:`.opening.open_log`), then the
+        chunks skipped so far."""
+        return (*self._notes, *self._skipped)
+
+    @notes.setter
+    def notes(self, value: Sequence[str]) -> None:
+        self._notes = tuple(v for v in value if v not in self._skipped)
+
+    def _chunk_records(self, chunk: Chunk, offset: int) -> list[Any]:
+        """The records of ``chunk`` (the Chunk record at byte ``offset``), or none, with a line in
+        :attr:`notes`, when it cannot be decompressed within its bounds."""
+        try:
+            data = inflate(chunk.compression, chunk.data, chunk.uncompressed_size)
+        except ChunkError as exc:
+            self._skipped[f"skipped the chunk at byte {offset} of {self.name}: {exc}; its messages are lost"] = None
+            return []
+        return breakup_chunk(replace(chunk, compression="", data=data))
 
 
     def _scan_index(self) -> None:
@@ -114,6 +141,9 @@ class McapSource:
                     self._schemas[record.id] = record
                 elif isinstance(record, Channel):
                     self._channels[record.id] = record
+        if self._skipped and not counts:
+            raise ReadError(f"cannot read file: no message outside the chunks skipped ({next(iter(self._skipped))})",
+                            self.name, "the file is damaged or hostile; re-record or re-export it")
         if self.truncated and not counts:
             raise ReadError("cannot read file: the MCAP is cut off before its first complete message",
                             self.name, _RECOVER)
@@ -150,8 +180,12 @@ class McapSource:
             return {}
         wanted = {cid: (ch.topic, self._schema_name(ch)) for cid, ch in self._channels.items()
                   if ch.topic in topics and ch.message_encoding == "cdr"}
+        skipped: list[tuple[int, str]] = []
         with unreadable(self.name):
-            return read_fast(self._path, self._chunks, wanted, log_time=time_source == "log")
+            out = read_fast(self._path, self._chunks, wanted, log_time=time_source == "log", skipped=skipped)
+        for offset, reason in skipped:
+            self._skipped[f"skipped the chunk at byte {offset} of {self.name}: {reason}; its messages are lost"] = None
+        return out
 
     def _decoder(self, channel: Any) -> Decoder:
         from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
@@ -177,6 +211,8 @@ class McapSource:
         return pose_decoder(name, lambda b: store.deserialize_ros1(b, name))
 
     def read(self, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes, Decoder]]:
+        if self._skipped or any(ix.uncompressed_size > CHUNK_LIMIT for ix in self._chunks):
+            self._ros2 = False      # rosbags cannot skip a chunk: its read would end at the bomb
         if self._ros2 and self._bag is None:
             from .rosbag_reader import BagSource
 
@@ -189,31 +225,34 @@ class McapSource:
             return
         with unreadable(self.name):
             decoders = {cid: self._decoder(ch) for cid, ch in self._channels.items() if ch.topic in topics}
-        if not self._indexed:
-            for record in self._records():
+        with unreadable(self.name):
+            for record in self._records() if not self._chunks else self._indexed_records(set(decoders)):
                 if isinstance(record, Message) and record.channel_id in decoders:
                     yield (self._channels[record.channel_id].topic, record.log_time, record.data,
                            decoders[record.channel_id])
-            return
-        with unreadable(self.name), open(self._path, "rb") as f:
-            for _, channel, message in make_reader(f).iter_messages(topics=list(topics), log_time_order=False):
-                yield channel.topic, message.log_time, message.data, decoders[channel.id]
+
+    def _indexed_records(self, channels: set[int]) -> Iterator[Any]:
+        """The records of the chunks that may hold messages of ``channels``, in file order."""
+        with open_clamped(self._path) as f:
+            for index in self._chunks:
+                if index.message_index_offsets and not channels & set(index.message_index_offsets):
+                    continue
+                f.seek(index.chunk_start_offset + 9)
+                yield from self._chunk_records(Chunk.read(ReadDataStream(f)), index.chunk_start_offset)
 
 
-def _salvage_chunk(tail: bytes) -> Iterator[Any]:
-    """The complete records inside a Chunk record cut off in ``tail`` (zstd, lz4 or uncompressed:
-    decompressed as far as the bytes go); nothing if ``tail`` does not start with a chunk."""
-    if len(tail) < 41 or tail[0] != 0x06:
+def _salvage_chunk(f: BinaryIO) -> Iterator[Any]:
+    """The complete records inside a Chunk record cut off at the position of ``f`` (zstd, lz4 or
+    uncompressed: decompressed as far as the bytes go, within the size it declares); nothing if
+    no chunk starts there."""
+    head = f.read(41)
+    if len(head) < 41 or head[0] != 0x06:
         return
-    n = int.from_bytes(tail[37:41], "little")
-    compression, data = tail[41:41 + n].decode(errors="replace"), tail[41 + n + 8:]
+    n = int.from_bytes(head[37:41], "little")
+    compression = f.read(n).decode(errors="replace")
+    f.read(8)
     try:
-        if compression == "zstd":
-            data = zstandard.ZstdDecompressor().decompressobj().decompress(data)
-        elif compression == "lz4":
-            data = lz4.frame.LZ4FrameDecompressor().decompress(data)
-        elif compression:
-            return
+        data = inflate(compression, f.read(), int.from_bytes(head[25:33], "little"), partial=True)
         yield from StreamReader(io.BytesIO(data), skip_magic=True).records
     except decode_errors():
         return

@@ -1,8 +1,9 @@
 """Open a log as a :class:`~.source.LogSource`, falling back on the damaged cases rosbags refuses.
 
 * MCAP → :class:`.mcap_reader.McapSource` (which itself scans files without a usable summary);
-* ROS 1 bags → rosbags' AnyReader; a single bag it refuses (never indexed, cut off) is scanned
-  linearly (:class:`.rosbag1_scan.Bag1Scan`) with a warning;
+* ROS 1 bags → rosbags' AnyReader, once :func:`.rosbag1_scan.check_lengths` finds every record
+  within the file; a single bag it refuses (never indexed, cut off, a record claiming more than the
+  file holds) is scanned linearly (:class:`.rosbag1_scan.Bag1Scan`) with a warning;
 * ROS 2 bag directories → AnyReader when ``metadata.yaml`` is there and parses; a corrupt one is
   a one-line error; without one the single storage file is read directly (``.mcap`` through
   McapSource, ``.db3`` through AnyReader) with a warning. A directory with one ``.mcap`` storage
@@ -13,12 +14,17 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import yaml
 
 from ..errors import ReadError
 from .mcap_reader import McapSource
 from .source import LogSource
+
+if TYPE_CHECKING:
+    from .rosbag1_scan import Bag1Scan
+    from .rosbag_reader import BagSource
 
 __all__ = ["open_log"]
 
@@ -54,6 +60,29 @@ def _with_note(src: LogSource, note: str) -> LogSource:
     return src
 
 
+def _open_bag1(paths: list[Path]) -> BagSource | Bag1Scan:
+    """ROS 1 bag(s) through rosbags (imported only here: an MCAP read by the fast path does without
+    it), once :func:`.rosbag1_scan.check_lengths` finds every record within its file (rosbags would
+    read whatever length a damaged record claims); a single bag that fails this or that rosbags
+    refuses is scanned linearly."""
+    from .rosbag1_scan import Bag1Scan, check_lengths
+    from .rosbag_reader import BagSource
+
+    damaged = [(p, why) for p in paths if (why := check_lengths(p))]
+    if len(paths) > 1:
+        if damaged:
+            raise ReadError(f"cannot read file: {damaged[0][1]}", str(damaged[0][0]),
+                            "pass the intact bags, or this one alone to read it by a linear scan")
+        return BagSource(paths, "rosbag1")
+    reason = damaged[0][1] if damaged else ""
+    if not reason:
+        try:
+            return BagSource(paths, "rosbag1")
+        except ReadError as exc:
+            reason = exc.what.removeprefix("cannot read file: ")
+    return Bag1Scan(paths[0], reason)
+
+
 @contextmanager
 def open_log(paths: list[Path], fmts: list[str]) -> Iterator[LogSource]:
     """The open log of ``paths`` (several only for split ROS 1 bags)."""
@@ -65,19 +94,13 @@ def open_log(paths: list[Path], fmts: list[str]) -> Iterator[LogSource]:
         storage, note = _bag2_storage(path)
         if storage is not None:
             path, fmt = storage, "mcap" if storage.suffix == ".mcap" else "rosbag2"
-    src: LogSource
     if fmt == "mcap":
-        src = McapSource(path)
-    else:           # rosbags, imported only here: an MCAP read by the fast path does without it
-        from .rosbag1_scan import Bag1Scan
+        src: McapSource | BagSource | Bag1Scan = McapSource(path)
+    elif fmt == "rosbag1":
+        src = _open_bag1(paths)
+    else:
         from .rosbag_reader import BagSource
 
-        if fmt == "rosbag1" and len(paths) == 1:
-            try:
-                src = BagSource(paths, fmt)
-            except ReadError as exc:
-                src = Bag1Scan(path, exc.what.removeprefix("cannot read file: "))
-        else:
-            src = BagSource([path] if fmt == "rosbag2" else paths, fmt)
+        src = BagSource([path], fmt)
     with src:
         yield _with_note(src, note)

@@ -2,27 +2,30 @@
 or cut off. The records are scanned in file order with rosbags' own record-header parser; chunks
 (none / bz2 / lz4) are decompressed and their connection and message records read; types come
 from each connection's embedded message definition. Everything up to the first damaged record
-is read (``truncated`` is set when the file ends inside a record).
+is read (``truncated`` is set when the file ends inside a record). Reads never ask for more than
+the file holds, and a chunk is decompressed to at most the size its header declares and
+:data:`.common.CHUNK_LIMIT`.
+
+:func:`check_lengths` walks a bag's records before rosbags opens it, which would otherwise read
+whatever length a damaged record claims (a chunk header claiming 0xFFFFFFF0 bytes: 4 GB).
 """
 from __future__ import annotations
 
-import bz2
 import io
 from collections import Counter
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
-import lz4.frame  # type: ignore[import-untyped]
 from rosbags.rosbag1.reader import Header, ReaderError, RecordType, decompressors, read_uint32
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from ..errors import ReadError
-from .common import decode_errors
+from .common import CHUNK_LIMIT, ChunkError, decode_errors, inflate, open_clamped
 from .messages import normalize_type, pose_decoder
 from .source import Decoder, TopicInfo
 
-__all__ = ["Bag1Scan"]
+__all__ = ["Bag1Scan", "check_lengths"]
 
 _MAGIC = b"#ROSBAG V2.0\n"
 _ERRORS: tuple[type[BaseException], ...] = (ReaderError, KeyError, *decode_errors())
@@ -37,15 +40,18 @@ class Bag1Scan:
         self.truncated = False
         self._conns: dict[int, tuple[str, str, str]] = {}     # id → (topic, type, message definition)
         self._counts: Counter[int] = Counter()
+        self._skipped: dict[str, None] = {}     # one line per chunk skipped
         stamps = []
         for conn, stamp, _ in self._messages(None):
             self._counts[conn] += 1
             stamps.append(stamp)
         if not self._counts:
-            raise ReadError(f"cannot read file: {reason}; no complete message found by a linear scan", self.name,
+            lost = "".join(f"; {k}" for k in self._skipped)
+            raise ReadError(f"cannot read file: {reason}; no complete message found by a linear scan{lost}", self.name,
                             "the bag is empty or damaged; try `rosbag reindex` (ROS 1)")
         self._span = (min(stamps), max(stamps))
-        self.notes = (f"{self.name} has no usable index ({reason}); read by a linear scan of its records",)
+        self.notes = (f"{self.name} has no usable index ({reason}); read by a linear scan of its records",
+                      *self._skipped)
 
     def __enter__(self) -> Bag1Scan:
         return self
@@ -76,7 +82,7 @@ class Bag1Scan:
 
     def _messages(self, conns: set[int] | None) -> Iterator[tuple[int, int, bytes]]:
         """(connection id, log time [ns], raw message) in file order; registers connections."""
-        with open(self._path, "rb") as f:
+        with open_clamped(self._path) as f:
             if f.read(len(_MAGIC)) != _MAGIC:
                 raise ReadError("not a ROS 1 bag (wrong magic)", self.name, "check the file")
             yield from self._walk(self._records(f), conns)
@@ -87,7 +93,11 @@ class Bag1Scan:
             try:
                 op = header.get_uint8("op")
                 if op == RecordType.CHUNK:
-                    raw = _decompress(header.get_string("compression"), data)
+                    try:
+                        raw = _decompress(header.get_string("compression"), data, header.get_uint32("size"))
+                    except ChunkError as exc:
+                        self._skipped[f"skipped a chunk of {self.name}: {exc}; its messages are lost"] = None
+                        continue
                     yield from self._walk(self._records(io.BytesIO(raw)), conns)
                 elif op == RecordType.CONNECTION:
                     meta = Header.read(io.BytesIO(len(data).to_bytes(4, "little") + data))   # fields, unprefixed
@@ -125,14 +135,31 @@ class Bag1Scan:
             yield self._conns[conn][0], stamp, raw, decoders[conn]
 
 
-def _decompress(compression: str, data: bytes) -> bytes:
-    """A chunk's records; of a chunk cut off, as much as its complete compressed blocks give."""
-    if compression == "none":
-        return data
-    stream = {"bz2": bz2.BZ2Decompressor, "lz4": lz4.frame.LZ4FrameDecompressor}.get(compression)
-    if stream is None:
+def _decompress(compression: str, data: bytes, size: int) -> bytes:
+    """A chunk's records (``size`` [B] declared); of a chunk cut off, as much as its complete
+    compressed blocks give. ChunkError past ``size`` or :data:`.common.CHUNK_LIMIT`."""
+    if compression not in ("none", "bz2", "lz4"):
         return bytes(decompressors[compression](data))     # rosbags names the unsupported compression
-    try:
-        return bytes(stream().decompress(data))
-    except (OSError, EOFError, RuntimeError, ValueError):
-        return b""
+    return inflate(compression, data, size, partial=True)
+
+
+def check_lengths(path: Path) -> str:
+    """What is wrong with the ROS 1 bag at ``path`` for rosbags to read it safely, or "": a record
+    whose header or data claims more bytes than the file holds, or a chunk declaring more than
+    :data:`.common.CHUNK_LIMIT` uncompressed. Reads only the records' headers."""
+    size = path.stat().st_size
+    with open_clamped(path) as f:
+        f.seek(len(_MAGIC))
+        while (pos := f.tell()) < size:
+            try:
+                header = Header.read(f)
+                n = read_uint32(f)
+                if f.tell() + n > size:
+                    return f"the record at byte {pos} claims {n} bytes, past the end of the file ({size} bytes)"
+                if header.get("op") == bytes([RecordType.CHUNK]) and header.get_uint32("size") > CHUNK_LIMIT:
+                    return (f"the chunk at byte {pos} declares {header.get_uint32('size')} bytes uncompressed, over "
+                            f"the {CHUNK_LIMIT >> 20} MiB limit (handeye_cli.io.common.CHUNK_LIMIT)")
+            except _ERRORS:
+                return f"damaged record header at byte {pos}"
+            f.seek(n, io.SEEK_CUR)
+    return ""

@@ -3,6 +3,12 @@
 
 AnyReader picks the bag version by suffix only, so a file detected by content under another
 name is opened through a temporary symlink with the right suffix.
+
+rosbags decompresses chunks whole (an MCAP chunk with no bound, a ROS 1 chunk into whatever it
+inflates to): its decompressor tables are pointed at :func:`.common.inflate` here, so a chunk
+never yields more than it declares (MCAP) nor more than :data:`.common.CHUNK_LIMIT`; past that
+the read is a one-line error. A ROS 1 bag's record lengths are checked against the file before
+rosbags sees it (:func:`.rosbag1_scan.check_lengths`, called by :func:`.opening.open_log`).
 """
 from __future__ import annotations
 
@@ -10,18 +16,26 @@ import os
 import tempfile
 from collections.abc import Iterator, Sequence
 from contextlib import ExitStack
+from functools import partial
 from pathlib import Path
 
 from rosbags.highlevel import AnyReader
+from rosbags.rosbag1 import reader as bag1_reader
+from rosbags.rosbag2 import storage_mcap
 from rosbags.typesys import Stores, get_typestore
 
-from .common import unreadable
+from ..errors import ReadError
+from .common import CHUNK_LIMIT, inflate, unreadable
 from .messages import normalize_type, pose_decoder
 from .source import Decoder, TopicInfo
 
 __all__ = ["BagSource"]
 
 _SUFFIX = {"rosbag1": ".bag", "rosbag2": ".db3", "mcap": ".mcap"}
+
+storage_mcap.DECOMPRESSORS.update(zstd=partial(inflate, "zstd"), lz4=partial(inflate, "lz4"))
+bag1_reader.decompressors.update(bz2=partial(inflate, "bz2", size=CHUNK_LIMIT),
+                                 lz4=partial(inflate, "lz4", size=CHUNK_LIMIT))
 
 
 class BagSource:
@@ -74,6 +88,14 @@ class BagSource:
             return
         decoders = {(c.topic, c.msgtype): self._decoder(
             c.msgtype, getattr(c.ext, "serialization_format", "") == "cdr") for c in conns}
+        counts = dict.fromkeys(topics, 0)
         with unreadable(self.name):
             for conn, log_ns, raw in self._reader.messages(connections=conns):
+                if not isinstance(raw, (bytes, bytearray, memoryview)) or not isinstance(log_ns, int):
+                    raise ReadError(f"message row holds {type(raw).__name__} data at {type(log_ns).__name__} time, "
+                                    "not bytes at an integer time [ns] (a NULL, TEXT or INTEGER value in the "
+                                    "bag's messages table)", f"{self.name}:{conn.topic}, message {counts[conn.topic]}",
+                                    "the bag is corrupt: repair its messages table, or read another topic "
+                                    "(--topic-a/--topic-b)")
+                counts[conn.topic] += 1
                 yield conn.topic, log_ns, raw, decoders[(conn.topic, conn.msgtype)]

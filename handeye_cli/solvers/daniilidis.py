@@ -50,4 +50,7 @@ def daniilidis(E: FloatArray, F: FloatArray, alpha: float = 1.0,
     else:                       # a = 0: s → ∞ is a root, i.e. the first singular vector alone
         q, qd = u1, v1
     n_q = np.linalg.norm(q)
+    if not np.isfinite(n_q) or n_q < 1e-12:     # e.g. every translation 0: the root picked has no rotation part
+        raise DataError("Daniilidis' method degenerates on these motions (its chosen root has no rotation part; "
+                        "every translation zero?)", "daniilidis", "use --method dqopt, which always has a solution")
     return q / n_q, qd / n_q
