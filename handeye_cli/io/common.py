@@ -15,6 +15,7 @@ from mcap.exceptions import McapError
 
 from ..errors import DataError, HandEyeError, ReadError
 from ..streams import PoseStream
+from ..untrusted import frame_id_problem
 
 __all__ = ["decode_errors", "unreadable", "PoseBuffer", "make_stream"]
 
@@ -155,13 +156,21 @@ def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source
                 recovered_truncated: int = 0, zero_stamps_fix: str | None = LOG_STAMPS_FIX) -> PoseStream:
     """Validate and order reader output (arrays in arrival order) into a :class:`PoseStream`.
 
-    Drops invalid poses (warning), keeps the longest run when the clock jumps back (warning),
+    Refuses (ReadError) a non-empty ``frame_id`` or ``child_frame_id`` that breaks the frame-id rule
+    (:func:`handeye_cli.untrusted.frame_id_problem`): such names would reach the generated launch
+    files and scripts. Drops invalid poses (warning), keeps the longest run when the clock jumps back (warning),
     sorts by stamp, drops repeated stamps keeping the first (``duplicates_dropped``; a warning
     when a repeat carries a different pose), normalises quaternions (x-y-z-w). ``where(i)`` names
     sample ``i`` (arrival order) in messages, e.g. "line 12". ``warnings`` are the reader's own.
     DataError for an empty stream, no valid pose, or — unless ``zero_stamps_fix`` is None —
     every stamp zero (``zero_stamps_fix`` says what to do).
     """
+    for role, name in (("frame_id", frame_id), ("child_frame_id", child_frame_id)):
+        problem = frame_id_problem(name) if name else None     # an empty id (PoseStamped without one) is allowed
+        if problem:
+            raise ReadError(f"{role} {name!r} is not a valid frame id: {problem}", source,
+                            "fix the recording's frame ids (tf2 refuses such ids too), or export the poses to a "
+                            "TUM/CSV file and read that")
     if len(stamps) == 0:
         raise DataError("empty stream: no poses", source,
                         "choose a topic, frame pair or file that carries poses (handeye inspect FILE)")
