@@ -92,6 +92,9 @@ def extrinsic_of(doc: Any, where: str) -> np.ndarray:
     no rigid transform."""
     if isinstance(doc, dict) and "matrix" in doc:
         T = _numbers(doc["matrix"], (4, 4), "matrix", where)
+        for key, shape in (("translation", (3,)), ("quaternion_xyzw", (4,))):     # stated beside it: finite too
+            if key in doc:
+                _numbers(doc[key], shape, key, where)
         if not se3.is_rotation(T[:3, :3], 1e-6) or np.abs(T[3] - [0, 0, 0, 1]).max() > 1e-9:
             raise ReadError("'matrix' is not a rigid transform (rotation block not orthonormal, or last row "
                             "not 0 0 0 1)", where, "pass a handeye result file")
