@@ -201,3 +201,10 @@ def test_a_nominal_with_a_hostile_frame_name_is_refused(tmp_path):
     path.write_text(f"{STP} {FLAGS.replace('cam1', chr(39) + 'cam1; rm -rf x' + chr(39))}\n")
     with pytest.raises(ReadError, match="not a valid frame id"):
         read_nominal(path)
+
+
+def test_deeply_nested_fleet_records_are_one_line(tmp_path, capsys):
+    records = tmp_path / "v.jsonl"
+    records.write_text("[" * 50_000 + "]" * 50_000 + "\n")
+    assert "nested too deeply" in _one_line_error(capsys, "report", records, "-o", tmp_path / "f.html")
+    assert not (tmp_path / "f.html").exists()
