@@ -17,6 +17,7 @@ from handeye_cli.errors import ReadError
 from handeye_cli.io.nominal import read_nominal
 from handeye_cli.output.document import _static_transform_command, render
 from handeye_cli.output.formats import ALL_FORMATS, render_format
+from handeye_cli.rig.result import transform_entry
 from handeye_cli.simulation import random_transform
 
 IDENTITY = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
@@ -208,3 +209,17 @@ def test_deeply_nested_fleet_records_are_one_line(tmp_path, capsys):
     records.write_text("[" * 50_000 + "]" * 50_000 + "\n")
     assert "nested too deeply" in _one_line_error(capsys, "report", records, "-o", tmp_path / "f.html")
     assert not (tmp_path / "f.html").exists()
+
+
+@pytest.mark.parametrize("suffix", [True, False], ids=["suffix", "no-suffix"])
+@pytest.mark.parametrize("fmt", ALL_FORMATS)
+def test_every_format_of_a_rig_result_reads_back_as_a_nominal(fmt, suffix, tmp_path):
+    rng = np.random.default_rng(24)
+    T = {name: random_transform(rng, 2.0) for name in ("cam0", "lidar")}
+    doc = {"reference": "imu", "version": "0.2.0", "transforms": [transform_entry("imu", k, v) for k, v in T.items()]}
+    path = tmp_path / ("rig" + SUFFIX[fmt] if suffix else "rig")
+    path.write_text(render_format(doc, fmt))
+    nominal = read_nominal(path)
+    names = {"imu": "imu0", "cam0": "cam0", "lidar": "cam1"} if fmt == "kalibr" else {n: n for n in ("imu", *T)}
+    for name, X in T.items():
+        assert np.abs(nominal.transform(names["imu"], names[name]) - X).max() < 1e-9

@@ -3,7 +3,7 @@
 Kinds, told apart by content:
 
 * ``result`` — a handeye result (YAML/JSON with ``matrix``, or ``translation`` + ``quaternion_xyzw``);
-  its ``frames`` name the transform ``T_a_b``.
+  its ``frames`` name the transform ``T_a_b``; or a rig result, whose ``transforms`` are ``T_parent_child``.
 * ``urdf`` — a URDF: every ``fixed`` joint is the transform ``T_parent_child`` of its ``<origin
   xyz rpy>`` (rpy: fixed-axis roll about x, pitch about y, yaw about z, ``R = Rz·Ry·Rx``).
 * ``ros1-launch`` / ``ros2-launch`` — a launch file (ROS 1 or ROS 2 XML, or ROS 2 Python) with
@@ -333,6 +333,14 @@ def _kalibr(doc: dict[str, Any], where: str) -> tuple[Edge, ...]:
     return tuple(edges)
 
 
+def _rig_entry(entry: Any, where: str) -> Edge:
+    """One ``{parent, child, translation, quaternion_xyzw}`` of a rig result's ``transforms``."""
+    if not (isinstance(entry, dict) and {"parent", "child"} <= set(entry)):
+        raise ReadError("a transform needs parent, child, translation and quaternion_xyzw", where,
+                        "pass a file written by handeye rig")
+    return _edge(str(entry["parent"]), str(entry["child"]), extrinsic_of(entry, where), where)
+
+
 def _parse_file(path: Path) -> tuple[str, tuple[Edge, ...]]:
     """The kind and edges of a nominal file, told apart by content: XML; else a YAML/JSON mapping
     holding a handeye result; else a Python launch file; else ``static_transform_publisher`` lines;
@@ -359,6 +367,9 @@ def _parse_file(path: Path) -> tuple[str, tuple[Edge, ...]]:
         frames = doc["frames"] if isinstance(doc.get("frames"), dict) else {}
         return "result", (_edge(str(frames.get("a", "a")), str(frames.get("b", "b")), extrinsic_of(doc, where),
                                 f"{where}: frames"),)
+    if isinstance(doc, dict) and isinstance(doc.get("transforms"), list):
+        return "result", _tree(tuple(_rig_entry(t, f"{where}: transforms[{i}]")
+                                     for i, t in enumerate(doc["transforms"])), where)
     if re.search(r"^\s*(from|import)\s+launch", text, re.M):
         return "ros2-launch", _launch_python(text, where)
     if _STP in text:
