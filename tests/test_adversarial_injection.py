@@ -259,7 +259,7 @@ def test_reports_escape_hostile_names(tmp_path):
     from handeye_cli.pipeline import calibrate
 
     evil = "cam<script>alert(1)</script><img src=x onerror=alert(2)>'\""
-    a, b = simulate_rig(Rig(random_transform(np.random.default_rng(3), 0.3)), duration_s=12.0, seed=4)
+    a, b = simulate_rig(Rig(random_transform(np.random.default_rng(3), 0.3)), duration_s=8.0, seed=4)
     cal = calibrate(a, b)
     plain_doc = {**cal.document(), "warnings": ["a plain warning"]}
     doc = {**plain_doc, "frames": {"a": evil, "b": "imu"}, "warnings": [evil], "inputs": {"a": evil},
