@@ -15,21 +15,11 @@ import yaml
 
 from .errors import ConfigError
 from .options import FIELDS, SECTIONS, Options
+from .untrusted import load_yaml, yaml_problem
 
 __all__ = ["load_options", "read_config", "presets", "default_yaml"]
 
 _MAX_CONFIG_BYTES = 1 << 20
-
-
-class _SafeLoader(yaml.SafeLoader):
-    """PyYAML's safe loader without aliases: a config never needs them, and a nest of aliases
-    ("billion laughs") would expand to gigabytes."""
-
-    def compose_node(self, parent: Any, index: Any) -> Any:
-        if self.check_event(yaml.AliasEvent):
-            mark = self.peek_event().start_mark    # type: ignore[no-untyped-call]  # PyYAML's stubs leave it untyped
-            raise yaml.composer.ComposerError(None, None, "aliases (*name) are not allowed", mark)
-        return super().compose_node(parent, index)
 
 
 def presets() -> list[str]:
@@ -40,12 +30,9 @@ def presets() -> list[str]:
 
 def _parse_yaml(text: str, where: str) -> dict[str, Any]:
     try:
-        doc = yaml.load(text, Loader=_SafeLoader) or {}
+        doc = load_yaml(text) or {}
     except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        problem = getattr(e, "problem", None) or "invalid YAML"
-        raise ConfigError(problem, f"{where}:{mark.line + 1}" if mark else where,
-                          "fix the file (see configs/default.yaml)") from None
+        raise ConfigError(*yaml_problem(e, where), "fix the file (see configs/default.yaml)") from None
     if not isinstance(doc, dict):
         raise ConfigError("a configuration file must hold a mapping of option: value", where,
                           "see configs/default.yaml")

@@ -2,7 +2,8 @@
 
 Every user-facing failure is a :class:`HandEyeError`: a ``ValueError`` subclass whose message has
 the form ``<what> (<where>): <how to fix>``, so the CLI prints it as one line and exits with
-code 2. Callers that fall back on a failure catch the precise subclass:
+code 2 (a line break or other unprintable character of a name taken from a file is written as its
+escape, :func:`one_line`). Callers that fall back on a failure catch the precise subclass:
 
 * :class:`ConfigError` — an option or configuration value is invalid;
 * :class:`ReadError` — a file is missing, unreadable, damaged or of the wrong kind;
@@ -13,8 +14,8 @@ code 2. Callers that fall back on a failure catch the precise subclass:
 """
 from __future__ import annotations
 
-__all__ = ["HandEyeError", "ConfigError", "ReadError", "DataError", "TooFewPairsError", "UnderdeterminedError",
-           "WriteError"]
+__all__ = ["one_line", "HandEyeError", "ConfigError", "ReadError", "DataError", "TooFewPairsError",
+           "UnderdeterminedError", "WriteError"]
 
 
 class HandEyeError(ValueError):
@@ -46,7 +47,15 @@ class HandEyeError(ValueError):
             text += f" ({where})"
         if fix:
             text += f": {fix}"
-        super().__init__(text)
+        super().__init__(one_line(text))
+
+
+def one_line(text: str) -> str:
+    """``text`` with every unprintable character (line breaks, U+2028, NUL, terminal escapes) written as
+    its escape sequence: names taken from a log or file cannot break the one-line message."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 class ConfigError(HandEyeError):

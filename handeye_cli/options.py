@@ -29,6 +29,7 @@ from typing import Any
 
 from .errors import ConfigError
 from .solvers import METHODS
+from .untrusted import frame_id_problem
 
 __all__ = ["Options", "ReadOptions", "SyncOptions", "GateOptions", "PairOptions", "SolverOptions",
            "AnalysisOptions", "OutputOptions", "SECTIONS", "FIELDS", "OptionInfo"]
@@ -121,16 +122,15 @@ def optional_flag(value: Any, where: str) -> bool | None:
     return None if value is None else flag(value, where)
 
 
-_FRAME_ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_./-]*$")
-
-
 def frame_name(value: Any, where: str) -> str | None:
-    """A tf2 frame id (a leading '/' of ROS 1 style is dropped: tf2 ids cannot start with one)."""
+    """A frame id by the rule of :func:`handeye_cli.untrusted.frame_id_problem` (tf2's: no whitespace,
+    control characters or quotes); a leading '/' of ROS 1 style is dropped (tf2 ids cannot start with one)."""
     if value is None:
         return None
     name = str(value).strip().lstrip("/")
-    if not _FRAME_ID.match(name) or len(name) > 256:
-        raise ConfigError(f"bad frame name {value!r}", where,
+    problem = frame_id_problem(name)
+    if problem:
+        raise ConfigError(f"bad frame name {value!r}: {problem}", where,
                           "use letters, digits, '_', '.', '/' or '-', e.g. camera_link")
     return name
 

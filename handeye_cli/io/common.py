@@ -20,6 +20,7 @@ from mcap.exceptions import McapError
 
 from ..errors import DataError, HandEyeError, ReadError
 from ..streams import PoseStream
+from ..untrusted import frame_id_problem
 
 __all__ = ["decode_errors", "unreadable", "PoseBuffer", "make_stream", "CHUNK_LIMIT", "ChunkError", "check_declared",
            "inflate", "open_clamped"]
@@ -237,7 +238,9 @@ def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source
                 quaternion_order: str | None = None) -> PoseStream:
     """Validate and order reader output (arrays in arrival order) into a :class:`PoseStream`.
 
-    Drops invalid poses (warning), keeps the longest run when the clock jumps back (warning),
+    Refuses (ReadError) a non-empty ``frame_id`` or ``child_frame_id`` that breaks the frame-id rule
+    (:func:`handeye_cli.untrusted.frame_id_problem`): such names would reach the generated launch
+    files and scripts. Drops invalid poses (warning), keeps the longest run when the clock jumps back (warning),
     sorts by stamp, drops repeated stamps keeping the first (``duplicates_dropped``; a warning
     when a repeat carries a different pose), normalises quaternions (x-y-z-w). ``where(i)`` names
     sample ``i`` (arrival order) in messages, e.g. "line 12". ``warnings`` are the reader's own.
@@ -245,6 +248,12 @@ def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source
     ``zero_stamps_fix`` is None — every stamp zero (``zero_stamps_fix`` says what to do).
     ``quaternion_order``: see :attr:`PoseStream.quaternion_order`.
     """
+    for role, name in (("frame_id", frame_id), ("child_frame_id", child_frame_id)):
+        problem = frame_id_problem(name) if name else None     # an empty id (PoseStamped without one) is allowed
+        if problem:
+            raise ReadError(f"{role} {name!r} is not a valid frame id: {problem}", source,
+                            "fix the recording's frame ids (tf2 refuses such ids too), or export the poses to a "
+                            "TUM/CSV file and read that")
     if len(stamps) == 0:     # the reader's first warning may say why (a chunk skipped, a cut-off file)
         raise DataError("empty stream: no poses" + "".join(f" ({w})" for w in warnings[:1]), source,
                         "choose a topic, frame pair or file that carries poses (handeye inspect FILE)")

@@ -3,7 +3,7 @@
 Kinds, told apart by content:
 
 * ``result`` — a handeye result (YAML/JSON with ``matrix``, or ``translation`` + ``quaternion_xyzw``);
-  its ``frames`` name the transform ``T_a_b``.
+  its ``frames`` name the transform ``T_a_b``; or a rig result, whose ``transforms`` are ``T_parent_child``.
 * ``urdf`` — a URDF: every ``fixed`` joint is the transform ``T_parent_child`` of its ``<origin
   xyz rpy>`` (rpy: fixed-axis roll about x, pitch about y, yaw about z, ``R = Rz·Ry·Rx``).
 * ``ros1-launch`` / ``ros2-launch`` — a launch file (ROS 1 or ROS 2 XML, or ROS 2 Python) with
@@ -35,7 +35,8 @@ from numpy.typing import NDArray
 from .. import se3
 from ..errors import ReadError
 from ..solvers import dualquat as dq
-from .pairfile import read_extrinsic
+from ..untrusted import frame_id_problem, load_yaml, yaml_problem
+from .pairfile import extrinsic_of
 
 if TYPE_CHECKING:
     import xml.etree.ElementTree as ET
@@ -120,13 +121,15 @@ def _rpy(rpy: Any) -> NDArray[np.float64]:
     return np.asarray(Rotation.from_euler("xyz", rpy).as_matrix(), dtype=np.float64)
 
 
-def _floats(text: str | None, n: int, where: str) -> NDArray[np.float64]:
+def _floats(text: str | None, n: int, where: str, field: str) -> NDArray[np.float64]:
+    """The ``n`` finite numbers of ``text`` (blank: zeros); ReadError naming ``field`` otherwise."""
     try:
         values = np.array([float(v) for v in (text or " ".join(["0"] * n)).split()])
     except ValueError:
         values = np.array([])
     if values.shape != (n,) or not np.isfinite(values).all():
-        raise ReadError(f"expected {n} numbers, got {text!r}", where, "fix the value")
+        raise ReadError(f"{field}: expected {n} finite number(s), got {text!r}", where,
+                        "fix the value (NaN and inf are not a transform)")
     return values
 
 
@@ -154,7 +157,7 @@ def _flag_args(args: list[str], where: str) -> Edge:
         values[flag[2:]] = next(it, "")
     if "frame-id" not in values or "child-frame-id" not in values:
         raise ReadError("static_transform_publisher without --frame-id/--child-frame-id", where, "add both frames")
-    num = {k: float(_floats(v, 1, where)[0]) for k, v in values.items() if not k.endswith("id")}
+    num = {k: float(_floats(v, 1, where, f"--{k}")[0]) for k, v in values.items() if not k.endswith("id")}
     quat = [k for k in ("qx", "qy", "qz", "qw") if k in num]
     euler = [k for k in ("roll", "pitch", "yaw") if k in num]
     if quat and euler:
@@ -165,7 +168,17 @@ def _flag_args(args: list[str], where: str) -> Edge:
         rotation = _quaternion(q, where)
     else:
         rotation = _rpy([num.get(k, 0.0) for k in ("roll", "pitch", "yaw")])
-    return Edge(values["frame-id"], values["child-frame-id"], _transform(xyz, rotation))
+    return _edge(values["frame-id"], values["child-frame-id"], _transform(xyz, rotation), where)
+
+
+def _edge(parent: str, child: str, T: NDArray[np.float64], where: str) -> Edge:
+    """The edge ``T_parent_child``; ReadError when a frame name breaks the frame-id rule."""
+    for name in (parent, child):
+        problem = frame_id_problem(name)
+        if problem:
+            raise ReadError(f"frame {name!r} is not a valid frame id: {problem}", where,
+                            "fix the frame names in the nominal")
+    return Edge(parent, child, T)
 
 
 def _quaternion(q: NDArray[np.float64], where: str) -> NDArray[np.float64]:
@@ -188,36 +201,75 @@ def static_publisher_transform(args: list[str], where: str = "static_transform_p
     if n_numbers not in (6, 7) or len(args) not in (n_numbers + 2, n_numbers + 3):
         raise ReadError(f"cannot parse static_transform_publisher arguments {' '.join(args)!r}", where,
                         "use 'x y z yaw pitch roll frame child' or 'x y z qx qy qz qw frame child'")
-    nums = np.array([float(a) for a in args[:n_numbers]])
+    fields = "x y z yaw pitch roll" if n_numbers == 6 else "x y z qx qy qz qw"
+    nums = _floats(" ".join(args[:n_numbers]), n_numbers, where, fields)
     rotation = _rpy(nums[[5, 4, 3]]) if n_numbers == 6 else _quaternion(nums[3:7], where)
-    return Edge(args[n_numbers], args[n_numbers + 1], _transform(nums[:3], rotation))
+    return _edge(args[n_numbers], args[n_numbers + 1], _transform(nums[:3], rotation), where)
+
+
+def _split(text: str, where: str, comments: bool = False) -> list[str]:
+    """Shell words (``shlex``); ReadError for an unbalanced quote."""
+    try:
+        return shlex.split(text, comments=comments)
+    except ValueError as e:
+        raise ReadError(f"cannot split into words: {e} ({text.strip()[:80]!r})", where,
+                        "balance the quotes") from None
 
 
 def _command_lines(text: str, where: str) -> tuple[Edge, ...]:
     """Every ``… static_transform_publisher ARGS`` line of a shell text."""
     edges = []
-    for line in text.replace("\\\n", " ").splitlines():
+    for n, line in enumerate(text.replace("\\\n", " ").splitlines(), 1):
         if _STP in line and not line.lstrip().startswith("#"):
-            words = shlex.split(line, comments=True)
+            at = f"{where}:{n}" if where != "--against" else where
+            words = _split(line, at, comments=True)
             if _STP in words:
-                edges.append(static_publisher_transform(words[words.index(_STP) + 1:], where))
-    return tuple(edges)
+                edges.append(static_publisher_transform(words[words.index(_STP) + 1:], at))
+    return _tree(tuple(edges), where)
+
+
+def _tree(edges: tuple[Edge, ...], where: str) -> tuple[Edge, ...]:
+    """``edges`` when they form a forest — every frame the child of one transform at most, no loop —
+    as tf2 needs; ReadError naming the frame otherwise (the result would depend on which edge is found first)."""
+    parent_of: dict[str, str] = {}
+    for e in edges:
+        if e.child in parent_of:
+            raise ReadError(f"frame {e.child!r} is the child of two transforms (parents {parent_of[e.child]!r} "
+                            f"and {e.parent!r})", where, "keep one transform per child frame")
+        parent_of[e.child] = e.parent
+    done: set[str] = set()
+    for start in parent_of:
+        path: list[str] = []
+        frame = start
+        while frame in parent_of and frame not in done:
+            if frame in path:
+                loop = " -> ".join(path[path.index(frame):] + [frame])
+                raise ReadError(f"the transforms form a loop ({loop})", where, "remove one transform of the loop")
+            path.append(frame)
+            frame = parent_of[frame]
+        done.update(path)
+    return edges
 
 
 # --- URDF and launch files ------------------------------------------------------------------
 def _urdf(root: ET.Element, where: str) -> tuple[Edge, ...]:
-    edges = []
+    """The fixed joints; every joint (fixed or not) counts for the tree check: a URDF is a tree."""
+    edges, links = [], []
     for joint in root.iter("joint"):
-        if joint.get("type") != "fixed":
-            continue
         parent, child, origin = joint.find("parent"), joint.find("child"), joint.find("origin")
         if parent is None or child is None:
             raise ReadError(f"joint {joint.get('name')!r} lacks <parent> or <child>", where, "fix the URDF")
         name = f"{where}: joint {joint.get('name')}"
-        xyz = _floats(None if origin is None else origin.get("xyz"), 3, name)
-        rpy = _floats(None if origin is None else origin.get("rpy"), 3, name)
-        edges.append(Edge(str(parent.get("link")), str(child.get("link")),
-                          _transform(xyz, _rpy(rpy))))
+        T = np.eye(4)
+        if joint.get("type") == "fixed":
+            xyz = _floats(None if origin is None else origin.get("xyz"), 3, name, "origin xyz")
+            rpy = _floats(None if origin is None else origin.get("rpy"), 3, name, "origin rpy")
+            T = _transform(xyz, _rpy(rpy))
+        edge = _edge(str(parent.get("link")), str(child.get("link")), T, name)
+        links.append(edge)
+        if joint.get("type") == "fixed":
+            edges.append(edge)
+    _tree(tuple(links), where)
     return tuple(edges)
 
 
@@ -225,15 +277,18 @@ def _launch_xml(root: ET.Element, where: str) -> tuple[str, tuple[Edge, ...]]:
     nodes = [n for n in root.iter("node") if _STP in (n.get("type"), n.get("exec"), n.get("executable"))]
     ros2 = any(n.get("type") is None for n in nodes)
     return ("ros2-launch" if ros2 else "ros1-launch",
-            tuple(static_publisher_transform(shlex.split(n.get("args", "")), where) for n in nodes))
+            _tree(tuple(static_publisher_transform(_split(n.get("args", ""), where), where) for n in nodes), where))
 
 
 def _launch_python(text: str, where: str) -> tuple[Edge, ...]:
     """``Node(package='tf2_ros', executable='static_transform_publisher', arguments=[...])`` calls."""
     try:
-        tree = ast.parse(text)
+        tree = ast.parse(text)             # parsed, never run; literal_eval reads only literals
     except SyntaxError as e:
         raise ReadError(f"not valid Python: {e.msg}", f"{where}:{e.lineno}", _FIX) from None
+    except (RecursionError, MemoryError):
+        raise ReadError("Python nested too deeply to parse", where,
+                        "write the launch file with plain literals") from None
     edges = []
     for node in ast.walk(tree):
         if not isinstance(node, ast.Call):
@@ -243,11 +298,11 @@ def _launch_python(text: str, where: str) -> tuple[Edge, ...]:
         if isinstance(exe, ast.Constant) and exe.value == _STP and "arguments" in kw:
             try:
                 args = [str(a) for a in ast.literal_eval(kw["arguments"])]
-            except ValueError:
-                raise ReadError("static_transform_publisher arguments are not literal strings",
+            except (ValueError, TypeError, SyntaxError, RecursionError, MemoryError):
+                raise ReadError("static_transform_publisher arguments are not a list of literal strings",
                                 f"{where}:{node.lineno}", "write the numbers and frames as literals") from None
             edges.append(static_publisher_transform(args, f"{where}:{node.lineno}"))
-    return tuple(edges)
+    return _tree(tuple(edges), where)
 
 
 # --- YAML: handeye results and Kalibr --------------------------------------------------------
@@ -262,31 +317,35 @@ def _kalibr(doc: dict[str, Any], where: str) -> tuple[Edge, ...]:
         for key, other in _KALIBR_KEYS.items():
             if key not in entry:
                 continue
-            T = np.asarray(entry[key], dtype=float)
+            try:
+                T = np.asarray(entry[key], dtype=float)
+            except (TypeError, ValueError):
+                T = np.zeros(0)
             if T.shape != (4, 4) or not (np.isfinite(T).all() and se3.is_rotation(T[:3, :3], 1e-6)):
-                raise ReadError(f"{name}.{key} is not a 4x4 rigid transform", where, "fix the Kalibr YAML")
+                raise ReadError(f"{name}.{key} is not a 4x4 rigid transform of finite numbers", where,
+                                "fix the Kalibr YAML")
             match = re.fullmatch(r"cam(\d+)", str(name))
             if other is None:
                 if not match or match.group(1) == "0":
                     raise ReadError(f"{name}.T_cn_cnm1 needs a previous camera", where, "fix the Kalibr YAML")
                 other = f"cam{int(match.group(1)) - 1}"
-            edges.append(Edge(other, str(name), T) if key == "T_imu_cam" else Edge(str(name), other, T))
+            edges.append(_edge(other, str(name), T, where) if key == "T_imu_cam" else _edge(str(name), other, T, where))
     return tuple(edges)
 
 
-def _yaml(text: str, path: Path) -> tuple[str, tuple[Edge, ...]]:
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError:
-        raise ReadError("not a nominal extrinsic (neither XML, Python, YAML nor a command line)", str(path),
-                        _FIX) from None
-    if isinstance(doc, dict) and ("matrix" in doc or "translation" in doc):
-        frames = doc["frames"] if isinstance(doc.get("frames"), dict) else {}
-        return "result", (Edge(str(frames.get("a", "a")), str(frames.get("b", "b")), read_extrinsic(path)),)
-    return "kalibr", (_kalibr(doc, str(path)) if isinstance(doc, dict) else ())
+def _rig_entry(entry: Any, where: str) -> Edge:
+    """One ``{parent, child, translation, quaternion_xyzw}`` of a rig result's ``transforms``."""
+    if not (isinstance(entry, dict) and {"parent", "child"} <= set(entry)):
+        raise ReadError("a transform needs parent, child, translation and quaternion_xyzw", where,
+                        "pass a file written by handeye rig")
+    return _edge(str(entry["parent"]), str(entry["child"]), extrinsic_of(entry, where), where)
 
 
 def _parse_file(path: Path) -> tuple[str, tuple[Edge, ...]]:
+    """The kind and edges of a nominal file, told apart by content: XML; else a YAML/JSON mapping
+    holding a handeye result; else a Python launch file; else ``static_transform_publisher`` lines;
+    else a Kalibr YAML. A result is tried before the command lines: its ``ros2_static_transform``
+    holds one, and in JSON a quoted one (issue 23)."""
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as e:
@@ -300,11 +359,24 @@ def _parse_file(path: Path) -> tuple[str, tuple[Edge, ...]]:
         except ET.ParseError as e:
             raise ReadError(f"invalid XML: {e}", where, _FIX) from None
         return ("urdf", _urdf(root, where)) if root.tag == "robot" else _launch_xml(root, where)
+    try:
+        doc, problem = load_yaml(text), None
+    except yaml.YAMLError as e:
+        doc, problem = None, yaml_problem(e, where)
+    if isinstance(doc, dict) and ("matrix" in doc or "translation" in doc):
+        frames = doc["frames"] if isinstance(doc.get("frames"), dict) else {}
+        return "result", (_edge(str(frames.get("a", "a")), str(frames.get("b", "b")), extrinsic_of(doc, where),
+                                f"{where}: frames"),)
+    if isinstance(doc, dict) and isinstance(doc.get("transforms"), list):
+        return "result", _tree(tuple(_rig_entry(t, f"{where}: transforms[{i}]")
+                                     for i, t in enumerate(doc["transforms"])), where)
     if re.search(r"^\s*(from|import)\s+launch", text, re.M):
         return "ros2-launch", _launch_python(text, where)
     if _STP in text:
         return "tf-static", _command_lines(text, where)
-    return _yaml(text, path)
+    if problem is not None:
+        raise ReadError(f"not a nominal extrinsic (read as YAML: {problem[0]})", problem[1], _FIX)
+    return "kalibr", (_kalibr(doc, where) if isinstance(doc, dict) else ())
 
 
 def read_nominal(nominal: str | Path) -> Nominal:
@@ -328,9 +400,12 @@ def read_result(path: str | Path) -> dict[str, Any]:
     if not p.is_file():
         raise ReadError("result file not found", str(p), "check the path")
     try:
-        doc = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError):
-        doc = None
+        doc = load_yaml(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as e:
+        raise ReadError(f"cannot read the result: {e.__class__.__name__}", str(p), "check the file") from None
+    except yaml.YAMLError as e:
+        what, where = yaml_problem(e, str(p))
+        raise ReadError(f"not a handeye result: {what}", where, "pass a file written by handeye calibrate") from None
     if not (isinstance(doc, dict) and "matrix" in doc):
         raise ReadError("not a handeye result (no 'matrix')", str(p), "pass a file written by handeye calibrate")
-    return {**doc, "matrix": read_extrinsic(p).tolist()}
+    return {**doc, "matrix": extrinsic_of(doc, str(p)).tolist()}

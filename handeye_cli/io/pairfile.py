@@ -13,14 +13,16 @@ mapping with ``translation`` [m] and ``quaternion_xyzw``.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
 
 from .. import se3
-from ..errors import HandEyeError
+from ..errors import HandEyeError, ReadError
+from ..untrusted import load_yaml, yaml_problem
 
-__all__ = ["CSV_COLUMNS", "read_pairs", "write_pairs_csv", "read_extrinsic"]
+__all__ = ["CSV_COLUMNS", "read_pairs", "write_pairs_csv", "read_extrinsic", "extrinsic_of"]
 
 CSV_COLUMNS = ("ax", "ay", "az", "aqx", "aqy", "aqz", "aqw", "bx", "by", "bz", "bqx", "bqy", "bqz", "bqw")
 
@@ -84,20 +86,51 @@ def write_pairs_csv(path: str | Path, A: np.ndarray, B: np.ndarray, weights: np.
     np.savetxt(path, np.hstack(cols), delimiter=",", header=header, comments="", fmt="%.17g")
 
 
+def extrinsic_of(doc: Any, where: str) -> np.ndarray:
+    """The 4x4 ``T_a_b`` a parsed handeye result or ``{translation, quaternion_xyzw}`` mapping states.
+    ReadError naming ``where`` and the field when it holds none, a non-finite number (NaN, inf) or
+    no rigid transform."""
+    if isinstance(doc, dict) and "matrix" in doc:
+        T = _numbers(doc["matrix"], (4, 4), "matrix", where)
+        for key, shape in (("translation", (3,)), ("quaternion_xyzw", (4,))):     # stated beside it: finite too
+            if key in doc:
+                _numbers(doc[key], shape, key, where)
+        if not se3.is_rotation(T[:3, :3], 1e-6) or np.abs(T[3] - [0, 0, 0, 1]).max() > 1e-9:
+            raise ReadError("'matrix' is not a rigid transform (rotation block not orthonormal, or last row "
+                            "not 0 0 0 1)", where, "pass a handeye result file")
+        return T
+    if isinstance(doc, dict) and {"translation", "quaternion_xyzw"} <= set(doc):
+        t = _numbers(doc["translation"], (3,), "translation", where)
+        q = _numbers(doc["quaternion_xyzw"], (4,), "quaternion_xyzw", where)
+        if np.linalg.norm(q) < 1e-9:
+            raise ReadError("'quaternion_xyzw' is zero", where, "give a unit quaternion [x, y, z, w]")
+        return se3.from_xyz_quat(t, q)
+    raise ReadError("no extrinsic found", where, "pass a handeye result (with 'matrix') or a mapping with "
+                    "'translation: [x, y, z]' and 'quaternion_xyzw: [x, y, z, w]'")
+
+
+def _numbers(value: Any, shape: tuple[int, ...], key: str, where: str) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
+    if a.shape != shape:
+        raise ReadError(f"'{key}' is not {' x '.join(map(str, shape))} numbers", where, "pass a handeye result file")
+    if not np.isfinite(a).all():
+        raise ReadError(f"'{key}' holds a non-finite number (NaN or inf)", where,
+                        "pass a result of a successful calibration")
+    return a
+
+
 def read_extrinsic(path: str | Path) -> np.ndarray:
-    """A 4x4 ``T_a_b`` from a handeye result or a ``{translation, quaternion_xyzw}`` YAML/JSON file."""
+    """A 4x4 ``T_a_b`` from a handeye result or a ``{translation, quaternion_xyzw}`` YAML/JSON file
+    (read with :func:`handeye_cli.untrusted.load_yaml`: no aliases, bounded nesting)."""
     p = _file(path)
     try:
-        doc = yaml.safe_load(p.read_text(encoding="utf-8"))   # YAML ⊃ JSON
+        doc = load_yaml(p.read_text(encoding="utf-8"))   # YAML ⊃ JSON
+    except (OSError, UnicodeDecodeError) as e:
+        raise ReadError(f"cannot read ({e.__class__.__name__})", str(p), "pass a handeye result file") from None
     except yaml.YAMLError as e:
-        raise HandEyeError("not a YAML or JSON file", str(p), "pass a handeye result file") from e
-    if isinstance(doc, dict) and "matrix" in doc:
-        T = np.asarray(doc["matrix"], dtype=float)
-        if T.shape == (4, 4) and np.isfinite(T).all() and se3.is_rotation(T[:3, :3], 1e-6):
-            return T
-    elif isinstance(doc, dict) and {"translation", "quaternion_xyzw"} <= set(doc):
-        t, q = np.asarray(doc["translation"], float), np.asarray(doc["quaternion_xyzw"], float)
-        if t.shape == (3,) and q.shape == (4,) and np.isfinite([*t, *q]).all() and np.linalg.norm(q) > 1e-9:
-            return se3.from_xyz_quat(t, q)
-    raise HandEyeError("no extrinsic found", str(p), "pass a handeye result (with 'matrix') or a mapping with "
-                       "'translation: [x, y, z]' and 'quaternion_xyzw: [x, y, z, w]'")
+        what, where = yaml_problem(e, str(p))
+        raise ReadError(f"not a YAML or JSON file: {what}", where, "pass a handeye result file") from None
+    return extrinsic_of(doc, str(p))

@@ -6,11 +6,13 @@ from b to a), ``translation`` [m], ``quaternion_xyzw`` (Hamilton, x-y-z-w, w ≥
 ``samples`` (what each stage read, kept and dropped), ``inputs``, ``version``, ``warnings``,
 then diagnostics (e.g. ``solver``, ``residuals``, ``time_offset``, ``uncertainty``) and
 ``ros2_static_transform`` (a ready command line publishing the extrinsic on /tf_static).
-YAML and JSON carry the same content.
+YAML and JSON carry the same content; a non-finite number is null in both (JSON has no NaN).
 """
 from __future__ import annotations
 
 import json
+import math
+import shlex
 from typing import Any
 
 import numpy as np
@@ -21,7 +23,7 @@ from .._typing import FloatArray
 from ..errors import HandEyeError
 from ..solvers import Solution
 
-__all__ = ["FORMATS", "result_document", "render", "plain"]
+__all__ = ["FORMATS", "result_document", "render", "plain", "finite"]
 
 FORMATS = ("yaml", "json")
 
@@ -40,10 +42,12 @@ def plain(value: Any) -> Any:
 
 
 def _static_transform_command(t: FloatArray, q: FloatArray, frames: dict[str, str]) -> str:
+    """The command line, every word shell-quoted (frame names may come from a log)."""
     names = ("x", "y", "z", "qx", "qy", "qz", "qw")
     nums = " ".join(f"--{k} {float(v)!r}" for k, v in zip(names, [*t, *q], strict=True))   # repr: round-trips
     return (f"ros2 run tf2_ros static_transform_publisher {nums} "
-            f"--frame-id {frames.get('a', 'a')} --child-frame-id {frames.get('b', 'b')}")
+            f"--frame-id {shlex.quote(str(frames.get('a', 'a')))} "
+            f"--child-frame-id {shlex.quote(str(frames.get('b', 'b')))}")
 
 
 def result_document(solution: Solution, *, frames: dict[str, str] | None = None,
@@ -90,13 +94,34 @@ def _represent_list(dumper: yaml.SafeDumper, data: list[Any]) -> yaml.Node:
     return dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=flow)
 
 
+def _represent_str(dumper: yaml.SafeDumper, data: str) -> yaml.Node:
+    """A string with a line break or another unprintable character (names may come from a log) in
+    double quotes, where the emitter escapes it: unquoted, U+0085 or U+2028 would read back as a
+    line break."""
+    return dumper.represent_scalar("tag:yaml.org,2002:str", data, style=None if data.isprintable() else '"')
+
+
 _Dumper.add_representer(list, _represent_list)
+_Dumper.add_representer(str, _represent_str)
+
+
+def finite(value: Any) -> Any:
+    """NaN and infinities → None (null), recursively through dicts and lists: JSON has no NaN
+    (``json.loads`` of strict parsers, jq, browsers reject it), and YAML says the same."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite(v) for v in value]
+    return value
 
 
 def render(doc: dict[str, Any], fmt: str = "yaml") -> str:
-    """The document as YAML or JSON text (floats at full precision, ``repr`` round-trip)."""
+    """The document as YAML or JSON text (floats at full precision, ``repr`` round-trip; a non-finite
+    number — an undefined statistic — is null in both, see :func:`finite`)."""
     if fmt == "json":
-        return json.dumps(doc, indent=2) + "\n"
+        return json.dumps(finite(doc), indent=2, allow_nan=False) + "\n"
     if fmt == "yaml":
-        return yaml.dump(doc, Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=10_000)
+        return yaml.dump(finite(doc), Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=10_000)
     raise HandEyeError(f"unknown output format {fmt!r}", "--format", f"use one of {', '.join(FORMATS)}")

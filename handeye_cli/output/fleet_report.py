@@ -52,6 +52,9 @@ def read_records(path: str | Path) -> list[dict[str, Any]]:
             record = json.loads(line)
         except json.JSONDecodeError as e:
             raise ReadError(f"not JSON: {e.msg}", f"{p}:{n}", "pass the JSON Lines output of handeye batch") from None
+        except RecursionError:
+            raise ReadError("JSON nested too deeply", f"{p}:{n}",
+                            "pass the JSON Lines output of handeye batch") from None
         if not (isinstance(record, dict) and "status" in record and "input" in record):
             raise ReadError("not a batch record (no input/status)", f"{p}:{n}", "pass the output of handeye batch")
         records.append(record)

@@ -17,10 +17,18 @@ result) and writes the numbers at full precision (``repr``), so reading the outp
   calibrate result frame a is cam0 and b imu0, for a rig the reference is imu0 and the sensors cam0, cam1…
 
 Quaternions are x-y-z-w, translations metres.
+
+Frame names may come from a log, so every writer escapes them for its language whatever checked
+them before (docs/design.md, "Generated files and nominals"): Python literals by ``repr`` (the
+launch file's docstring too), shell words by ``shlex.quote``, XML attributes by ``quoteattr``,
+YAML by the emitter; a comment holding names is made one line (unprintable characters written as
+escapes) and, in XML, free of ``--``. A name a format cannot carry — a character XML 1.0 forbids,
+NUL in a shell word, ``$(`` or ``${`` in the ROS XML files (roslaunch and xacro evaluate them),
+in a ROS 1 launch file's whitespace-split ``args`` anything the frame-id rule refuses — is a
+ConfigError naming the frame and the format.
 """
 from __future__ import annotations
 
-import json
 import re
 import shlex
 from collections.abc import Callable
@@ -32,7 +40,8 @@ import yaml
 from numpy.typing import NDArray
 
 from .. import __version__, se3
-from ..errors import ConfigError
+from ..errors import ConfigError, one_line
+from ..untrusted import frame_id_problem
 from .document import render
 
 __all__ = ["ALL_FORMATS", "Frame", "render_format", "transforms_of"]
@@ -66,19 +75,44 @@ def _num(values: Array) -> list[str]:
 
 
 def _comment(doc: dict[str, Any], frames: list[Frame]) -> str:
+    """What the file states, one line (every unprintable character of a name written as its escape)."""
     head = (f"handeye {doc.get('version', __version__)}, method {doc.get('method', '?')}, "
             f"{doc.get('pairs_used', '?')} pairs" if "transforms" not in doc else
             f"handeye {doc.get('version', __version__)} rig, reference {doc.get('reference', frames[0].parent)}")
     names = ", ".join(f"T_{f.parent}_{f.child}" for f in frames)
-    return f"{names}: the pose of each child frame in its parent frame (maps points from child to parent); {head}"
+    return one_line(f"{names}: the pose of each child frame in its parent frame (maps points from child to parent); "
+                    f"{head}")
 
 
 def _xml_comment(text: str) -> str:
-    return text.replace("--", "- -")
+    """``text`` (one line) as the body of ``<!-- … -->``: no ``--`` inside (XML forbids it)."""
+    return re.sub(r"-(?=-)", "- ", text)
+
+
+# Characters XML 1.0 cannot carry at all, not even as character references.
+_NOT_XML = re.compile(r"[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+def _refuse(frames: list[Frame], fmt: str, problem: Callable[[str], str | None]) -> None:
+    """ConfigError for the first frame name ``fmt`` cannot carry (``problem`` says why)."""
+    for name in (n for f in frames for n in (f.parent, f.child)):
+        why = problem(name)
+        if why:
+            raise ConfigError(f"frame name {name!r} cannot be written as {fmt}: {why}", "--format",
+                              "name the frames with --name-a/--name-b (letters, digits, '_', '.', '/', '-')")
+
+
+def _xml_problem(name: str) -> str | None:
+    bad = _NOT_XML.search(name)
+    if bad:
+        return f"XML 1.0 has no character {bad.group()!r}"
+    if "$(" in name or "${" in name:
+        return "roslaunch and xacro evaluate '$(' and '${'"
+    return None
 
 
 def _node_name(f: Frame) -> str:
-    return re.sub(r"\W", "_", f"handeye_{f.parent}_to_{f.child}")
+    return re.sub(r"\W", "_", f"handeye_{f.parent}_to_{f.child}", flags=re.ASCII)
 
 
 def _xyz_quat(T: Array) -> list[str]:
@@ -99,6 +133,7 @@ def _urdf(doc: dict[str, Any], frames: list[Frame]) -> str:
 
     from scipy.spatial.transform import Rotation  # 0.3 s to import: only for URDF's roll, pitch, yaw
 
+    _refuse(frames, "a URDF", _xml_problem)
     links = "".join(f"  <link name={quoteattr(name)}/>\n"
                     for name in dict.fromkeys(name for f in frames for name in (f.parent, f.child)))
     joints = "".join(
@@ -114,24 +149,28 @@ def _urdf(doc: dict[str, Any], frames: list[Frame]) -> str:
 def _ros1_launch(doc: dict[str, Any], frames: list[Frame]) -> str:
     from xml.sax.saxutils import quoteattr
 
-    nodes = "".join(f'  <node pkg="tf2_ros" type="static_transform_publisher" name="{_node_name(f)}"\n'
+    _refuse(frames, "a ROS 1 launch file", lambda name: _xml_problem(name) or frame_id_problem(name))
+    nodes = "".join(f'  <node pkg="tf2_ros" type="static_transform_publisher" name={quoteattr(_node_name(f))}\n'
                     f"        args={quoteattr(' '.join([*_xyz_quat(f.matrix), f.parent, f.child]))}/>\n"
                     for f in frames)
     return f"<launch>\n  <!-- {_xml_comment(_comment(doc, frames))} -->\n{nodes}</launch>\n"
 
 
 def _ros2_launch(doc: dict[str, Any], frames: list[Frame]) -> str:
-    nodes = "".join("        Node(\n            package=\"tf2_ros\",\n"
-                    "            executable=\"static_transform_publisher\",\n"
-                    f"            name=\"{_node_name(f)}\",\n"
-                    f"            arguments=[{', '.join(json.dumps(v) for v in _flag_args(f))}],\n        ),\n"
+    """Every string a Python literal by ``repr``, the module docstring included."""
+    nodes = "".join("        Node(\n            package='tf2_ros',\n"
+                    "            executable='static_transform_publisher',\n"
+                    f"            name={_node_name(f)!r},\n"
+                    f"            arguments=[{', '.join(repr(v) for v in _flag_args(f))}],\n        ),\n"
                     for f in frames)
-    return (f'"""{_comment(doc, frames)}."""\nfrom launch import LaunchDescription\n'
+    return (f"{_comment(doc, frames) + '.'!r}\nfrom launch import LaunchDescription\n"
             "from launch_ros.actions import Node\n\n\ndef generate_launch_description():\n"
             f"    return LaunchDescription([\n{nodes}    ])\n")
 
 
 def _tf_static(doc: dict[str, Any], frames: list[Frame]) -> str:
+    """Every word shell-quoted; the comment one line."""
+    _refuse(frames, "a shell command", lambda name: "a shell word cannot hold NUL" if "\0" in name else None)
     lines = "".join(" ".join(shlex.quote(w) for w in ["ros2", "run", "tf2_ros", "static_transform_publisher",
                                                        *_flag_args(f)]) + "\n" for f in frames)
     return f"# {_comment(doc, frames)}\n{lines}"
@@ -146,8 +185,8 @@ def _kalibr(doc: dict[str, Any], frames: list[Frame]) -> str:
     cams = [(f.child, se3.inverse(f.matrix)) if rig else (f.parent, f.matrix) for f in frames]
     body = {f"cam{i}": {"T_cam_imu": T.tolist(), "T_imu_cam": se3.inverse(T).tolist()} for i, (_, T) in enumerate(cams)}
     names = ", ".join(f"frame '{name}' is cam{i}" for i, (name, _) in enumerate(cams))
-    head = (f"# {_comment(doc, frames)}\n# Kalibr names: {names}, frame '{imu}' is imu0; "
-            "T_cam_imu maps points from imu0 to camN, T_imu_cam is its inverse.\n")
+    head = (f"# {_comment(doc, frames)}\n# " + one_line(f"Kalibr names: {names}, frame '{imu}' is imu0; ")
+            + "T_cam_imu maps points from imu0 to camN, T_imu_cam is its inverse.\n")
     text: str = yaml.safe_dump(body, sort_keys=False, default_flow_style=None, width=200)
     return head + text
 

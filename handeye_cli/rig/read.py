@@ -17,6 +17,7 @@ from typing import Any
 
 from ..errors import ConfigError
 from ..io import read_log_streams, read_stream
+from ..options import frame_name
 from ..streams import PoseStream
 
 __all__ = ["StreamSpec", "parse_stream", "read_rig"]
@@ -43,6 +44,7 @@ def parse_stream(text: str) -> StreamSpec:
     name, source = name.strip(), source.strip()
     if not sep or not name or not source:
         raise ConfigError(f"bad stream {text!r}", "--stream", "write NAME=/topic, NAME=tf:PARENT,CHILD or NAME=FILE")
+    name = str(frame_name(name, f"--stream {text}"))       # the name is the sensor's frame in every output
     if source.startswith("tf:"):
         frames = [f.strip() for f in source[3:].split(",")]
         if len(frames) != 2 or not all(frames):

@@ -1,0 +1,73 @@
+"""Rules for text handeye did not write: YAML files (configurations, results, nominals, priors) and
+frame ids (from logs, nominals and the command line).
+
+* :func:`load_yaml` is PyYAML's safe loader without aliases (a nest of them, "billion laughs",
+  expands to gigabytes; no file of handeye's needs one) and with at most :data:`MAX_YAML_DEPTH`
+  levels of nesting (the composer recurses per level: 50,000 levels would be a RecursionError).
+  JSON is YAML, so JSON files go through it too.
+* :func:`frame_id_problem` is the frame-id rule every stream, nominal and ``--name-a`` obeys:
+  tf2's — no whitespace, no control or other unprintable characters (line and paragraph
+  separators included), no quotes or backslash, at most :data:`MAX_FRAME_ID` characters.
+
+See the threat model in docs/design.md.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import yaml
+
+__all__ = ["MAX_FRAME_ID", "MAX_YAML_DEPTH", "frame_id_problem", "load_yaml", "yaml_problem"]
+
+MAX_YAML_DEPTH = 100
+MAX_FRAME_ID = 256
+_QUOTES = "'\"`\\"
+
+
+class _Loader(yaml.SafeLoader):
+    """PyYAML's safe loader that refuses aliases and more than :data:`MAX_YAML_DEPTH` levels."""
+
+    def __init__(self, stream: str) -> None:
+        super().__init__(stream)
+        self._depth = 0
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        if self.check_event(yaml.AliasEvent):
+            mark = self.peek_event().start_mark    # type: ignore[no-untyped-call]  # PyYAML's stubs leave it untyped
+            raise yaml.composer.ComposerError(None, None, "aliases (*name) are not allowed", mark)
+        if self._depth >= MAX_YAML_DEPTH:
+            mark = self.peek_event().start_mark    # type: ignore[no-untyped-call]
+            raise yaml.composer.ComposerError(None, None, f"nested deeper than {MAX_YAML_DEPTH} levels", mark)
+        self._depth += 1
+        try:
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+
+def load_yaml(text: str) -> Any:
+    """The YAML (or JSON) document ``text`` as plain Python values; ``yaml.YAMLError`` when it is not
+    valid YAML, uses an alias or nests deeper than :data:`MAX_YAML_DEPTH` levels."""
+    return yaml.load(text, Loader=_Loader)
+
+
+def yaml_problem(error: yaml.YAMLError, where: str) -> tuple[str, str]:
+    """``(what, where:line)`` of a :func:`load_yaml` failure, for a one-line error message."""
+    mark = getattr(error, "problem_mark", None)
+    problem = getattr(error, "problem", None) or "invalid YAML"
+    return str(problem), f"{where}:{mark.line + 1}" if mark else where
+
+
+def frame_id_problem(name: str) -> str | None:
+    """Why ``name`` breaks the frame-id rule (see the module docstring), or None when it keeps it.
+    A leading ``/`` (ROS 1 style) is allowed: readers strip it."""
+    if not name:
+        return "it is empty"
+    if len(name) > MAX_FRAME_ID:
+        return f"it has {len(name)} characters (at most {MAX_FRAME_ID})"
+    for c in name:
+        if c.isspace() or not c.isprintable():
+            return f"it holds the character {c!r}"
+        if c in _QUOTES:
+            return f"it holds the quote {c!r}"
+    return None
