@@ -65,12 +65,10 @@ def test_forgotten_inversion_is_diagnosed(capsys, tmp_path):
     # Inverted, b fits 15x better: without an explicit choice the result is refused (exit 2) …
     code, out, err = run(capsys, "calibrate", tmp_path / "a.tum", fb_inv, "-q", "--pairs", "random:300")
     assert code == 2 and not out and "almost certainly inverted" in err and "--invert-b" in err
-    # … and with one (--no-invert-b: "b is right as it is") it is the first warning.
+    # … and so is one whose explicit flag (--no-invert-b: "b is right as it is") the data contradict.
     code, out, err = run(capsys, "calibrate", tmp_path / "a.tum", fb_inv, "-q", "--pairs", "random:300",
                          "--no-invert-b")
-    assert code == 0, err
-    warnings = yaml.safe_load(out)["warnings"]
-    assert "looks inverted" in warnings[0] and "--invert-b" in warnings[0], warnings
+    assert code == 2 and not out and "contradict the data" in err and "--invert-b" in err
 
 
 def test_robust_rejects_outlier_pairs(tmp_path):

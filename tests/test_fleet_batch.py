@@ -103,9 +103,12 @@ def test_exit_codes_without_drift(fleet, capsys):
     assert code == 2 and [r["status"] for r in _records(out)] == ["ok", "ok", "error"]
     code, out, _ = run(capsys, *_args(root, logs / "robot00", logs / "robot26", "-q"))      # moved below tolerance
     assert code == 0 and [r["status"] for r in _records(out)] == ["ok", "ok"]
-    strict = ["batch", logs / "robot00", "--topic-a", TOPICS[0], "--topic-b", TOPICS[1], "--invert-b", "-q"]
+    wrong = ["batch", logs / "robot00", "--topic-a", TOPICS[0], "--topic-b", TOPICS[1], "--invert-b", "-q"]
+    code, out, _ = run(capsys, *wrong)                     # a flag the data contradict: that input's error
+    assert code == 2 and _records(out)[0]["status"] == "error" and "contradict the data" in _records(out)[0]["error"]
+    strict = ["batch", logs / "crashed0", "--topic-a", TOPICS[0], "--topic-b", TOPICS[1], "-q"]
     code, out, _ = run(capsys, *strict)
-    assert code == 0 and "looks inverted" in _records(out)[0]["warnings"][0]
+    assert code == 0 and "truncated" in " ".join(_records(out)[0]["warnings"])
     code, out, _ = run(capsys, *strict, "--strict")                            # warnings fail under --strict
     assert code == 3 and _records(out)[0]["status"] == "ok"
 

@@ -72,6 +72,7 @@ _STEP_OUTLIER = 10.0          # steps whose residual exceeds this many medians a
 _TRUNCATE = 3.0               # the smoothing kernel reaches this many σ
 MIN_CORRELATION = 0.5         # a lower peak correlation of the angular speeds is an error
 SIGNIFICANT_SIGMA = 3.0       # an estimate beyond this many of its σ from 0 is applied by --time-offset auto …
+NEGLIGIBLE_NS = 100_000       # … and beyond 0.1 ms (at 1 rad/s a 0.006° error: identical clocks estimate ~1 ns ± 0.1)
 CONFIRMING_GAIN = 1.25        # … unless its pairs' median residuals are this much higher than without it, or, when it
 CONFIRMING_COVERAGE = 0.8     # synchronises fewer than this share of the samples, not this much lower (a 4-s
 #                               periodic arm capture's alias at -2.3 s kept 42 % and fit 1.15× better in rotation,
@@ -104,9 +105,10 @@ class TimeOffset:
 
     @property
     def significant(self) -> bool:
-        """Whether the offset differs from 0 by more than ``SIGNIFICANT_SIGMA`` of its own σ: what the
-        default ``--time-offset auto`` applies (a smaller one is noise, and applying it or 0 is the same)."""
-        return abs(self.offset_ns) > SIGNIFICANT_SIGMA * self.std_ns
+        """Whether the offset differs from 0 by more than ``SIGNIFICANT_SIGMA`` of its own σ and more than
+        ``NEGLIGIBLE_NS``: what the default ``--time-offset auto`` applies (a smaller one is noise, or too
+        small to matter, and applying it or 0 is the same)."""
+        return abs(self.offset_ns) > max(SIGNIFICANT_SIGMA * self.std_ns, NEGLIGIBLE_NS)
 
 
 @dataclass(frozen=True)
