@@ -32,6 +32,7 @@ from .analysis import (
 )
 from .analysis.alpha import noise_model_alpha
 from .analysis.diagnosis import data_warning, too_few_pairs
+from .analysis.fit_test import fit_test, sample_noise
 from .analysis.inversion import InversionVerdict, check_inversion
 from .config import load_options
 from .errors import ConfigError, HandEyeError
@@ -301,7 +302,9 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
 
     Order: [fixed scale of b] → time offset → stations, or sync → gates → pairs → [scale auto] →
     [robust] → [α auto] → weighted solve → observability warnings, residuals, inversion check
-    (first warning; refuses the result when overwhelming) → [bootstrap].
+    (first warning; refuses the result when overwhelming) → fit test (refuses residuals far beyond
+    the streams' own noise unless ``accept_poor_fit``; see :mod:`~handeye_cli.analysis.fit_test`)
+    → [bootstrap].
     """
     opts = Options.from_flat(options, **overrides) if overrides else (options or Options())
     if opts.solver.scale not in (1.0, "auto"):
@@ -328,9 +331,17 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     verdict = _inversion(kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha)   # thresholds set at α 1
     if verdict is not None:
         diagnostics["inversion"] = verdict.as_dict()
+    fit = fit_test(pairs, res, solution.matrix, sample_noise(stream_a, stream_b, kept, stations, opts.sync.sync),
+                   mask=None if weights is None else weights > 0)        # refuses what no rigid rig gives
+    diagnostics["fit_test"] = fit.as_dict()
+    rejected = fit.refusal(opts, stations is not None, inverted=verdict is not None)
+    if rejected and not opts.analysis.accept_poor_fit:
+        raise rejected
     suspect = verdict.message() if verdict else data_warning(res, weights, samples)
     if suspect:
         warnings.insert(0, suspect)
+    if rejected:
+        warnings.insert(0, f"poor fit accepted with --accept-poor-fit: {fit.summary()}")
     boot = None
     if opts.analysis.bootstrap > 0:
         boot = bootstrap(A, B, opts.analysis.bootstrap, alpha=alpha, prior=prior, weights=weights,
