@@ -21,6 +21,7 @@ import argparse
 import time
 from collections.abc import Callable
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -33,10 +34,10 @@ from handeye_cli.simulation.recordings import SCENARIOS, scenario
 from handeye_cli.streams import PoseStream
 
 
-def _ratio(run: Callable[[], Calibration]) -> float:
-    """The fit test's ratio (inf: refused by the fit test; nan: refused by another check)."""
+def _ratio(run: Callable[..., Calibration], *args: Any) -> float:
+    """The fit test's ratio of ``run(*args)`` (inf: refused by the fit test; nan: refused by another check)."""
     try:
-        return float(run().diagnostics["fit_test"]["ratio"])
+        return float(run(*args).diagnostics["fit_test"]["ratio"])
     except FitRejectedError:
         return float("inf")
     except HandEyeError:
@@ -71,7 +72,7 @@ def clean(seeds: int, duration: float) -> None:
                 lambda seed, setup=setup, sparse=sparse: calibrate(*_arm(seed, setup, sparse)))
     for name, run in kinds.items():
         t0 = time.perf_counter()
-        ratios = np.array([_ratio(lambda: run(seed)) for seed in range(seeds)])
+        ratios = np.array([_ratio(run, seed) for seed in range(seeds)])
         passed = np.isfinite(ratios) & (ratios <= THRESHOLD)
         finite = ratios[np.isfinite(ratios)]
         print(f"  {name:<28} pass {100 * passed.mean():5.1f} %   ratio median {np.median(finite):5.2f}  "
@@ -98,23 +99,23 @@ def wrong(seeds: int, duration: float) -> None:
     cases["sparse stations: --no-invert-b"] = lambda s: calibrate(
         _arm(s, "eye-in-hand", True)[0], _arm(s, "eye-in-hand", True)[1].inverted(), invert_b=False)
     for name, run in cases.items():
-        ratios = [_ratio(lambda: run(seed)) for seed in range(seeds)]
+        ratios = [_ratio(run, seed) for seed in range(seeds)]
         refused = sum(not (r <= THRESHOLD) for r in ratios)
         print(f"  {name:<42} refused {refused}/{seeds}   ratios {' '.join(f'{r:.3g}' for r in ratios)}")
 
 
 def offset(seeds: int, duration: float) -> None:
     print("\n50 ms clock offset ignored, fast motion (speed 1): ratio without → with, and the inflation")
-    from handeye_cli.simulation.recordings import absolute, drifting, simulate_recording
     from handeye_cli.simulation import Rig, random_transform
+    from handeye_cli.simulation.recordings import absolute, drifting, simulate_recording
     for label, na, nb in (("vio-vio", drifting(), drifting()), ("mocap-mocap", absolute(0.05, 0.0005),
                                                                   absolute(0.2, 0.002))):
         out = []
         for seed in range(seeds):
             rig = Rig(random_transform(np.random.default_rng([seed, 1]), 0.3))
             r = simulate_recording(rig, na, nb, duration_s=duration, rate_a=30, rate_b=30, seed=seed, speed=1.0)
-            base = _ratio(lambda: calibrate(r.a, r.b))
-            late = _ratio(lambda: calibrate(r.a, r.b.shifted(50_000_000)))
+            base = _ratio(calibrate, r.a, r.b)
+            late = _ratio(calibrate, r.a, r.b.shifted(50_000_000))
             out.append((base, late))
         a = np.array(out)
         print(f"  {label:<12} ratio {np.median(a[:, 0]):.2f} → {np.median(a[:, 1]):.2f} (median; max with offset "

@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from _util import run, write_tum
 
 from handeye_cli import calibrate
 from handeye_cli.analysis.fit_test import THRESHOLD, FitTest, fit_test, sample_noise
@@ -19,8 +20,6 @@ from handeye_cli.simulation.arm import simulate_arm
 from handeye_cli.simulation.recordings import SCENARIOS, scenario
 from handeye_cli.solvers import solve
 from handeye_cli.streams import PoseStream
-
-from _util import run, write_tum
 
 _FAST = Options.from_flat(pairs="stride:6", max_pairs=120, alpha=1.0)
 

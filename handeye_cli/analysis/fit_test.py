@@ -201,7 +201,7 @@ def sample_noise(stream_a: PoseStream, stream_b: PoseStream, synced: Synced, sta
                                  "sigma_translation_m": float(np.median(trans)), "from": "station scatter"}
             out += [rot, trans]
         source = "station scatter" if all(streams[k].get("from") for k in "ab") else "mixed"
-        return SampleNoise(*out, source=source, streams=streams)
+        return SampleNoise(out[0], out[1], out[2], out[3], source, streams)
     method = "nearest" if sync_method == "nearest" else "interpolate"
     ra, ta, rep_a = _stream_sigmas(stream_a, stream_noise(stream_a), method if synced.reference == "b" else None, n)
     rb, tb, rep_b = _stream_sigmas(stream_b, stream_noise(stream_b), method if synced.reference == "a" else None, n)
