@@ -65,12 +65,17 @@ def test_forgotten_inversion_is_diagnosed(capsys, tmp_path):
     # Inverted, b fits 15x better: without an explicit choice the result is refused (exit 2) …
     code, out, err = run(capsys, "calibrate", tmp_path / "a.tum", fb_inv, "-q", "--pairs", "random:300")
     assert code == 2 and not out and "almost certainly inverted" in err and "--invert-b" in err
-    # … and with one (--no-invert-b: "b is right as it is") it is the first warning.
+    # … with one (--no-invert-b: "b is right as it is") the fit test refuses it, inversion named first …
     code, out, err = run(capsys, "calibrate", tmp_path / "a.tum", fb_inv, "-q", "--pairs", "random:300",
                          "--no-invert-b")
-    assert code == 0, err
+    assert code == 2 and not out and "does not fit a rigid rig" in err and "1. a stream recorded as" in err
+    # … and kept with --accept-poor-fit (exit 3), the inversion the first warning after the override's.
+    code, out, err = run(capsys, "calibrate", tmp_path / "a.tum", fb_inv, "-q", "--pairs", "random:300",
+                         "--no-invert-b", "--accept-poor-fit")
+    assert code == 3, err
     warnings = yaml.safe_load(out)["warnings"]
-    assert "looks inverted" in warnings[0] and "--invert-b" in warnings[0], warnings
+    assert warnings[0].startswith("poor fit accepted"), warnings
+    assert "looks inverted" in warnings[1] and "--invert-b" in warnings[1], warnings
 
 
 def test_robust_rejects_outlier_pairs(tmp_path):
