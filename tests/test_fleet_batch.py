@@ -104,8 +104,11 @@ def test_exit_codes_without_drift(fleet, capsys):
     code, out, _ = run(capsys, *_args(root, logs / "robot00", logs / "robot26", "-q"))      # moved below tolerance
     assert code == 0 and [r["status"] for r in _records(out)] == ["ok", "ok"]
     strict = ["batch", logs / "robot00", "--topic-a", TOPICS[0], "--topic-b", TOPICS[1], "--invert-b", "-q"]
+    code, out, _ = run(capsys, *strict)                                        # a wrong flag: the fit test refuses
+    assert code == 2 and "does not fit a rigid rig" in _records(out)[0]["error"]
+    strict.append("--accept-poor-fit")
     code, out, _ = run(capsys, *strict)
-    assert code == 0 and "looks inverted" in _records(out)[0]["warnings"][0]
+    assert code == 0 and "looks inverted" in _records(out)[0]["warnings"][1]
     code, out, _ = run(capsys, *strict, "--strict")                            # warnings fail under --strict
     assert code == 3 and _records(out)[0]["status"] == "ok"
 

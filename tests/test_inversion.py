@@ -66,12 +66,14 @@ def test_inverted_station_capture_is_refused_without_an_explicit_flag(capsys, tm
 def test_explicit_no_invert_warns_first_and_strict_exits_3(capsys, station_files):
     c, fa, fb = station_files
     code, out, err = run(capsys, "calibrate", fa, fb, "--no-invert-b", "--no-invert-a", "-q")
-    assert code == 0, err
+    assert code == 2 and not out and "does not fit a rigid rig" in err     # the fit test refuses the wrong flag
+    assert "1. a stream recorded as T_sensor_world" in err
+    code, out, err = run(capsys, "calibrate", fa, fb, "--no-invert-b", "--no-invert-a", "--accept-poor-fit", "-q")
+    assert code == 3, err                                                   # kept on request: exit 3
     doc = yaml.safe_load(out)
-    assert "looks inverted" in doc["warnings"][0] and doc["inversion"]["overwhelming"]
+    assert doc["warnings"][0].startswith("poor fit accepted") and doc["inversion"]["overwhelming"]
+    assert "looks inverted" in doc["warnings"][1]
     assert pose_error(np.array(doc["matrix"]), c.truth)[0] > 1          # the streams as given: a wrong result
-    code, _, _ = run(capsys, "calibrate", fa, fb, "--no-invert-b", "--no-invert-a", "--strict", "-q")
-    assert code == 3
 
 
 def test_the_right_flag_calibrates_without_an_inversion_warning(capsys, station_files):
