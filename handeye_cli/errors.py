@@ -9,13 +9,14 @@ escape, :func:`one_line`). Callers that fall back on a failure catch the precise
 * :class:`ReadError` — a file is missing, unreadable, damaged or of the wrong kind;
 * :class:`DataError` — the data were read but cannot be calibrated (empty stream, no time
   overlap, no sample passes a gate), with the subclasses :class:`TooFewPairsError` and
-  :class:`UnderdeterminedError` (the motions cannot determine the extrinsic);
+  :class:`UnderdeterminedError` (the motions cannot determine the extrinsic) and
+  :class:`FitRejectedError` (the residuals at the solution do not fit a rigid rig);
 * :class:`WriteError` — a result or report could not be written.
 """
 from __future__ import annotations
 
 __all__ = ["one_line", "HandEyeError", "ConfigError", "ReadError", "DataError", "TooFewPairsError",
-           "UnderdeterminedError", "WriteError"]
+           "UnderdeterminedError", "FitRejectedError", "WriteError"]
 
 
 class HandEyeError(ValueError):
@@ -76,6 +77,12 @@ class TooFewPairsError(DataError):
 
 class UnderdeterminedError(DataError):
     """The motions cannot determine the extrinsic (a family of solutions fits them exactly)."""
+
+
+class FitRejectedError(DataError):
+    """The solution's residuals are far larger than the streams' own noise predicts for a rigid rig
+    (see :mod:`handeye_cli.analysis.fit_test`): wrong units, quaternion order, inversion, frames,
+    clock, scale, outliers, or streams that are not rigidly attached."""
 
 
 class WriteError(HandEyeError):

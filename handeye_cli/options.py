@@ -320,6 +320,9 @@ class AnalysisOptions:
     bootstrap: int = option(0, integer(), "Uncertainty from N bootstrap resamples (0: off).", "N")
     strict: bool = option(False, flag, "Exit with code 3 when there are warnings (degenerate motion, suspect "
                           "residuals, doubtful time offset).")
+    accept_poor_fit: bool = option(False, flag, "Keep a result that fails the fit test (residuals far beyond "
+                                   "what the streams' own noise predicts for a rigid rig): it is written with a "
+                                   "warning and the command exits with code 3, instead of refusing it (exit 2).")
 
 
 @dataclass(frozen=True)

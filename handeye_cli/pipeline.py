@@ -32,6 +32,7 @@ from .analysis import (
 )
 from .analysis.alpha import noise_model_alpha
 from .analysis.diagnosis import data_warning, too_few_pairs
+from .analysis.fit_test import fit_test, sample_noise
 from .analysis.inversion import InversionVerdict, check_inversion
 from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit
 from .config import load_options
@@ -319,7 +320,8 @@ def _with_scale(kept: Synced, pairs: Pairs, options: Options, diagnostics: dict[
 
 def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float,
                inputs: dict[str, Any]) -> InversionVerdict | None:
-    """The inversion check; raises its refusal when the evidence is overwhelming. ``inputs`` (what was
+    """The inversion check; raises its refusal when the evidence is overwhelming (unless ``accept_poor_fit``:
+    then it is the first warning after the override's). ``inputs`` (what was
     read) names a TF stream's frame pair, whose fix is naming the frames the other way round."""
     read = options.read
     def frames(key: str) -> tuple[str, str] | None:
@@ -329,7 +331,8 @@ def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float,
     verdict = check_inversion(kept.T_a, kept.T_b, pairs.i, pairs.j, alpha=alpha,
                               inverted_now=(bool(read.invert_a), bool(read.invert_b)),
                               frames=(frames("a"), frames("b")))
-    refusal = verdict and verdict.refusal(read.invert_a is not None or read.invert_b is not None)
+    refusal = verdict and not options.analysis.accept_poor_fit and verdict.refusal(
+        read.invert_a is not None or read.invert_b is not None)
     if refusal:
         raise refusal
     return verdict
@@ -372,7 +375,9 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     Order: [fixed scale of b] → quaternion order of text files (by the fit) → inversion (``invert_a`` /
     ``invert_b``) → time offset → stations, or sync → gates → pairs → [scale auto] →
     [robust] → [α auto] → weighted solve → observability warnings, residuals, inversion check
-    (first warning; refuses the result when overwhelming) → [bootstrap].
+    (first warning; refuses the result when overwhelming) → fit test (refuses residuals far beyond
+    the streams' own noise unless ``accept_poor_fit``; see :mod:`~handeye_cli.analysis.fit_test`)
+    → [bootstrap].
     """
     opts = Options.from_flat(options, **overrides) if overrides else (options or Options())
     if opts.solver.scale not in (1.0, "auto"):
@@ -411,9 +416,17 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
                          inputs or {})
     if verdict is not None:
         diagnostics["inversion"] = verdict.as_dict()
+    fit = fit_test(pairs, res, solution.matrix, sample_noise(stream_a, stream_b, kept, stations, opts.sync.sync),
+                   mask=None if weights is None else weights > 0)        # refuses what no rigid rig gives
+    diagnostics["fit_test"] = fit.as_dict()
+    rejected = fit.refusal(opts, stations is not None, inverted=verdict is not None)
+    if rejected and not opts.analysis.accept_poor_fit:
+        raise rejected
     suspect = verdict.message() if verdict else data_warning(res, weights, samples)
     if suspect:
         warnings.insert(0, suspect)
+    if rejected:
+        warnings.insert(0, f"poor fit accepted with --accept-poor-fit: {fit.summary()}")
     boot = None
     if opts.analysis.bootstrap > 0:
         boot = bootstrap(A, B, opts.analysis.bootstrap, alpha=alpha, prior=prior, weights=weights,

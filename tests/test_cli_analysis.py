@@ -69,6 +69,13 @@ def test_forgotten_inversion_is_diagnosed(capsys, tmp_path):
     code, out, err = run(capsys, "calibrate", tmp_path / "a.tum", fb_inv, "-q", "--pairs", "random:300",
                          "--no-invert-b")
     assert code == 2 and not out and "contradict the data" in err and "--invert-b" in err
+    # … and kept with --accept-poor-fit (exit 3), the inversion the first warning after the override's.
+    code, out, err = run(capsys, "calibrate", tmp_path / "a.tum", fb_inv, "-q", "--pairs", "random:300",
+                         "--no-invert-b", "--accept-poor-fit")
+    assert code == 3, err
+    warnings = yaml.safe_load(out)["warnings"]
+    assert warnings[0].startswith("poor fit accepted"), warnings
+    assert "looks inverted" in warnings[1] and "--invert-b" in warnings[1], warnings
 
 
 def test_robust_rejects_outlier_pairs(tmp_path):

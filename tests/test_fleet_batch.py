@@ -109,6 +109,9 @@ def test_exit_codes_without_drift(fleet, capsys):
     strict = ["batch", logs / "crashed0", "--topic-a", TOPICS[0], "--topic-b", TOPICS[1], "-q"]
     code, out, _ = run(capsys, *strict)
     assert code == 0 and "truncated" in " ".join(_records(out)[0]["warnings"])
+    wrong.append("--accept-poor-fit")                      # kept on request
+    code, out, _ = run(capsys, *wrong)
+    assert code == 0 and "looks inverted" in _records(out)[0]["warnings"][1]
     code, out, _ = run(capsys, *strict, "--strict")                            # warnings fail under --strict
     assert code == 3 and _records(out)[0]["status"] == "ok"
 

@@ -74,6 +74,13 @@ def test_an_explicit_flag_the_data_contradict_is_refused(capsys, tmp_path, stati
     code, out, err = run(capsys, "calibrate", fa, fb, "--no-invert-b", "--no-invert-a", "-o", out_file)
     assert code == 2 and not out_file.exists() and out == ""
     assert err.count("\n") == 1 and "contradict the data" in err and "--invert-b" in err
+    code, out, err = run(capsys, "calibrate", fa, fb, "--no-invert-b", "--no-invert-a", "--accept-poor-fit", "-q")
+    assert code == 3, err                                                   # kept on request: exit 3
+    doc = yaml.safe_load(out)
+    assert doc["warnings"][0].startswith("poor fit accepted") and doc["inversion"]["overwhelming"]
+    assert "looks inverted" in doc["warnings"][1]
+    c = station_files[0]
+    assert pose_error(np.array(doc["matrix"]), c.truth)[0] > 1          # the streams as given: a wrong result
 
 
 def test_the_right_flag_calibrates_without_an_inversion_warning(capsys, station_files):

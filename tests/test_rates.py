@@ -46,7 +46,9 @@ def best_hand_tuned(rec: RateRecording, slow_hz: float, variants: list[dict]) ->
     for sync in ("interpolate", "nearest"):
         for extra in variants:
             try:
-                cal = calibrate(rec.a, rec.b, sync=sync, max_dt=1.2 / slow_hz, **extra)
+                # the hand-tuned baselines interpolate (or take the nearest of) the slow stream across its
+                # steps and misfit (7–16° median at 100/1 Hz): kept past the fit test, for their accuracy
+                cal = calibrate(rec.a, rec.b, sync=sync, max_dt=1.2 / slow_hz, accept_poor_fit=True, **extra)
             except HandEyeError:
                 continue
             scores.append(score(cal.matrix)[2])

@@ -104,5 +104,7 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
                            report_error.fix)
     if verdict is not None and verdict.drift:
         raise Drifted(verdict.summary())
+    if not doc["fit_test"]["passed"]:          # only with --accept-poor-fit: otherwise refused before
+        raise StrictFailure("the result failed the fit test and was written because of --accept-poor-fit")
     if doc["warnings"] and options.analysis.strict:
         raise StrictFailure(f"{len(doc['warnings'])} warning(s) under --strict (the result was still written)")
