@@ -34,7 +34,7 @@ from .analysis.alpha import noise_model_alpha
 from .analysis.diagnosis import data_warning, too_few_pairs
 from .analysis.fit_test import fit_test, sample_noise
 from .analysis.inversion import InversionVerdict, check_inversion
-from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit
+from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit, scale_reading
 from .config import load_options
 from .errors import ConfigError, HandEyeError
 from .io.pairfile import read_extrinsic
@@ -338,6 +338,31 @@ def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float,
     return verdict
 
 
+def _scale_by_fit(kept: Synced, pairs: Pairs, X: np.ndarray, options: Options, prior: Prior | None,
+                  selection: Selection | None, diagnostics: dict[str, Any], warnings: list[str]
+                  ) -> tuple[Synced, Pairs, tuple[Solution, float, np.ndarray | None, RobustResult | None]] | None:
+    """b's translations in other units, found by the fit (:func:`~.analysis.readings.scale_reading` at the
+    solution ``X`` of the pairs): decisively better scaled (monocular units), the scale is estimated with
+    ``T_a_b`` as ``--scale auto`` does and the pairs re-solved — returned; noticeably better (a SLAM scale off by
+    percents), a warning naming ``--scale auto``; else None. ``diagnostics`` and ``warnings`` are filled in."""
+    reading = scale_reading(pairs.A, pairs.B, X)
+    if reading is None or not (reading.decisive or reading.noticeable):
+        return None
+    diagnostics.setdefault("interpretation", {})["scale"] = {**reading.as_dict(), "applied": reading.decisive}
+    if not reading.decisive:
+        warnings.insert(0, f"stream b's translations fit {reading.gain:.3g}× better scaled by {reading.scale:.4g} "
+                           f"(median residual {reading.medians_m[0]:.3g} → {reading.medians_m[1]:.3g} m): if its "
+                           "scale is off (SLAM), pass --scale auto")
+        return None
+    kept, pairs = _with_scale(kept, pairs, options, diagnostics)
+    solved = _solve_and_analyse(pairs, options, prior, selection, diagnostics)
+    warnings.insert(0, f"stream b's translations fit a rigid rig {reading.gain:.3g}× better scaled (median residual "
+                       f"{reading.medians_m[0]:.3g} m as given): its scale was estimated with T_a_b, "
+                       f"{diagnostics['scale']['value']:.6g} ± {diagnostics['scale']['std']:.2g} m per unit "
+                       "(--scale auto); give it with --scale NUMBER to fix it")
+    return kept, pairs, solved
+
+
 def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None, selection: Selection | None,
                        diagnostics: dict[str, Any]) -> tuple[Solution, float, np.ndarray | None, RobustResult | None]:
     """[robust: RANSAC inliers] → [α auto] → the weighted solve; diagnostics filled in place.
@@ -405,17 +430,20 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     if opts.solver.scale == "auto":
         kept, pairs = _with_scale(kept, pairs, opts, diagnostics)
     solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, selection, diagnostics)
-
+    verdict = _inversion(kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha,   # thresholds set at α 1
+                         inputs or {})
+    if verdict is not None:
+        diagnostics["inversion"] = verdict.as_dict()
+    elif opts.solver.scale == 1.0 and prior is None:         # an inverted stream also fits "better scaled"
+        scaled = _scale_by_fit(kept, pairs, solution.matrix, opts, prior, selection, diagnostics, warnings)
+        if scaled is not None:
+            kept, pairs, (solution, alpha, weights, robust) = scaled
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
     obs = assess_observability(A, B, solution.matrix, alpha=alpha, prior=prior, weights=weights, samples=ij)
     warnings += [str(w) for w in obs.warnings]
     diagnostics["observability"] = obs.as_dict()
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    verdict = _inversion(kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha,   # thresholds set at α 1
-                         inputs or {})
-    if verdict is not None:
-        diagnostics["inversion"] = verdict.as_dict()
     fit = fit_test(pairs, res, solution.matrix, sample_noise(stream_a, stream_b, kept, stations, opts.sync.sync),
                    mask=None if weights is None else weights > 0)        # refuses what no rigid rig gives
     diagnostics["fit_test"] = fit.as_dict()

@@ -106,3 +106,22 @@ def test_orders_that_fit_alike_with_other_extrinsics_are_refused(monkeypatch, tm
                 choose_quaternion_order(a, b)
         else:                                             # alike and the same extrinsic: the format's is kept
             assert choose_quaternion_order(a, b)[2].chosen_by == "format"
+
+
+@pytest.mark.parametrize("units", [0.5, 2.0])
+def test_monocular_units_are_found_by_the_fit(units):
+    """b's translations in other units (monocular odometry): they fit far better scaled, so the scale is
+    estimated with T_a_b and said in a warning; metric streams get no scale reading."""
+    from dataclasses import replace
+
+    X = random_transform(np.random.default_rng(8), 0.3)
+    a, b = simulate_rig(Rig(X), duration_s=20, rate_a=100, rate_b=30, sigma_r=np.deg2rad(0.1), sigma_t=0.002,
+                        seed=8)
+    metric = calibrate(a, b)
+    assert "scale" not in metric.diagnostics.get("interpretation", {})
+    cal = calibrate(a, replace(b, xyz=b.xyz / units))             # b in units of `units` metres
+    reading = cal.diagnostics["interpretation"]["scale"]
+    assert reading["applied"] and reading["gain"] > 3
+    assert cal.diagnostics["scale"]["value"] == pytest.approx(units, rel=0.01)
+    assert "--scale" in cal.warnings[0]
+    assert pose_error(cal.matrix, X)[1] < 3 * pose_error(metric.matrix, X)[1] + 1e-3

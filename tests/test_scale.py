@@ -81,11 +81,12 @@ def test_cli_scale_auto_recovers_the_scale(capsys, mono_files):
     assert abs(doc["scale"]["value"] / SCALE - 1) < 1e-3 and 0 < doc["scale"]["std"] < 1e-3 * SCALE
     rot, trans = pose_error(np.array(doc["matrix"]), X)
     assert rot < 0.05 and trans < 0.003
-    code, out, err = run(capsys, "calibrate", fa, fb, "-q")         # ignoring the scale: refused, scale named first
-    assert code == 2 and not out and "1. b's translations in another unit (--scale auto)" in err
-    code, out, _ = run(capsys, "calibrate", fa, fb, "-q", "--accept-poor-fit")   # kept on request: far off, said so
+    code, out, err = run(capsys, "calibrate", fa, fb, "-q")         # by default the fit finds the other units
+    assert code == 0, err
     doc = yaml.safe_load(out)
-    assert code == 3 and pose_error(np.array(doc["matrix"]), X)[1] > 0.1 and "--scale auto" in doc["warnings"][1]
+    assert doc["interpretation"]["scale"]["applied"] and "--scale" in doc["warnings"][0]
+    assert abs(doc["scale"]["value"] / SCALE - 1) < 1e-3
+    assert pose_error(np.array(doc["matrix"]), X)[1] < 0.003
 
 
 def test_cli_fixed_scale_number(capsys, mono_files):

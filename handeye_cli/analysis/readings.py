@@ -35,13 +35,16 @@ from ..solvers import solve
 from ..streams import PoseStream
 from .residuals import extrinsic_error, pair_residuals
 
-__all__ = ["MedianFit", "OrderChoice", "choose_quaternion_order", "median_fit", "BETTER", "NOT_WORSE"]
+__all__ = ["MedianFit", "OrderChoice", "ScaleReading", "choose_quaternion_order", "median_fit", "scale_reading",
+           "BETTER", "NOT_WORSE", "SCALE_GAIN", "SCALE_FLOOR"]
 
 BETTER = 3.0              # a reading whose median residual is this many times lower fits decisively better
 NOT_WORSE = 1.25          # … if its other median is not higher by more than this; within it both: alike
 ALIKE_DEG, ALIKE_M = 1.0, 0.01   # alike fits whose extrinsics differ by more than this: the data cannot decide
 MAX_PAIRS = 400
 _TINY = (1e-9, 1e-12)     # floors [deg, m] so that noise-free fits compare as finite ratios
+SCALE_FLOOR = 0.01        # b's translations scaled by less than 1 % off 1 are metric …
+SCALE_GAIN = 1.25         # … and a scale that lowers the median translation residual less than this is not seen
 _FLAGS = {"xyzw": "--no-wxyz-{}", "wxyz": "--wxyz-{}"}
 
 
@@ -195,3 +198,45 @@ def choose_quaternion_order(a: PoseStream, b: PoseStream, *, time_offset_ns: int
                             f"{rot_deg:.2g}° / {trans_m:.2g} m away", f"{a.source}, {b.source}",
                             f"say which with {flags}")
     return a, b, OrderChoice(given_orders, "format", base.medians, best.medians, best_orders)
+
+
+@dataclass(frozen=True)
+class ScaleReading:
+    """Whether b's translations fit a rigid rig better in other units: ``scale`` [m per unit of b], the
+    linear estimate with the solution's rotation; ``gain``: how many times lower the median translation
+    residual is with it; ``medians_m``: (as given, scaled) [m]."""
+
+    scale: float
+    gain: float
+    medians_m: tuple[float, float]
+
+    @property
+    def decisive(self) -> bool:
+        """Far better scaled (``BETTER``-fold, and off 1 by more than ``SCALE_FLOOR``): monocular units."""
+        return self.gain >= BETTER and abs(self.scale - 1) > SCALE_FLOOR
+
+    @property
+    def noticeable(self) -> bool:
+        """Better scaled, but not decisively (metric SLAM whose scale is off by percents): a warning."""
+        return not self.decisive and self.gain >= SCALE_GAIN and abs(self.scale - 1) > SCALE_FLOOR
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain dict for the result's ``interpretation``."""
+        return {"linear_scale": self.scale, "translation_median_m": {"as_given": self.medians_m[0],
+                                                                      "scaled": self.medians_m[1]},
+                "gain": self.gain}
+
+
+def scale_reading(A: NDArray[np.float64], B: NDArray[np.float64], X: NDArray[np.float64]) -> ScaleReading | None:
+    """The scale reading of b's translations at the solution ``X`` = ``T_a_b`` of the motions (N, 4, 4);
+    None when the translations do not determine a positive scale."""
+    from ..solvers.scale import linear_scale, scale_translations
+
+    t_X, s = linear_scale(A, B, X[:3, :3])
+    if not (np.isfinite(s) and s > 0 and np.isfinite(t_X).all()):
+        return None
+    Xs = X.copy()
+    Xs[:3, 3] = t_X
+    given = pair_residuals(A, B, X).summary().translation_median_m
+    scaled = pair_residuals(A, scale_translations(B, s), Xs).summary().translation_median_m
+    return ScaleReading(float(s), max(given, _TINY[1]) / max(scaled, _TINY[1]), (given, scaled))

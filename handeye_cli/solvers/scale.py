@@ -34,7 +34,7 @@ from ..errors import DataError
 from . import dualquat as dq
 from .problem import pair_blocks, validate_motions
 
-__all__ = ["ScaleSolution", "scale_translations", "solve_with_scale"]
+__all__ = ["ScaleSolution", "linear_scale", "scale_translations", "solve_with_scale"]
 
 _MAX_RELATIVE_STD = 0.5      # a scale known worse than ±50 % is not determined
 _JACKKNIFE_GROUPS = 30       # at most this many groups of samples left out in turn for the std
@@ -82,6 +82,14 @@ def _linear(A: NDArray[np.float64], B: NDArray[np.float64], R_X: NDArray[np.floa
     rhs = -A[:, :3, 3]
     sol, *_ = np.linalg.lstsq((M * sw[:, None, None]).reshape(-1, 4), (rhs * sw[:, None]).reshape(-1), rcond=None)
     return np.asarray(sol[:3], dtype=np.float64), float(sol[3])
+
+
+def linear_scale(motions_a: NDArray[np.float64], motions_b: NDArray[np.float64],
+                 R_X: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """t_X [m] and the scale s of b's translations [m per unit] for a given rotation ``R_X`` of ``T_a_b``,
+    by linear least squares on ``(R_A - I) t_X - s R_X t_B = -t_A`` (numpy only: the quick look at whether
+    b's translations fit better scaled, before :func:`solve_with_scale` is run)."""
+    return _linear(np.asarray(motions_a), np.asarray(motions_b), R_X, np.ones(len(motions_a)))
 
 
 def _rotation_of(p: NDArray[np.float64], q0: NDArray[np.float64]) -> NDArray[np.float64]:
