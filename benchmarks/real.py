@@ -26,6 +26,7 @@ Per recording, in one run, through the Python API in-process (each file read onc
 Then the summary of the issue's goals with PASS/FAIL, and the wall time.
 
     python benchmarks/real.py [--bare] [--quick] [--data DIR] [--kinhec-dir DIR] [--only TEXT]
+                              [--set NAME=VALUE ...]      (an option for every call: a candidate default)
 
 Missing files are listed and skipped. Generate more kinhec sequences with
 ``benchmarks/make_kinhec.sh KINHEC_EXECUTABLE [SEED ...]`` (into ``~/.cache/handeye-bench``).
@@ -175,10 +176,12 @@ def _calibrate(a: PoseStream, b: PoseStream, truth: FloatArray, **keywords: Any)
     return _fit(cal, truth), cal
 
 
-def run(rec: Recording, *, bare: bool = False, quick: bool = False) -> Result:
-    """Defaults, park on the same pairs, the grid and the offset diagnostic of one recording."""
+def run(rec: Recording, *, bare: bool = False, quick: bool = False,
+        overrides: Mapping[str, Any] | None = None) -> Result:
+    """Defaults, park on the same pairs, the grid and the offset diagnostic of one recording;
+    ``overrides`` (flat option names) go to every call, e.g. a candidate default (``--set``)."""
     t0 = time.perf_counter()
-    conv = {} if bare else dict(rec.conventions)
+    conv = {**({} if bare else rec.conventions), **(overrides or {})}
     unit = conv.get("time_unit", "auto")
     a, b = (read_stream(p, time_unit=unit) for p in (rec.a, rec.b))     # raw; the inversion is a convention
     defaults, cal = _calibrate(a, b, rec.truth, **conv)
@@ -189,13 +192,13 @@ def run(rec: Recording, *, bare: bool = False, quick: bool = False) -> Result:
     grid: dict[tuple[str, str], Fit] = {}
     stations = cal is not None and "stations" in cal.diagnostics        # stations: all with all, whatever pairs
     for strategy in (STATIONS,) if stations else QUICK_STRATEGIES if quick else STRATEGIES:
-        fit, cal_s = _calibrate(a, b, rec.truth, **fixed, pairs="auto" if strategy == STATIONS else strategy)
+        fit, cal_s = _calibrate(a, b, rec.truth, **{**fixed, "pairs": "auto" if strategy == STATIONS else strategy})
         for label in QUICK_ALPHAS if quick else ALPHAS:
             grid[strategy, label] = fit if label == "auto" or cal_s is None else _solve(
                 cal_s, rec.truth, "dqopt", float(label))
         grid[strategy, PARK] = fit if cal_s is None else _solve(cal_s, rec.truth, PARK, 1.0)
     offset_auto = None if conv.get("time_offset") == "auto" else _calibrate(
-        a, b, rec.truth, **conv, time_offset="auto")[0]
+        a, b, rec.truth, **{**conv, "time_offset": "auto"})[0]
     return Result(rec, defaults, park, grid, offset_auto, time.perf_counter() - t0)
 
 
@@ -486,13 +489,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true",
                         help=f"a smaller grid: pairs {', '.join(QUICK_STRATEGIES)} × α {', '.join(QUICK_ALPHAS)}")
     parser.add_argument("--only", default="", help="only recordings whose name contains this text")
+    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                        help="an option for every call (try a candidate default), e.g. --set max_pairs=500")
     args = parser.parse_args(argv)
+    overrides = dict(item.split("=", 1) for item in args.set)
     t0 = time.perf_counter()
     recs, absent, sources = all_recordings(args.data, args.kinhec_dir)
     recs = [r for r in recs if args.only in r.name]
     print(f"benchmarks/real.py — handeye {handeye_cli.__version__}; corpus {args.data}; "
           f"{'--bare: NO convention flags' if args.bare else 'with the convention flags below'}"
-          f"{'; --quick' if args.quick else ''}")
+          f"{'; --quick' if args.quick else ''}{'; --set ' + ' '.join(args.set) if args.set else ''}")
     print("conventions (flags given per recording; each one the tool should find by itself, from):")
     for name, (kw, why) in CONVENTIONS.items():
         print(f"  {name:<24} {', '.join(f'{k}={v}' for k, v in kw.items()) or '-':<42} {why}")
@@ -502,7 +508,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"absent, skipped: {a}")
     results = []
     for rec in recs:
-        res = run(rec, bare=args.bare, quick=args.quick)
+        res = run(rec, bare=args.bare, quick=args.quick, overrides=overrides)
         report(res)
         results.append(res)
         sys.stdout.flush()
