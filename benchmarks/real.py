@@ -18,10 +18,12 @@ Per recording, in one run, through the Python API in-process (each file read onc
   flags a user must give today (table :data:`CONVENTIONS`); ``--bare`` gives none of them;
 * **park, same pairs**: the rotation-first solver (``method="park"``) on the defaults' pairs and weights;
 * **the grid**: per pair strategy one ``calibrate_files(..., pairs=S)`` (α auto, dqopt; a time offset
-  the conventions estimate is fixed at the defaults' estimate), then on its pairs and weights dqopt
-  at each fixed α and park (``calibrate_files(..., pairs=S, alpha=α)`` solves exactly these);
+  the conventions estimate is fixed at the defaults' estimate, so ``pairs=auto`` is the defaults'
+  own call), then on its pairs and weights dqopt at each fixed α and park
+  (``calibrate_files(..., pairs=S, alpha=α)`` solves exactly these); a station capture has one row;
 * the best fixed setting in hindsight (rotation and translation separately) and defaults ÷ best;
-* the defaults with ``time_offset="auto"`` where the conventions do not already estimate it.
+* the defaults with ``time_offset="auto"`` where the conventions do not already estimate it
+  (not with ``--quick``, whose grid is smaller too).
 
 Then the summary of the issue's goals with PASS/FAIL, and the wall time.
 
@@ -192,12 +194,15 @@ def run(rec: Recording, *, bare: bool = False, quick: bool = False,
     grid: dict[tuple[str, str], Fit] = {}
     stations = cal is not None and "stations" in cal.diagnostics        # stations: all with all, whatever pairs
     for strategy in (STATIONS,) if stations else QUICK_STRATEGIES if quick else STRATEGIES:
-        fit, cal_s = _calibrate(a, b, rec.truth, **{**fixed, "pairs": "auto" if strategy == STATIONS else strategy})
+        if strategy in ("auto", STATIONS) and conv.get("pairs", "auto") == "auto":
+            fit, cal_s = defaults, cal                    # the same call: the offset fixed at its estimate
+        else:
+            fit, cal_s = _calibrate(a, b, rec.truth, **{**fixed, "pairs": strategy})
         for label in QUICK_ALPHAS if quick else ALPHAS:
             grid[strategy, label] = fit if label == "auto" or cal_s is None else _solve(
                 cal_s, rec.truth, "dqopt", float(label))
         grid[strategy, PARK] = fit if cal_s is None else _solve(cal_s, rec.truth, PARK, 1.0)
-    offset_auto = None if conv.get("time_offset") == "auto" else _calibrate(
+    offset_auto = None if quick or conv.get("time_offset") == "auto" else _calibrate(
         a, b, rec.truth, **{**conv, "time_offset": "auto"})[0]
     return Result(rec, defaults, park, grid, offset_auto, time.perf_counter() - t0)
 
