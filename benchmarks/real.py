@@ -492,7 +492,7 @@ def summary(results: Sequence[Result], mode: str = "") -> list[tuple[str, bool |
 
 
 def _default_data() -> Path:
-    """``../shared/data`` beside the repository (or beside the worktrees' folder)."""
+    """The corpus: ``data`` in the folder ``shared`` beside the repository (or beside the worktrees' folder)."""
     for base in (ROOT.parent, ROOT.parent.parent):
         if (base / "shared" / "data").is_dir():
             return base / "shared" / "data"
