@@ -145,6 +145,7 @@ class Result:
     grid: dict[tuple[str, str], Fit] = field(default_factory=dict)   # (strategy, α label or 'park') → fit
     offset_auto: Fit | None = None
     seconds: float = 0.0
+    given: Mapping[str, Any] = field(default_factory=dict)          # the keywords every call got
 
 
 def _error(T: FloatArray, truth: FloatArray) -> tuple[float, float]:
@@ -204,7 +205,7 @@ def run(rec: Recording, *, bare: bool = False, quick: bool = False,
         grid[strategy, PARK] = fit if cal_s is None else _solve(cal_s, rec.truth, PARK, 1.0)
     offset_auto = None if quick or conv.get("time_offset") == "auto" else _calibrate(
         a, b, rec.truth, **{**conv, "time_offset": "auto"})[0]
-    return Result(rec, defaults, park, grid, offset_auto, time.perf_counter() - t0)
+    return Result(rec, defaults, park, grid, offset_auto, time.perf_counter() - t0, conv)
 
 
 # --- which recordings exist ---------------------------------------------------------------------------------
@@ -358,7 +359,7 @@ def report(res: Result) -> None:
     """One recording's fixed-width table."""
     rec, d = res.recording, res.defaults
     truth = "exact truth" if rec.exact else "reference estimate (~2°/3 cm)"
-    conv = ", ".join(f"{k}={v}" for k, v in rec.conventions.items()) or "none"
+    conv = ", ".join(f"{k}={v}" for k, v in res.given.items()) or "none"
     print(f"\n== {rec.name} [{rec.kind}{'; ' + rec.note if rec.note else ''}]  vs {truth}; {res.seconds:.1f} s")
     print(f"   conventions: {conv}")
     if d.error is None:
@@ -518,7 +519,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"benchmarks/real.py — handeye {handeye_cli.__version__}; corpus {args.data}; "
           f"{'--bare: NO convention flags' if args.bare else 'with the convention flags below'}"
           f"{'; --quick' if args.quick else ''}{'; --set ' + ' '.join(args.set) if args.set else ''}")
-    print("conventions (flags given per recording; each one the tool should find by itself, from):")
+    print(f"conventions ({'NOT given: --bare' if args.bare else 'the flags given per recording'}; each one the "
+          "tool should find by itself, from):")
     for name, (kw, why) in CONVENTIONS.items():
         print(f"  {name:<24} {', '.join(f'{k}={v}' for k, v in kw.items()) or '-':<42} {why}")
     for s in sources:

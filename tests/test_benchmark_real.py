@@ -108,7 +108,9 @@ def test_run_measures_defaults_grid_and_park(corpus):
     assert res.defaults.error is not None and res.defaults.error[0] < 0.5 and res.defaults.error[1] < 5.0
     assert res.park.error is not None and res.park.error[0] < 0.5
     assert set(res.grid) == {(s, a) for s in real.QUICK_STRATEGIES for a in (*real.QUICK_ALPHAS, real.PARK)}
+    assert res.given == {**rec.conventions, **FAST}
     bare = real.run(rec, bare=True, quick=True, overrides=FAST)      # no invert_b: the camera stream is inverted
+    assert bare.given == FAST
     assert bare.defaults.error is None or bare.defaults.error[0] > 5.0
 
 
