@@ -109,3 +109,23 @@ def test_stations_off_treats_the_capture_as_continuous_tracking(capsys, tmp_path
     assert code == 2 and "pose-jump gate" in err and "--max-jump off" in err
     code, _, err = run(capsys, "calibrate", fa, fb, "--invert-b", "--stations", "off", "-q")
     assert code == 0, err                 # the default gate compares a's and b's motions: any step size passes
+
+
+@pytest.mark.parametrize("sparse", [True, False])
+def test_stations_pair_one_to_one_whatever_the_slack(sparse):
+    """Station association pins each station of a to at most one of b, its own: with a slack wider than
+    the spacing of the stations (stamps read in the wrong unit) 15 stations stay 15, not 225; with one of
+    b's stations missing, its neighbour in a is not paired with another's pose."""
+    c = simulate_arm(15, sparse=sparse, dwell_s=2.0, move_s=2.0, seed=4)
+    a, b = _as_given(c)
+    for slack_s in (0.1, 10.0, 1000.0):
+        st = detect_stations(a, b, max_dt_ns=int(slack_s * 1e9))
+        assert st is not None and len(st) == 15
+        assert np.abs(st.synced.stamps_ns - c.station_times_ns).max() < 0.2e9
+    keep = np.abs(b.stamps_ns - c.station_times_ns[7]) > (0.3e9 if sparse else 1.5e9)   # b misses station 7
+    st = detect_stations(a, b.select(keep), max_dt_ns=int(100e9))
+    assert st is not None and len(st) == 14
+    assert not np.any(np.abs(st.synced.stamps_ns - c.station_times_ns[7]) < 0.5e9)
+    rot_deg, _ = pose_error(solve(*(se3.relative(T[:-1], T[1:]) for T in (st.synced.T_a, st.synced.T_b))).matrix,
+                            c.truth)
+    assert rot_deg < 0.5                                                    # every pair is a true pair

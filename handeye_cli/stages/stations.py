@@ -200,16 +200,28 @@ def _in_window(stream: PoseStream, runs: _Runs, k: int, t0: int, t1: int, slack:
 
 
 def _match(a: PoseStream, ra: _Runs, b: PoseStream, rb: _Runs, slack: int) -> list[tuple[int, int, int, int]]:
-    """Overlapping runs of a and b: (run of a, run of b, overlap start, overlap end) [ns]."""
+    """Runs of a and b that overlap within ``slack``, one to one: (run of a, run of b, overlap start, overlap
+    end) [ns], in a's order. Each run pairs with at most one run of the other stream, the one it overlaps
+    longest (for single samples: the nearest), so a slack wider than the spacing of the stations — stamps
+    read in the wrong unit — cannot pair every station with every other (15 stations made 225)."""
     a_lo, a_hi = a.stamps_ns[ra.start], a.stamps_ns[ra.stop - 1]
     b_lo, b_hi = b.stamps_ns[rb.start], b.stamps_ns[rb.stop - 1]
-    out = []
+    candidates = []
     for k in range(len(ra.start)):
         first = int(np.searchsorted(b_hi, a_lo[k] - slack, side="left"))
         last = int(np.searchsorted(b_lo, a_hi[k] + slack, side="right"))
         for m in range(first, last):
-            out.append((k, m, int(max(a_lo[k], b_lo[m])), int(min(a_hi[k], b_hi[m]))))
-    return out
+            t0, t1 = int(max(a_lo[k], b_lo[m])), int(min(a_hi[k], b_hi[m]))
+            candidates.append((t1 - t0, k, m, t0, t1))          # overlap [ns]; negative: the gap between them
+    used_a: set[int] = set()
+    used_b: set[int] = set()
+    out = []
+    for _, k, m, t0, t1 in sorted(candidates, key=lambda c: -c[0]):
+        if k not in used_a and m not in used_b:
+            used_a.add(k)
+            used_b.add(m)
+            out.append((k, m, t0, t1))
+    return sorted(out)
 
 
 def _runs(stream: PoseStream, min_stations: int, sparse_rotation_deg: float, min_dwell_s: float) -> _Runs:
