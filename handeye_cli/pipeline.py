@@ -224,15 +224,16 @@ _Paired = tuple[Synced, Pairs, SampleCounts, Stations | None, Selection | None]
 
 def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Prior | None, report: dict[str, Any],
                       paired: _Paired) -> _Paired:
-    """A significant clock-offset estimate is kept only when the fit does not contradict it: the pairs it gives
-    must fit a rigid rig no worse (neither median residual higher by ``CONFIRMING_GAIN``) than the pairs without
-    an offset; and where it leaves fewer than ``CONFIRMING_COVERAGE`` of the samples synchronised (an offset that
-    is a large part of the recording), clearly better (a median lower by ``CONFIRMING_GAIN``). It stands without a
-    comparison when the streams do not pair without it (spans that do not overlap). An estimate the fit does not
-    confirm (an alias of periodic motion on a short recording) is not applied: the report says so, with both
-    fits, and the pairs without an offset are returned. ``paired`` is :func:`pairs_of` at the estimate;
+    """A significant clock-offset estimate is kept only when the fit confirms it: the pairs it gives must fit a
+    rigid rig better (a median residual lower by ``CONFIRMING_MIN_GAIN``, neither higher by ``CONFIRMING_GAIN``)
+    than the pairs without an offset; and where it leaves fewer than ``CONFIRMING_COVERAGE`` of the samples
+    synchronised (an offset that is a large part of the recording), clearly better (by ``CONFIRMING_GAIN``).
+    It stands without a comparison when the streams do not pair without it (spans that do not overlap). An
+    estimate the fit does not confirm (an alias of periodic motion on a short recording, an estimator's bias
+    of a millisecond) is not applied: the report says so, with both fits, and the pairs without an offset
+    are returned. ``paired`` is :func:`pairs_of` at the estimate;
     ``report`` is updated in place."""
-    from .stages.timeoffset import CONFIRMING_COVERAGE, CONFIRMING_GAIN
+    from .stages.timeoffset import CONFIRMING_COVERAGE, CONFIRMING_GAIN, CONFIRMING_MIN_GAIN
 
     try:
         at_zero = pairs_of(a, b, options, 0, prior)
@@ -250,7 +251,8 @@ def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Pri
     report["fit_median"] = {name: {"rotation_deg": f.rotation_deg, "translation_m": f.translation_m, "samples": n}
                             for name, f, n in (("applied", est, len(paired[0])), ("none", zero, len(at_zero[0])))}
     worse = min(gains) < 1 / CONFIRMING_GAIN
-    if not worse and (coverage >= CONFIRMING_COVERAGE or max(gains) >= CONFIRMING_GAIN):
+    needed = CONFIRMING_MIN_GAIN if coverage >= CONFIRMING_COVERAGE else CONFIRMING_GAIN
+    if not worse and max(gains) >= needed:
         report["confirmed_by"] = "fit"
         return paired
     report.update(seconds=0.0, applied=False, confirmed_by=None)
