@@ -312,3 +312,14 @@ def test_names_given_by_users_obey_the_same_rule(value, capsys, rig, tmp_path):
     from handeye_cli.rig import parse_stream
     with pytest.raises(ConfigError, match="bad frame name"):
         parse_stream(f"{value}=/cam0/pose")
+
+
+def test_a_warning_quoting_a_hostile_name_stays_one_line(capsys):
+    """Warnings quote topic and file names from a log: a newline or a terminal escape in one is written as
+    its escape, so a CI log shows one `warning:` line and a terminal runs no escape sequence."""
+    from handeye_cli.cli.common import warn
+
+    warn("dropped 3 samples of log.mcap:/cam\nwarning: forged\x1b[2J\u2028line")
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("warning: ") and "\x1b" not in err and "\u2028" not in err
+    assert "\\n" in err and "\\x1b" in err

@@ -20,7 +20,7 @@ from ..fleet.overrides import options_for, read_overrides
 from ..options import number
 from ..output.writers import write_stdout
 from .check import verdict_options
-from .common import CONTEXT
+from .common import CONTEXT, warn
 from .params import calibrate_options, options_from_cli, stream_options
 
 __all__ = ["batch", "report"]
@@ -86,7 +86,7 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
     streams = Streams(o["topic_a"], o["topic_b"], o["frames_a"] or None, o["frames_b"] or None)
     options = options_from_cli(o)
     overrides = read_overrides(o["per_input"]) if o["per_input"] else ()
-    found = discover(inputs, sys.stdin, lambda message: click.echo(f"warning: {message}", err=True))
+    found = discover(inputs, sys.stdin, warn)
     jobs = [Job(i, streams, options_for(i, options, overrides), timeout=o["timeout"]) for i in found]
     settings = BatchSettings(nominal, o["max_rotation_deg"], o["max_translation_m"], o["output_dir"], o["fmt"],
                              o["skip_done"], options.analysis.strict, o["jobs"], o["scheduler"],

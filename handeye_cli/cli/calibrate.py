@@ -13,7 +13,7 @@ from ..output.writers import check_writable, output_format
 from ..pipeline import Calibration, StreamSpec, calibrate_files
 from ..solvers import dualquat as dq
 from .check import verdict_options
-from .common import CONTEXT, Drifted, StrictFailure, emit
+from .common import CONTEXT, Drifted, StrictFailure, emit, warn
 from .params import calibrate_options, options_from_cli, output_options, stream_options
 
 
@@ -96,7 +96,7 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
     if not p["quiet"]:
         click.echo(_summary(doc), err=True)
     for w in doc["warnings"]:
-        click.echo(f"warning: {w}", err=True)
+        warn(w)
     if verdict is not None and not verdict.drift and not p["quiet"]:
         click.echo(verdict.summary(), err=True)
     if report_error is not None:

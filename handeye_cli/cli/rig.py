@@ -20,7 +20,7 @@ from ..errors import ConfigError
 from ..io.nominal import read_nominal
 from ..output.writers import check_writable, output_format
 from .check import verdict_options
-from .common import CONTEXT, Drifted, StrictFailure, emit
+from .common import CONTEXT, Drifted, StrictFailure, emit, warn
 from .params import apply, flags, options_from_cli, output_options
 
 __all__ = ["rig"]
@@ -125,7 +125,7 @@ def rig(log: str | None, **p: Any) -> None:
     if not p["quiet"]:
         click.echo(_summary(doc), err=True, nl=False)
     for w in doc["warnings"]:
-        click.echo(f"warning: {w}", err=True)
+        warn(w)
     if any(v.drift for v in verdicts.values()):
         raise Drifted(_drift_message(verdicts))
     if verdicts and not p["quiet"]:
