@@ -393,7 +393,7 @@ def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None, sele
 
 
 def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | None = None, *,
-              inputs: dict[str, Any] | None = None, **overrides: Any) -> Calibration:
+              inputs: dict[str, Any] | None = None, scale_by_fit: bool = True, **overrides: Any) -> Calibration:
     """Calibrate ``T_a_b`` from two pose streams ``T_wa_a(t)``, ``T_wb_b(t)`` (int64 ns stamps,
     positions [m], quaternions x-y-z-w). ``options`` (default: the defaults), updated by
     ``overrides`` given by flat option name (``method="dqopt"``, ``max_jump="off"``…). Raises a
@@ -404,7 +404,8 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     [robust] → [α auto] → weighted solve → observability warnings, residuals, inversion check
     (first warning; refuses the result when overwhelming) → fit test (refuses residuals far beyond
     the streams' own noise unless ``accept_poor_fit``; see :mod:`~handeye_cli.analysis.fit_test`)
-    → [bootstrap].
+    → [bootstrap]. After the solve, b's translations found in other units by the fit are estimated with
+    ``T_a_b`` (``scale_by_fit``; ``handeye rig`` passes False: its consistency test names such a stream).
     """
     opts = Options.from_flat(options, **overrides) if overrides else (options or Options())
     if opts.solver.scale not in (1.0, "auto"):
@@ -436,7 +437,7 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
                          inputs or {})
     if verdict is not None:
         diagnostics["inversion"] = verdict.as_dict()
-    elif opts.solver.scale == 1.0 and prior is None:         # an inverted stream also fits "better scaled"
+    elif scale_by_fit and opts.solver.scale == 1.0 and prior is None:   # inverted streams also fit "better scaled"
         scaled = _scale_by_fit(kept, pairs, solution.matrix, opts, prior, selection, diagnostics, warnings)
         if scaled is not None:
             kept, pairs, (solution, alpha, weights, robust) = scaled

@@ -90,11 +90,15 @@ def test_wrong_quaternion_order_inversion_and_another_rig_are_refused(name, dura
     assert calibrate(rec.a, rec.b).diagnostics["fit_test"]["passed"]
 
 
-def test_station_stamps_in_seconds_read_as_milliseconds_are_refused():
+def test_misread_station_stamps_pair_right_and_mispaired_stations_are_refused():
+    """Stamps in seconds read as ms no longer pair every station with every other (stations pair one to one,
+    stages/stations.py): the fit passes. Stations paired with another station's pose are refused."""
     a, b = _stations(2, sparse=True)
     assert _judge(a, b).passed
     ms = [replace(s, stamps_ns=s.stamps_ns // 1000) for s in (a, b)]      # 0.52 s, 3.49 s … read as ms
-    test = _judge(*ms)
+    assert _judge(*ms).passed
+    perm = np.roll(np.arange(len(b)), 3)                                  # each station with another's pose
+    test = _judge(a, replace(b, xyz=b.xyz[perm], quat_xyzw=b.quat_xyzw[perm]))
     assert not test.passed and test.source.startswith(("assumed", "mixed"))
 
 

@@ -89,7 +89,7 @@ def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset],
     # the rig's bootstrap resamples all pairs at once; a prior is of one T_a_b, not of every pair
     opts = Options.from_flat(options, time_offset=(offsets[k].offset_ns - offsets[j].offset_ns) / 1e9,
                              bootstrap=0, prior=None)
-    cal = calibrate(streams[j], streams[k], opts)
+    cal = calibrate(streams[j], streams[k], opts, scale_by_fit=False)   # a badly scaled stream: named by the rig
     A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
     return Edge(j, k, cal, split_forms(A, B, np.ones((1, len(A))) if w is None else w[None], cal.solution.alpha)[0])
 
