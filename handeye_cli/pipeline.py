@@ -322,6 +322,7 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
     obs = assess_observability(A, B, solution.matrix, alpha=alpha, prior=prior, weights=weights, samples=ij)
     warnings += [str(w) for w in obs.warnings]
+    warnings += solution.warnings                             # a failed optimality certificate
     diagnostics["observability"] = obs.as_dict()
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
