@@ -57,8 +57,8 @@ def many_stations(seeds: int) -> None:
                  "dqopt, all 5050 pairs": dq,
                  "AX=YB linear translation": _axyb(Ta, Tb, dq[:3, :3]),
                  "dqopt, 100 pairs to station 0": star,
-                 "calibrate, default flags": calibrate(a, b, invert_b=True).matrix,
-                 "calibrate --max-pairs 10000": calibrate(a, b, invert_b=True, max_pairs=10000).matrix}
+                 "calibrate, default flags": calibrate(a, c.camera, invert_b=True).matrix,
+                 "calibrate --max-pairs 10000": calibrate(a, c.camera, invert_b=True, max_pairs=10000).matrix}
         for name, X in found.items():
             errors.setdefault(name, []).append(extrinsic_error(X, c.truth))
     for name, e in errors.items():
@@ -82,8 +82,7 @@ def twelve_stations(seeds: int) -> None:
             ours, ref = [], []
             for seed in range(seeds):
                 c = simulate_arm(12, setup=setup, sparse=sparse, seed=seed)
-                a = c.robot.inverted() if c.invert_a else c.robot
-                cal = calibrate(a, c.camera.inverted(), invert_a=c.invert_a, invert_b=True)
+                cal = calibrate(c.robot, c.camera, invert_a=c.invert_a, invert_b=True)
                 ours.append(extrinsic_error(cal.matrix, c.truth))
                 ref.append(extrinsic_error(_one_sample_per_station(c), c.truth))
             kind = "sparse" if sparse else "dwells"

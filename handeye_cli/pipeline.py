@@ -38,7 +38,7 @@ from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit,
 from .config import load_options
 from .errors import ConfigError, HandEyeError
 from .io.pairfile import read_extrinsic
-from .options import Options, ReadOptions
+from .options import FIELDS, Options, ReadOptions
 from .output.document import result_document
 from .solvers import Prior, Solution, solve
 from .solvers.scale import scale_translations, solve_with_scale
@@ -50,7 +50,8 @@ from .stages.stations import Stations, detect_stations
 from .stages.sync import Synced, default_max_dt_ns
 from .streams import PoseStream
 
-__all__ = ["Calibration", "StreamSpec", "calibrate", "calibrate_files", "read_streams"]
+__all__ = ["Calibration", "StreamSpec", "calibrate", "calibrate_files", "calibrate_read", "inverted_as_read",
+           "read_streams", "refuse_unread"]
 
 
 @dataclass(frozen=True)
@@ -168,6 +169,36 @@ def read_streams(spec_a: StreamSpec | PoseStream, spec_b: StreamSpec | PoseStrea
     else:
         a, b = _read_one(spec_a, read, quiet, read.wxyz_a), _read_one(spec_b, read, quiet, read.wxyz_b)
     return a, b
+
+
+def inverted_as_read(a: PoseStream, b: PoseStream, read: ReadOptions) -> tuple[PoseStream, PoseStream]:
+    """Streams a and b inverted where ``invert_a`` / ``invert_b`` say so (``T_sensor_world`` → ``T_world_sensor``):
+    after the quaternion order is chosen, which re-reads a file's columns (:func:`calibrate_read`)."""
+    return (a.inverted() if read.invert_a else a), (b.inverted() if read.invert_b else b)
+
+
+# The read options that only a file reader applies: the streams each concerns (a: 0, b: 1) and how to do
+# without it. An in-memory PoseStream is already parsed, so these are refused for it, not recorded as applied.
+_FILE_ONLY: dict[str, tuple[tuple[int, ...], str]] = {
+    **{f"wxyz_{s}": ((k,), f"a PoseStream's quat_xyzw is x-y-z-w by definition: reorder the array "
+                           f"(q_wxyz[:, [1, 2, 3, 0]]) and leave wxyz_{s} unset") for k, s in enumerate("ab")},
+    "time_unit": ((0, 1), "a PoseStream's stamps are int64 nanoseconds (PoseStream.from_seconds converts "
+                          "seconds): leave time_unit unset"),
+    "csv_columns": ((0, 1), "a PoseStream has no columns: leave csv_columns unset"),
+    "time_source": ((0, 1), "a PoseStream's stamps are the ones it was built with: leave time_source unset, or "
+                            "read the log with calibrate_files"),
+}
+
+
+def refuse_unread(read: ReadOptions, in_memory: tuple[bool, bool]) -> None:
+    """Refuse a read option (keyword or configuration key) set away from its default where no file reader
+    reads the stream it concerns: ``in_memory`` says which of a, b are PoseStreams."""
+    for name, (sides, fix) in _FILE_ONLY.items():
+        value = getattr(read, name)
+        if value != FIELDS[name][2] and all(in_memory[k] for k in sides):
+            which = f"stream {'ab'[sides[0]]} is an in-memory PoseStream" if len(sides) == 1 else \
+                "both streams are in-memory PoseStreams"
+            raise ConfigError(f"{name}={value!r} applies to reading a file, but {which}", name, fix)
 
 
 def _read_one(spec: StreamSpec | PoseStream, read: ReadOptions, quiet: bool, wxyz: bool | None) -> PoseStream:
@@ -393,11 +424,32 @@ def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None, sele
 
 
 def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | None = None, *,
-              inputs: dict[str, Any] | None = None, scale_by_fit: bool = True, **overrides: Any) -> Calibration:
+              inputs: dict[str, Any] | None = None, **overrides: Any) -> Calibration:
     """Calibrate ``T_a_b`` from two pose streams ``T_wa_a(t)``, ``T_wb_b(t)`` (int64 ns stamps,
     positions [m], quaternions x-y-z-w). ``options`` (default: the defaults), updated by
     ``overrides`` given by flat option name (``method="dqopt"``, ``max_jump="off"``…). Raises a
     :class:`~handeye_cli.errors.HandEyeError` subclass on data that cannot be calibrated.
+
+    Every option acts as in :func:`calibrate_files` given the same poses in files: ``invert_a`` /
+    ``invert_b`` invert the streams first; the options only a file reader applies (``wxyz_a``,
+    ``wxyz_b``, ``time_unit``, ``csv_columns``, ``time_source``) are refused with a
+    :class:`~handeye_cli.errors.ConfigError` when set, since a PoseStream is already parsed.
+    """
+    opts = Options.from_flat(options, **overrides) if overrides else (options or Options())
+    refuse_unread(opts.read, (True, True))
+    return calibrate_read(stream_a, stream_b, opts, inputs={**(inputs or {}), **_inversion_inputs(opts.read)})
+
+
+def _inversion_inputs(read: ReadOptions) -> dict[str, bool]:
+    """The result's ``inputs`` record of the streams inverted before use."""
+    return {key: True for key in ("invert_a", "invert_b") if getattr(read, key)}
+
+
+def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
+                   inputs: dict[str, Any] | None = None, scale_by_fit: bool = True) -> Calibration:
+    """:func:`calibrate` streams as a reader produced them with ``opts.read`` (parsed, not yet inverted: the
+    file-only read options are recorded in the settings, not applied again), e.g. by :func:`read_streams`
+    or a rig's reader (which inverts its streams itself and sets no ``invert_a``/``invert_b``).
 
     Order: [fixed scale of b] → quaternion order of text files (by the fit) → inversion (``invert_a`` /
     ``invert_b``) → time offset → stations, or sync → gates → pairs → [scale auto] →
@@ -407,12 +459,10 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     → [bootstrap]. After the solve, b's translations found in other units by the fit are estimated with
     ``T_a_b`` (``scale_by_fit``; ``handeye rig`` passes False: its consistency test names such a stream).
     """
-    opts = Options.from_flat(options, **overrides) if overrides else (options or Options())
     if opts.solver.scale not in (1.0, "auto"):
         stream_b = replace(stream_b, xyz=stream_b.xyz * float(opts.solver.scale))
     stream_a, stream_b, order = _quaternion_order(stream_a, stream_b, opts)
-    stream_a, stream_b = (s.inverted() if invert else s for s, invert in ((stream_a, opts.read.invert_a),
-                                                                         (stream_b, opts.read.invert_b)))
+    stream_a, stream_b = inverted_as_read(stream_a, stream_b, opts.read)
     offset_ns, offset_report, offset_warnings = _time_offset(stream_a, stream_b, opts)
     warnings = [*stream_a.warnings, *stream_b.warnings, *offset_warnings]       # readers' warnings name their file
     if order is not None and order.chosen_by == "fit":
@@ -444,6 +494,7 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
     obs = assess_observability(A, B, solution.matrix, alpha=alpha, prior=prior, weights=weights, samples=ij)
     warnings += [str(w) for w in obs.warnings]
+    warnings += solution.warnings                             # a failed optimality certificate
     diagnostics["observability"] = obs.as_dict()
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
@@ -483,12 +534,11 @@ def calibrate_files(a: Source, b: Source | None = None, *, topic_a: str | None =
     """
     opts = load_options(config_file, preset, base=options, **overrides)
     spec_a, spec_b = _spec(a, topic_a, frames_a), _spec(a if b is None else b, topic_b, frames_b)
+    refuse_unread(opts.read, (isinstance(spec_a, PoseStream), isinstance(spec_b, PoseStream)))
     stream_a, stream_b = read_streams(spec_a, spec_b, opts, quiet=quiet)
-    inputs: dict[str, Any] = {"a": _describe(spec_a), "b": _describe(spec_b), "time_source": opts.read.time_source}
-    for key in ("invert_a", "invert_b"):
-        if getattr(opts.read, key):
-            inputs[key] = True
-    return calibrate(stream_a, stream_b, opts, inputs=inputs).with_origin(config_file, preset)
+    inputs: dict[str, Any] = {"a": _describe(spec_a), "b": _describe(spec_b), "time_source": opts.read.time_source,
+                              **_inversion_inputs(opts.read)}
+    return calibrate_read(stream_a, stream_b, opts, inputs=inputs).with_origin(config_file, preset)
 
 
 

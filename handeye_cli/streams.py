@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 
 from . import se3
+from .errors import DataError
 
 __all__ = ["PoseStream"]
 
@@ -18,7 +19,8 @@ class PoseStream:
     Attributes
     ----------
     stamps_ns:
-        int64[N] timestamps in nanoseconds (``header.stamp`` by default, see ``time_source``).
+        int64[N] timestamps in nanoseconds (``header.stamp`` by default, see ``time_source``); float
+        stamps are refused (:meth:`from_seconds` converts seconds).
     xyz:
         float64[N, 3] positions of ``child_frame_id`` in ``frame_id`` [m].
     quat_xyzw:
@@ -71,7 +73,12 @@ class PoseStream:
     quaternion_order: str | None = None
 
     def __post_init__(self) -> None:
-        stamps = np.ascontiguousarray(self.stamps_ns, dtype=np.int64)
+        given = np.asarray(self.stamps_ns)
+        if given.size and given.dtype.kind not in "iu":     # a cast would turn seconds into garbage nanoseconds
+            raise DataError(f"stamps_ns of {given.dtype.name} values, e.g. {given.reshape(-1)[0].item()!r}",
+                            self.source or "PoseStream", "stamps must be int64 nanoseconds; use "
+                            "PoseStream.from_seconds(stamps_s, xyz, quat_xyzw) for seconds")
+        stamps = np.ascontiguousarray(given, dtype=np.int64)
         xyz = np.ascontiguousarray(self.xyz, dtype=np.float64).reshape(-1, 3)
         quat = np.ascontiguousarray(self.quat_xyzw, dtype=np.float64).reshape(-1, 4)
         if not (len(stamps) == len(xyz) == len(quat)):
@@ -82,6 +89,23 @@ class PoseStream:
 
     def __len__(self) -> int:
         return len(self.stamps_ns)
+
+    @classmethod
+    def from_seconds(cls, stamps_s: Any, xyz: Any, quat_xyzw: Any, **kw: Any) -> PoseStream:
+        """Build a stream from stamps in (float) seconds, rounded to the nearest nanosecond; other
+        arguments as the constructor's.
+
+        >>> PoseStream.from_seconds([0.5, 1.25], [[0.0, 0, 0]] * 2, [[0.0, 0, 0, 1]] * 2).stamps_ns.tolist()
+        [500000000, 1250000000]
+        """
+        t = np.asarray(stamps_s, dtype=np.float64).reshape(-1)
+        if not (np.isfinite(t).all() and (np.abs(t) < 9.2e9).all()):        # int64 ns reach ±292 years
+            bad = float(t[~(np.isfinite(t) & (np.abs(t) < 9.2e9))][0])
+            raise DataError(f"stamp {bad!r} s", kw.get("source") or "PoseStream.from_seconds",
+                            "give finite seconds within ±9.2e9 (int64 nanoseconds)")
+        whole = np.floor(t)              # whole seconds exactly, then the fraction: no rounding of 1e9·t
+        ns = whole.astype(np.int64) * 1_000_000_000 + np.round((t - whole) * 1e9).astype(np.int64)
+        return cls(ns, xyz, quat_xyzw, **kw)
 
     @classmethod
     def from_matrices(cls, stamps_ns: np.ndarray, T: np.ndarray, **kw: Any) -> PoseStream:

@@ -41,4 +41,5 @@ def solve(pairs_file: str, output: str | None, fmt: str | None, **given: Any) ->
     alpha = (noise_model_alpha(A, B, prior=prior, weights=weights).alpha if s.alpha == "auto"
              else float(s.alpha))          # auto: ML under a noise model fitted to the pairs' residuals
     sol = solve_pairs(A, B, method=s.method, alpha=alpha, prior=prior, weights=weights)
-    emit(result_document(sol, inputs={"pairs_file": pairs_file}, samples={"pairs": len(A)}), output, fmt)
+    emit(result_document(sol, inputs={"pairs_file": pairs_file}, samples={"pairs": len(A)},
+                         warnings=list(sol.warnings)), output, fmt)     # a failed optimality certificate

@@ -60,10 +60,12 @@ def result_document(solution: Solution, *, frames: dict[str, str] | None = None,
     """
     frames = dict(frames or {"a": "a", "b": "b"})
     t, q = solution.translation, solution.quaternion_xyzw
-    solver = {k: v for k, v in (("lambda", solution.lam), ("mu", solution.mu),
+    solver: dict[str, Any] = {k: v for k, v in (("lambda", solution.lam), ("mu", solution.mu),
                                 ("iterations", solution.iterations), ("converged", solution.converged))
               if v is not None}
     solver.update(solution.details)
+    if solution.certificate is not None:
+        solver["certificate"] = solution.certificate.as_dict()
     doc = {
         "matrix": solution.matrix,
         "translation": t,

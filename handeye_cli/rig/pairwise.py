@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from ..errors import ConfigError, HandEyeError
 from ..options import Options
-from ..pipeline import Calibration, calibrate
+from ..pipeline import Calibration, calibrate_read
 from ..solvers.problem import split_forms
 from ..streams import PoseStream
 
@@ -89,7 +89,8 @@ def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset],
     # the rig's bootstrap resamples all pairs at once; a prior is of one T_a_b, not of every pair
     opts = Options.from_flat(options, time_offset=(offsets[k].offset_ns - offsets[j].offset_ns) / 1e9,
                              bootstrap=0, prior=None)
-    cal = calibrate(streams[j], streams[k], opts, scale_by_fit=False)   # a badly scaled stream: named by the rig
+    cal = calibrate_read(streams[j], streams[k], opts, scale_by_fit=False)   # the rig's reader applied the read
+    #                                                         options; a badly scaled stream is named by the rig
     A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
     return Edge(j, k, cal, split_forms(A, B, np.ones((1, len(A))) if w is None else w[None], cal.solution.alpha)[0])
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from functools import partial
+from functools import cached_property, partial
 
 import numpy as np
 
@@ -16,6 +16,7 @@ from .._typing import FloatArray
 from ..errors import ConfigError, UnderdeterminedError
 from . import dualquat
 from .approximate import dq2ndord, dq2steps, dqconvrlx
+from .certificate import Certificate, certify
 from .classical import CLASSICAL
 from .daniilidis import daniilidis
 from .optimal import dqitr, dqopt
@@ -31,9 +32,11 @@ from .problem import (
     validate_motions,
 )
 
-__all__ = ["METHODS", "Prior", "Problem", "Solution", "build_problem", "solve", "dq_cost"]
+__all__ = ["Certificate", "METHODS", "OPTIMAL", "Prior", "Problem", "Solution", "build_problem", "solve", "dq_cost"]
 
 METHODS = ("dqopt", "dq2steps", "dqconvrlx", "dq2ndord", "dqitr", "daniilidis", *CLASSICAL)
+OPTIMAL = ("dqopt", "dqitr")
+"""The methods that claim the global minimum of cost (8): a failed certificate of theirs is a warning."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,6 +58,9 @@ class Solution:
         For the iterative methods (dqopt, dqitr).
     details:
         Method-specific figures, e.g. DQConvRlx's ``gap_bound`` (eq 22).
+    problem, dual_quaternion:
+        The cost the solution was measured on and, where the method computed it, the solution's unit dual
+        quaternion ``(q, q')`` (x-y-z-w parts; else taken from ``matrix``), for :attr:`certificate`.
     """
 
     matrix: FloatArray
@@ -67,6 +73,30 @@ class Solution:
     iterations: int | None = None
     converged: bool | None = None
     details: Mapping[str, float | bool] = field(default_factory=dict)
+    problem: Problem | None = field(default=None, repr=False)
+    dual_quaternion: tuple[FloatArray, FloatArray] | None = field(default=None, repr=False)
+
+    @cached_property
+    def certificate(self) -> Certificate | None:
+        """The Lagrangian proof that the solution is the global minimum of its cost (8) (+ prior), or not
+        (:mod:`.certificate`); computed on first use (~10 µs), for every method: dqopt passes it on every problem
+        (a failure is a numerical one), the approximations only where they reach the optimum. None without a
+        :attr:`problem`."""
+        if self.problem is None:
+            return None
+        return certify(self.problem, *(self.dual_quaternion or dualquat.from_transforms(self.matrix)))
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """One line when a method of :data:`OPTIMAL` failed its certificate (a numerical failure), else none."""
+        c = self.certificate
+        if self.method not in OPTIMAL or c is None or c.certified:
+            return ()
+        fix = ("dqitr did not reach the optimum: use --method dqopt (method='dqopt')" if self.method == "dqitr" else
+               "a numerical failure of dqopt: compare with --method dqitr (method='dqitr') and report the data")
+        return (f"the {self.method} solution is not certified as the global optimum (solver.certificate: smallest "
+                f"eigenvalue {c.min_eigenvalue:.3g}, stationarity {c.stationarity:.3g}, tolerance {c.tolerance:.3g}): "
+                f"{fix}",)
 
     @property
     def translation(self) -> FloatArray:
@@ -155,17 +185,18 @@ def solve(motions_a: FloatArray, motions_b: FloatArray, method: str = "dqopt", a
         problem = motion_problem(A, B, w, alpha=alpha, prior=prior)    # the one pass over the motions
     if prior is None:
         _check_determined(problem)
-    common = partial(Solution, method=method, alpha=float(alpha), pairs=len(A))
+    common = partial(Solution, method=method, alpha=float(alpha), pairs=len(A), problem=problem)
     if method in ("dqopt", "dqitr"):
         r = (dqopt if method == "dqopt" else dqitr)(problem)
         return common(dualquat.to_transform(r.q, r.qd), problem.cost(r.q, r.qd), lam=r.lam, mu=r.mu,
-                      iterations=r.iterations, converged=r.converged, details={"singular_m": r.singular_m})
+                      iterations=r.iterations, converged=r.converged, details={"singular_m": r.singular_m},
+                      dual_quaternion=(r.q, r.qd))
     if method in CLASSICAL:
         X = CLASSICAL[method](A, B, w)
         return common(X, problem.cost(*dualquat.from_transforms(X)))
     if method == "daniilidis":
         q, qd = daniilidis(E, F, alpha=alpha, weights=w)
-        return common(dualquat.to_transform(q, qd), problem.cost(q, qd))
+        return common(dualquat.to_transform(q, qd), problem.cost(q, qd), dual_quaternion=(q, qd))
     approx = {"dq2steps": dq2steps, "dqconvrlx": dqconvrlx, "dq2ndord": dq2ndord}[method](problem)
     return common(dualquat.to_transform(approx.q, approx.qd), problem.cost(approx.q, approx.qd), mu=approx.mu,
-                  details=approx.details)
+                  details=approx.details, dual_quaternion=(approx.q, approx.qd))
