@@ -99,8 +99,9 @@ class PoseStream:
         [500000000, 1250000000]
         """
         t = np.asarray(stamps_s, dtype=np.float64).reshape(-1)
-        if not (np.isfinite(t).all() and (np.abs(t) < 9.2e9).all()):        # int64 ns reach ±292 years
-            bad = float(t[~(np.isfinite(t) & (np.abs(t) < 9.2e9))][0])
+        ok = np.isfinite(t) & (np.abs(t) < 9.2e9)                          # int64 ns reach ±292 years
+        if not ok.all():
+            bad = float(t[~ok][0])
             raise DataError(f"stamp {bad!r} s", kw.get("source") or "PoseStream.from_seconds",
                             "give finite seconds within ±9.2e9 (int64 nanoseconds)")
         whole = np.floor(t)              # whole seconds exactly, then the fraction: no rounding of 1e9·t

@@ -79,7 +79,7 @@ class Solution:
     @cached_property
     def certificate(self) -> Certificate | None:
         """The Lagrangian proof that the solution is the global minimum of its cost (8) (+ prior), or not
-        (:mod:`.certificate`); computed on first use (~10 µs), for every method: dqopt passes it on every problem
+        (:mod:`.certificate`); computed on first use (10–25 µs), for every method: dqopt passes it on every problem
         (a failure is a numerical one), the approximations only where they reach the optimum. None without a
         :attr:`problem`."""
         if self.problem is None:
