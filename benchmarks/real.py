@@ -185,7 +185,7 @@ def run(rec: Recording, *, bare: bool = False, quick: bool = False,
     ``overrides`` (flat option names) go to every call, e.g. a candidate default (``--set``)."""
     t0 = time.perf_counter()
     conv = {**({} if bare else rec.conventions), **(overrides or {})}
-    unit = conv.get("time_unit", "auto")
+    unit = conv.pop("time_unit", "auto")          # a reader's option: applied here, refused for in-memory streams
     a, b = (read_stream(p, time_unit=unit) for p in (rec.a, rec.b))     # raw; the inversion is a convention
     defaults, cal = _calibrate(a, b, rec.truth, **conv)
     park = _solve(cal, rec.truth, PARK, 1.0) if cal is not None else Fit(failure="defaults failed")
@@ -205,7 +205,8 @@ def run(rec: Recording, *, bare: bool = False, quick: bool = False,
         grid[strategy, PARK] = fit if cal_s is None else _solve(cal_s, rec.truth, PARK, 1.0)
     offset_auto = None if quick or conv.get("time_offset") == "auto" else _calibrate(
         a, b, rec.truth, **{**conv, "time_offset": "auto"})[0]
-    return Result(rec, defaults, park, grid, offset_auto, time.perf_counter() - t0, conv)
+    given = {**({"time_unit": unit} if unit != "auto" else {}), **conv}
+    return Result(rec, defaults, park, grid, offset_auto, time.perf_counter() - t0, given)
 
 
 # --- which recordings exist ---------------------------------------------------------------------------------
