@@ -156,7 +156,7 @@ def _spec(source: Source, topic: str | None, frames: tuple[str, str] | None) -> 
 
 def read_streams(spec_a: StreamSpec | PoseStream, spec_b: StreamSpec | PoseStream, options: Options | None = None,
                  *, quiet: bool = True) -> tuple[PoseStream, PoseStream]:
-    """Streams a and b from their specs, as the files hold them (:func:`calibrate` inverts them where the
+    """Streams a and b from their specs, as the files hold them (:func:`calibrate_read` inverts them where the
     options say so) — two streams of one log are read in one pass; a PoseStream is taken as it is."""
     from .io import detect_format, read_log_streams  # mcap/rosbags: import only when reading
     from .io.detect import LOG_FORMATS
@@ -357,6 +357,7 @@ def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float,
     then it is the first warning after the override's). ``inputs`` (what was
     read) names a TF stream's frame pair, whose fix is naming the frames the other way round."""
     read = options.read
+
     def frames(key: str) -> tuple[str, str] | None:
         pair = inputs.get(key, {}).get("frames")
         return (str(pair[0]), str(pair[1])) if pair else None

@@ -11,8 +11,9 @@ inverted (relative rotation angles do not change, so the same pairs stay valid) 
 median residuals (rotation [deg], translation [m]) with those of the streams as given (on at most
 ``_MAX_PAIRS`` pairs spread over the list):
 
-* **inverted**: inverting the stream lowers one median at least ``_BETTER``-fold and raises
-  neither by more than ``_NOT_WORSE``;
+* **inverted**: inverting the stream lowers one median at least ``BETTER``-fold and raises
+  neither by more than ``NOT_WORSE`` (:meth:`.readings.MedianFit.decisively_better_than`, the rule every
+  reading chosen by the fit follows);
 * **overwhelming**: lower at least ``_OVERWHELMING``-fold, and the given fit is implausible for a
   rigid rig (median above ``_PLAUSIBLE_DEG`` or ``_PLAUSIBLE_M``).
 
@@ -35,17 +36,14 @@ from numpy.typing import NDArray
 
 from .. import se3
 from ..errors import DataError
-from .readings import median_fit
+from .readings import BETTER, MedianFit, median_fit
 
 __all__ = ["Candidate", "InversionVerdict", "check_inversion"]
 
-_BETTER = 3.0
-_NOT_WORSE = 1.25
 _OVERWHELMING = 10.0
 _PLAUSIBLE_DEG = 0.5
 _PLAUSIBLE_M = 0.02
 _MAX_PAIRS = 500
-_TINY = (1e-9, 1e-12)        # floors [deg, m] so that noise-free fits compare as finite ratios
 
 
 @dataclass(frozen=True)
@@ -123,10 +121,9 @@ class InversionVerdict:
 
 
 def _fit(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64], j: NDArray[np.int64],
-         method: str, alpha: float) -> tuple[float, float] | None:
-    """Median residuals after solving the pairs (i, j) of the absolute poses; None when unsolvable."""
-    fit = median_fit(se3.relative(T_a[i], T_a[j]), se3.relative(T_b[i], T_b[j]), method=method, alpha=alpha)
-    return None if fit is None else fit.medians
+         method: str, alpha: float) -> MedianFit | None:
+    """The fit of the pairs (i, j) of the absolute poses; None when unsolvable."""
+    return median_fit(se3.relative(T_a[i], T_a[j]), se3.relative(T_b[i], T_b[j]), method=method, alpha=alpha)
 
 
 def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64],
@@ -159,14 +156,13 @@ def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArr
         alt = _fit(Ta, Tb, i, j, method, alpha)
         if alt is None:
             continue
-        gains = [max(g, tiny) / max(v, tiny) for g, v, tiny in zip(base, alt, _TINY, strict=True)]
-        if max(gains) >= _BETTER and min(gains) >= 1 / _NOT_WORSE:
+        if alt.decisively_better_than(base):
             flag = (f"--frames-{name} {pair[1]} {pair[0]} (PARENT CHILD)" if pair and
                     not now else f"--no-invert-{name}" if now else f"--invert-{name}")
-            found.append(Candidate(name, alt, float(max(gains)), flag))
+            found.append(Candidate(name, alt.medians, float(max(alt.gains_over(base))), flag))
     if not found:
         return None
     found.sort(key=lambda c: -c.ratio)
-    found = [c for c in found if c.ratio >= found[0].ratio / _BETTER]      # alike fits: the data cannot tell
-    implausible = base[0] > _PLAUSIBLE_DEG or base[1] > _PLAUSIBLE_M
-    return InversionVerdict(base, tuple(found), bool(found[0].ratio >= _OVERWHELMING and implausible))
+    found = [c for c in found if c.ratio >= found[0].ratio / BETTER]       # alike fits: the data cannot tell
+    implausible = base.rotation_deg > _PLAUSIBLE_DEG or base.translation_m > _PLAUSIBLE_M
+    return InversionVerdict(base.medians, tuple(found), bool(found[0].ratio >= _OVERWHELMING and implausible))

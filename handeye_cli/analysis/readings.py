@@ -67,6 +67,12 @@ class MedianFit:
         g = [max(o, tiny) / max(v, tiny) for o, v, tiny in zip(other.medians, self.medians, _TINY, strict=True)]
         return g[0], g[1]
 
+    def decisively_better_than(self, other: MedianFit) -> bool:
+        """One median lower at least ``BETTER``-fold, neither higher by more than ``NOT_WORSE``: the rule by
+        which one reading of a recording replaces another (here and in :mod:`.inversion`)."""
+        gains = self.gains_over(other)
+        return max(gains) >= BETTER and min(gains) >= 1 / NOT_WORSE
+
 
 def median_fit(A: NDArray[np.float64], B: NDArray[np.float64], *, method: str = "dqopt",
                alpha: float = 1.0) -> MedianFit | None:
@@ -183,7 +189,7 @@ def choose_quaternion_order(a: PoseStream, b: PoseStream, *, time_offset_ns: int
         return a, b, None
     best, best_orders = others[0]
     gains = best.gains_over(base)
-    if max(gains) >= BETTER and min(gains) >= 1 / NOT_WORSE:
+    if best.decisively_better_than(base):
         chosen = [reordered(s) if o != s.quaternion_order else s
                   for s, o in zip((a, b), best_orders, strict=True)]
         return chosen[0], chosen[1], OrderChoice(best_orders, "fit", best.medians, base.medians, given_orders)
