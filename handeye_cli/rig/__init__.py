@@ -26,7 +26,7 @@ from ..options import Options
 from ..streams import PoseStream
 from .graph import loop_closures, synchronise
 from .joint import CONSISTENCY_P_VALUE, Consistency, JointProblem, Motions, bootstrap_rig, consistency, refine
-from .noise import drift_corrections, edge_covariance, edge_noise, stream_variances
+from .noise import bias_bound, drift_corrections, edge_covariance, edge_noise, stream_variances
 from .pairwise import ClockOffset, Edge, clock_offsets, solve_edges
 from .read import StreamSpec, parse_stream, read_rig
 from .result import RigResult, transform_entry
@@ -134,7 +134,7 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
     steps = np.stack([c.step for c in corrections])
     X = steps @ np.stack([e.matrix for e in edges])
     problem = JointProblem(n, ref, pairs, X, edge_covariance(pairs, noise, variances, corrections),
-                           np.stack([e.forms for e in edges]), steps)
+                           np.stack([e.forms for e in edges]), steps, bias_bound(corrections))
     rot_std = problem.edge_std()[:, 0]
     T0 = synchronise(n, pairs, X, np.square(rot_std.min() / np.maximum(rot_std, 1e-300)), ref)
     cons = consistency(problem, T0)

@@ -38,7 +38,6 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 from scipy.special import chdtrc, gammaln  # the χ² survival function: scipy.stats costs 1 s to import
 
 from .. import se3
@@ -69,7 +68,7 @@ def part_costs(forms: Array, T: Array) -> Array:
 
 def log_errors(T: Array) -> Array:
     """``(ω, t)`` (…, 6) of transforms near the identity: rotation vector [rad], translation [m]."""
-    rotvec = Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_rotvec().reshape(T.shape[:-2] + (3,))
+    rotvec = dq.to_rotvec(dq.from_matrix(T[..., :3, :3]))
     return np.concatenate((rotvec, T[..., :3, 3]), axis=-1)
 
 
@@ -88,8 +87,10 @@ class JointProblem:
     perturbations, rotation [rad] and translation [m] per edge), each pair's cost (8) as
     ``forms`` (E, 2, 8, 8) (rotational, dual; ``[q'; q]`` order), the ``reference`` and ``n`` sensors.
     ``steps`` (E, 4, 4): the drift corrections applied, ``estimates = steps · pairwise-only``
-    (identity where none). ``excluded``: a sensor whose pairs do not inform the others'
-    extrinsics (a named bad stream)."""
+    (identity where none). ``bias`` (6E, 6E): the bound of the bias left in the corrected estimates
+    (:func:`~handeye_cli.rig.noise.bias_bound`), added to the covariance where the pairs are combined
+    (:func:`refine`), not where they are tested against each other (:func:`consistency`, :meth:`cost`).
+    ``excluded``: a sensor whose pairs do not inform the others' extrinsics (a named bad stream)."""
 
     n: int
     reference: int
@@ -98,12 +99,18 @@ class JointProblem:
     covariance: Array
     forms: Array
     steps: Array
+    bias: Array
     excluded: int | None = None
 
     @cached_property
     def whitening(self) -> Array:
         """``W`` with ``WᵀW = C⁻¹`` (see :func:`whitening`)."""
         return whitening(self.covariance)
+
+    @cached_property
+    def combining(self) -> Array:
+        """``W`` with ``WᵀW = (C + bias)⁻¹``: how the pairs are weighed in the combination."""
+        return whitening(self.covariance + self.bias)
 
     def edge_std(self) -> Array:
         """(E, 2) predicted RMS error of each pairwise-only estimate: rotation [rad], translation [m]."""
@@ -136,17 +143,22 @@ class JointProblem:
 def _perturbed(T0: Array, free: NDArray[np.bool_], p: Array) -> Array:
     T = T0.copy()
     d = p.reshape(-1, 6)
-    T[free, :3, :3] = T0[free, :3, :3] @ Rotation.from_rotvec(d[:, :3]).as_matrix()
+    T[free, :3, :3] = T0[free, :3, :3] @ dq.to_matrix(dq.from_rotvec(d[:, :3]))
     T[free, :3, 3] = T0[free, :3, 3] + d[:, 3:]
     return np.asarray(T, dtype=np.float64)
 
 
 def _solve(problem: JointProblem, T0: Array, free: NDArray[np.bool_], edges: NDArray[np.bool_],
-           estimates: Array | None) -> tuple[Array, Array]:
-    """Minimise J over the ``free`` sensors using the ``edges`` kept; returns the rig and the
-    covariance (6F, 6F) of the free sensors' perturbations."""
+           estimates: Array | None, combine: bool = False) -> tuple[Array, Array]:
+    """Minimise J over the ``free`` sensors using the ``edges`` kept — weighed by the noise only, or
+    with ``combine`` by the noise and the bias bound — and return the rig and the covariance (6F, 6F)
+    of the free sensors' perturbations."""
     keep = np.repeat(edges, 6)
-    W = problem.whitening if edges.all() else whitening(problem.covariance[np.ix_(keep, keep)])
+    if edges.all():
+        W = problem.combining if combine else problem.whitening
+    else:
+        C = problem.covariance + problem.bias if combine else problem.covariance
+        W = whitening(C[np.ix_(keep, keep)])
     X = problem.estimates if estimates is None else estimates
 
     def residuals(p: Array) -> Array:
@@ -176,10 +188,10 @@ def refine(problem: JointProblem, T0: Array, estimates: Array | None = None) -> 
         others = free & (np.arange(n) != bad)
         kept = [p for p, e in zip(problem.pairs, edges, strict=True) if e]
         if edges.any() and connected(n, kept, ref)[others].all():
-            T0, c = _solve(problem, T0, others, edges, estimates)
+            T0, c = _solve(problem, T0, others, edges, estimates, combine=True)
             cov[others] = _blocks(c)
             free, edges = np.arange(n) == bad, ~edges
-    T, c = _solve(problem, T0, free, edges, estimates)
+    T, c = _solve(problem, T0, free, edges, estimates, combine=True)
     cov[free] = _blocks(c)
     return T, cov
 
@@ -271,7 +283,7 @@ def resolve_pairs(forms: Array, X: Array) -> Array:
         D, H, Qx = constrained_hessian(Qe[np.ix_(order, order)], q[e], qd[e])
         delta = -np.linalg.lstsq(H, D.T @ Qx, rcond=None)[0]
         step = np.eye(4)
-        step[:3, :3] = Rotation.from_rotvec(delta[:3]).as_matrix()
+        step[:3, :3] = dq.to_matrix(dq.from_rotvec(delta[:3]))
         step[:3, 3] = delta[3:]
         out[e] = step @ X[e]
     return out
@@ -315,7 +327,7 @@ def bootstrap_rig(problem: JointProblem, T_hat: Array, motions: list[Motions], r
     for r in range(replicates):
         X = problem.steps @ resolve_pairs(np.stack([f[r] for f in forms]), start)
         T, _ = refine(problem, T_hat, X)
-        rot[r] = Rotation.from_matrix(T[:, :3, :3] @ np.swapaxes(T_hat[:, :3, :3], 1, 2)).as_rotvec(degrees=True)
+        rot[r] = np.rad2deg(dq.to_rotvec(dq.from_matrix(T[:, :3, :3] @ np.swapaxes(T_hat[:, :3, :3], 1, 2))))
         trans[r] = T[:, :3, 3] - T_hat[:, :3, 3]
     pct = [2.5, 97.5]
     return RigUncertainty(rot.std(axis=0, ddof=1), trans.std(axis=0, ddof=1),

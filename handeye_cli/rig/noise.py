@@ -54,7 +54,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
-from scipy.spatial.transform import Rotation
 from scipy.special import chdtrc
 
 from .. import se3
@@ -68,7 +67,7 @@ from .joint import log_errors
 from .pairwise import Edge
 
 __all__ = ["EdgeNoise", "EdgeDrift", "Correction", "StreamNoise", "edge_noise", "stream_variances",
-           "drift_corrections", "edge_covariance", "VARIANCE_FLOOR", "DRIFT_P_VALUE", "DRIFT_PROBE"]
+           "drift_corrections", "edge_covariance", "bias_bound", "VARIANCE_FLOOR", "DRIFT_P_VALUE", "DRIFT_PROBE"]
 
 Array = NDArray[np.float64]
 VARIANCE_FLOOR = 1e-18      # (1 nrad)², (1 nm)²: below it a stream is noise-free to rounding
@@ -133,7 +132,7 @@ class Correction:
         """``Exp(-Ψ d̂)`` (4x4; the identity when not applied): the corrected estimate is ``step · T̂_j_k``."""
         step = np.eye(4)
         if self.applied:
-            step[:3, :3] = Rotation.from_rotvec(-self.bias[:3]).as_matrix()
+            step[:3, :3] = dq.to_matrix(dq.from_rotvec(-self.bias[:3]))
             step[:3, 3] = -self.bias[3:]
         return step
 
@@ -384,3 +383,16 @@ def edge_covariance(pairs: list[tuple[int, int]], noise: list[EdgeNoise], varian
             C[6 * e:6 * e + 6, 6 * f:6 * f + 6] = block
             C[6 * f:6 * f + 6, 6 * e:6 * e + 6] = block.T
     return C
+
+
+def bias_bound(corrections: list[Correction]) -> Array:
+    """(6E, 6E): each corrected pair's removed bias ``b = Ψ d̂`` as the bound ``b bᵀ`` of what it may
+    still carry (a drift that is not a constant rate, its second order), block-diagonal; zero for
+    the pairs left as they are. Added to the covariance where the pairs are combined, it down-weighs
+    a drifting pair in the directions its drift biased it, by as much as its drift did."""
+    E = len(corrections)
+    out = np.zeros((6 * E, 6 * E))
+    for e, c in enumerate(corrections):
+        if c.applied:
+            out[6 * e:6 * e + 6, 6 * e:6 * e + 6] = np.outer(c.bias, c.bias)
+    return out

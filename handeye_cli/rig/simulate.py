@@ -16,9 +16,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from ..simulation import _smooth_trajectory, perturb, random_transform
+from ..solvers import dualquat as dq
 from ..streams import PoseStream
 
 __all__ = ["SimSensor", "simulate_streams", "with_fault", "FAULTS", "START_NS"]
@@ -56,7 +56,7 @@ def _stamps(rate: float, duration_s: float, rng: np.random.Generator) -> NDArray
 def _drift(t: NDArray[np.float64], twist: tuple[float, ...]) -> NDArray[np.float64]:
     """``Exp(t ξ)`` for a constant twist (first-order: rotation and translation grow linearly)."""
     D = np.tile(np.eye(4), (len(t), 1, 1))
-    D[:, :3, :3] = Rotation.from_rotvec(t[:, None] * np.asarray(twist[:3])).as_matrix()
+    D[:, :3, :3] = dq.to_matrix(dq.from_rotvec(t[:, None] * np.asarray(twist[:3])))
     D[:, :3, 3] = t[:, None] * np.asarray(twist[3:])
     return D
 
@@ -66,10 +66,10 @@ def _mount(sensor: SimSensor, t: NDArray[np.float64]) -> NDArray[np.float64]:
     M = np.tile(sensor.T_ref_k, (len(t), 1, 1))
     if sensor.wobble_deg:
         angle = np.deg2rad(sensor.wobble_deg) * np.sin(2 * np.pi * t / 7.0)
-        M[:, :3, :3] = M[:, :3, :3] @ Rotation.from_rotvec(angle[:, None] * np.array([0.6, 0.0, 0.8])).as_matrix()
+        M[:, :3, :3] = M[:, :3, :3] @ dq.to_matrix(dq.from_rotvec(angle[:, None] * np.array([0.6, 0.0, 0.8])))
     if any(sensor.slip):
         slip = np.eye(4)
-        slip[:3, :3] = Rotation.from_rotvec(sensor.slip[:3]).as_matrix()
+        slip[:3, :3] = dq.to_matrix(dq.from_rotvec(np.asarray(sensor.slip[:3])))
         slip[:3, 3] = sensor.slip[3:]
         M[t >= sensor.slip_s] = M[t >= sensor.slip_s] @ slip
     return M
