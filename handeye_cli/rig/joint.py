@@ -25,8 +25,8 @@ Gaussian least squares). When the whole rig's J is improbable (p < :data:`CONSIS
 the sensor whose removal lowers it most improbably — and itself improbably — is the suspect.
 
 The unknowns are perturbations ``T_ref_k Exp(δ_k)`` (rotation vector [rad], right; translation
-[m], added in the reference frame) of every non-reference sensor, solved by Levenberg–Marquardt
-from the graph synchronisation's estimate. :func:`bootstrap_rig` resamples time blocks shared by
+[m], added in the reference frame) of every non-reference sensor, solved by Gauss–Newton
+(first-order Jacobian) from the graph synchronisation's estimate. :func:`bootstrap_rig` resamples time blocks shared by
 all pairs (a block's count multiplies every motion pair that starts in it), re-solves each pair on
 its re-weighted cost (8) and the rig from those estimates.
 """
@@ -37,7 +37,6 @@ from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 from scipy.special import chdtrc, gammaln  # the χ² survival function: scipy.stats costs 1 s to import
 
 from .. import se3
@@ -148,11 +147,42 @@ def _perturbed(T0: Array, free: NDArray[np.bool_], p: Array) -> Array:
     return np.asarray(T, dtype=np.float64)
 
 
+def _skew(v: Array) -> Array:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def _jacobian(problem: JointProblem, T: Array, free: NDArray[np.bool_], edges: NDArray[np.bool_],
+              X: Array) -> Array:
+    """``∂z/∂p`` (6E', 6F) of the kept edges' errors at the rig ``T`` for the free sensors' perturbations
+    ``p`` (:func:`_perturbed`), to first order in z: with ``G = R_jᵀ R_k``, ``s = R̂ᵀ t̂`` and ``u`` the
+    translation of ``T_j⁻¹ T_k X̂⁻¹``, the rotation moves by ``-ω_j + R̂ ω_k`` and the translation by
+    ``[u]× ω_j - R_jᵀ v_j + G [s]× ω_k + R_jᵀ v_k``."""
+    column = np.cumsum(free) - 1
+    kept = [(p, Xe) for p, Xe, e in zip(problem.pairs, X, edges, strict=True) if e]
+    out = np.zeros((len(kept), 6, 6 * int(free.sum())))
+    eye = np.eye(3)
+    for r, ((j, k), Xe) in enumerate(kept):
+        Rj_t, G = T[j, :3, :3].T, T[j, :3, :3].T @ T[k, :3, :3]
+        s = Xe[:3, :3].T @ Xe[:3, 3]
+        u = Rj_t @ (T[k, :3, 3] - T[j, :3, 3]) - G @ s
+        if free[j]:
+            c = 6 * column[j]
+            out[r, :3, c:c + 3], out[r, 3:, c:c + 3], out[r, 3:, c + 3:c + 6] = -eye, _skew(u), -Rj_t
+        if free[k]:
+            c = 6 * column[k]
+            out[r, :3, c:c + 3], out[r, 3:, c:c + 3], out[r, 3:, c + 3:c + 6] = Xe[:3, :3], G @ _skew(s), Rj_t
+    return out.reshape(6 * len(kept), -1)
+
+
+_ITERATIONS = 30        # Gauss–Newton steps at most (from the graph synchronisation: 2–4 suffice)
+
+
 def _solve(problem: JointProblem, T0: Array, free: NDArray[np.bool_], edges: NDArray[np.bool_],
            estimates: Array | None, combine: bool = False) -> tuple[Array, Array]:
     """Minimise J over the ``free`` sensors using the ``edges`` kept — weighed by the noise only, or
     with ``combine`` by the noise and the bias bound — and return the rig and the covariance (6F, 6F)
-    of the free sensors' perturbations."""
+    of the free sensors' perturbations. Gauss–Newton on the whitened errors with the first-order
+    Jacobian (:func:`_jacobian`), a step halved while it raises the cost."""
     keep = np.repeat(edges, 6)
     if edges.all():
         W = problem.combining if combine else problem.whitening
@@ -161,12 +191,27 @@ def _solve(problem: JointProblem, T0: Array, free: NDArray[np.bool_], edges: NDA
         W = whitening(C[np.ix_(keep, keep)])
     X = problem.estimates if estimates is None else estimates
 
-    def residuals(p: Array) -> Array:
-        return np.asarray(W @ problem.errors(_perturbed(T0, free, p), X)[edges].ravel(), dtype=np.float64)
+    def residuals(T: Array) -> Array:
+        return np.asarray(W @ problem.errors(T, X)[edges].ravel(), dtype=np.float64)
 
-    r = least_squares(residuals, np.zeros(6 * int(free.sum())), method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
-    J = np.asarray(r.jac, dtype=np.float64)
-    return _perturbed(T0, free, r.x), np.asarray(np.linalg.pinv(J.T @ J, hermitian=True), dtype=np.float64)
+    T, r = T0, residuals(T0)
+    J = W @ _jacobian(problem, T, free, edges, X)
+    for _ in range(_ITERATIONS):
+        step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        cost = float(r @ r)
+        for _ in range(30):
+            T_new = _perturbed(T, free, step)
+            r_new = residuals(T_new)
+            if float(r_new @ r_new) <= cost or not step.any():
+                break
+            step = 0.5 * step
+        else:
+            break
+        T, r = T_new, r_new
+        J = W @ _jacobian(problem, T, free, edges, X)
+        if np.abs(step).max() < 1e-13:
+            break
+    return T, np.asarray(np.linalg.pinv(J.T @ J, hermitian=True), dtype=np.float64)
 
 
 def refine(problem: JointProblem, T0: Array, estimates: Array | None = None) -> tuple[Array, Array]:
