@@ -98,18 +98,19 @@ def simulate_streams(sensors: list[SimSensor], *, duration_s: float = 60.0, seed
     return out
 
 
-def with_fault(sensors: list[SimSensor], k: int, fault: str, rng: np.random.Generator
+def with_fault(sensors: list[SimSensor], k: int, fault: str, rng: np.random.Generator, *, slip_s: float = 15.0
                ) -> tuple[list[SimSensor], float]:
     """Sensor k made bad, as the rig tests and benchmark make it: ``scale`` (translations × 0.8),
     ``offset`` (the clock offset the user gives is 30 ms wrong: returned as the error [s] to add to
     it; the sensor is unchanged) or ``slip`` (the mount turns 1° about a random axis and moves 5 mm
-    in a random direction at 15 s). Returns the sensors and that clock-offset error (0 but for ``offset``)."""
+    in a random direction at ``slip_s`` seconds). Returns the sensors and that clock-offset error (0
+    but for ``offset``)."""
     out = list(sensors)
     if fault == "scale":
         out[k] = replace(out[k], scale=0.8)
     elif fault == "slip":
         axis, shift = (v / np.linalg.norm(v) for v in rng.normal(size=(2, 3)))
-        out[k] = replace(out[k], slip=(*(axis * np.deg2rad(1.0)), *(shift * 0.005)), slip_s=15.0)
+        out[k] = replace(out[k], slip=(*(axis * np.deg2rad(1.0)), *(shift * 0.005)), slip_s=slip_s)
     elif fault != "offset":
         raise ValueError(f"unknown fault {fault!r}; expected one of {FAULTS}")
     return out, 0.03 if fault == "offset" else 0.0
