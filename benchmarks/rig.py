@@ -5,8 +5,10 @@
    15–21 s of 30 s); with those gaps and drifting lidar and wheels odometry. Per sensor: RMS error
    of the joint estimate, of the direct pairwise result ``T_ref_k`` and of the best chain of
    pairwise results (chosen in hindsight: the chain with the smallest RMS, separately for rotation
-   and translation), rotation [deg] / translation [mm], the ratios joint / best chain, and the
-   RMS error the joint's noise model predicts (root of the mean predicted variance).
+   and translation), rotation [deg] / translation [mm], the ratios joint / best chain with the
+   p-value of the paired test that the joint is worse than that chain (exact one-sided Wilcoxon
+   signed-rank on the per-seed error differences, as tests/test_rig.py), and the RMS error the
+   joint's noise model predicts (root of the mean predicted variance).
 2. Bad-stream naming: over the same seeds, with gaps (and drift): how often a clean rig names a
    stream, and how often a rig with one bad stream (cam1, lidar or wheels by turn; translations
    × 0.8, its given clock offset 30 ms wrong, or its mount slipping 1° / 5 mm mid-log: see
@@ -19,7 +21,7 @@
    the rig's stages: clock offsets, pairwise solves, joint), and as command lines (what a user
    runs: each ``handeye`` process starts, imports and reads once).
 
-    python benchmarks/rig.py [--seeds 12] [--minutes 10] [--skip-accuracy] [--skip-detection] [--skip-time]
+    python benchmarks/rig.py [--seeds 20] [--minutes 10] [--skip-accuracy] [--skip-detection] [--skip-time]
 """
 from __future__ import annotations
 
@@ -77,6 +79,8 @@ def _rms(values: list[np.ndarray]) -> np.ndarray:
 
 
 def accuracy(seeds: int, gaps: bool, drift: bool) -> None:
+    from test_rig import signed_rank_p
+
     from handeye_cli.rig import RigOptions, calibrate_rig
     from handeye_cli.rig.simulate import simulate_streams
 
@@ -102,10 +106,11 @@ def accuracy(seeds: int, gaps: bool, drift: bool) -> None:
         pred = np.sqrt(np.mean(predicted[k], axis=0))
         best_rms = np.array([mine[best[0]][0], mine[best[1]][1]])
         ratio = j / best_rms
+        p = [signed_rank_p(np.array(joint[k])[:, c] - np.array(chain[(k, best[c])])[:, c]) for c in (0, 1)]
         print(f"  {name:<7} joint {j[0]:.4f}° / {j[1]:.3f} mm (model {pred[0]:.4f}° / {pred[1]:.3f} mm)   "
               f"direct {mine[(0, k)][0]:.4f}° / {mine[(0, k)][1]:.3f} mm   best chain "
               f"{'→'.join(map(str, best[0]))} {best_rms[0]:.4f}° / {'→'.join(map(str, best[1]))} {best_rms[1]:.3f} mm"
-              f"   joint/best {ratio[0]:.3f} / {ratio[1]:.3f}")
+              f"   joint/best {ratio[0]:.3f} / {ratio[1]:.3f} (p joint worse {p[0]:.2g} / {p[1]:.2g})")
 
 
 def detection(seeds: int) -> None:
@@ -215,7 +220,7 @@ def timing(minutes: float) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--seeds", type=int, default=12)
+    ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--skip-accuracy", action="store_true")
     ap.add_argument("--skip-detection", action="store_true")

@@ -135,7 +135,7 @@ def mixed_rigs():
     return out
 
 
-def _signed_rank_p(d: np.ndarray) -> float:
+def signed_rank_p(d: np.ndarray) -> float:
     """One-sided exact Wilcoxon signed-rank test of paired differences ``d``: ``P(W⁺ ≥ w⁺)`` under
     "symmetric about 0" (small: the differences lean positive). Ties of |d| do not occur in continuous errors."""
     ranks = np.argsort(np.argsort(np.abs(d))) + 1
@@ -163,16 +163,16 @@ def _joint_against_chains(rigs) -> dict[tuple[int, int], tuple[float, float, tup
             rms = {path: float(_rms(np.array(v)[:, c])) for path, v in chain.items()}
             best = min(rms, key=rms.__getitem__)
             d = joint[:, c] - np.array(chain[best])[:, c]
-            out[(k, c)] = (float(_rms(joint[:, c])) / rms[best], _signed_rank_p(d), best)
+            out[(k, c)] = (float(_rms(joint[:, c])) / rms[best], signed_rank_p(d), best)
     return out
 
 
-def test_signed_rank_p() -> None:
+def testsigned_rank_p() -> None:
     """The exact null distribution: all 2ⁿ sign patterns of ranks 1..n equally likely."""
-    assert _signed_rank_p(np.array([1.0, 2.0, 3.0])) == 1 / 8                # only +++ reaches W⁺ = 6
-    assert _signed_rank_p(np.array([-1.0, -2.0, -3.0])) == 1.0
-    assert _signed_rank_p(np.array([-1.0, 2.0, 3.0])) == 2 / 8              # W⁺ = 5: {2, 3}, {1, 2, 3}
-    assert _signed_rank_p(np.r_[np.arange(1.0, 11.0), -np.arange(11.0, 21.0)]) > 0.95  # W⁺ = 55 of 210
+    assert signed_rank_p(np.array([1.0, 2.0, 3.0])) == 1 / 8                # only +++ reaches W⁺ = 6
+    assert signed_rank_p(np.array([-1.0, -2.0, -3.0])) == 1.0
+    assert signed_rank_p(np.array([-1.0, 2.0, 3.0])) == 2 / 8              # W⁺ = 5: {2, 3}, {1, 2, 3}
+    assert signed_rank_p(np.r_[np.arange(1.0, 11.0), -np.arange(11.0, 21.0)]) > 0.95  # W⁺ = 55 of 210
 
 
 def test_joint_never_loses_to_a_pairwise_chain(mixed_rigs) -> None:

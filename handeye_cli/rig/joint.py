@@ -197,7 +197,7 @@ def _solve(problem: JointProblem, T0: Array, free: NDArray[np.bool_], edges: NDA
     T, r = T0, residuals(T0)
     J = W @ _jacobian(problem, T, free, edges, X)
     for _ in range(_ITERATIONS):
-        step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        step = np.asarray(np.linalg.lstsq(J, -r, rcond=None)[0], dtype=np.float64)
         cost = float(r @ r)
         for _ in range(30):
             T_new = _perturbed(T, free, step)
