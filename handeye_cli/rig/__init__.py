@@ -1,12 +1,14 @@
 """Whole-rig calibration: every sensor's ``T_ref_k`` from one log, jointly consistent.
 
 Pipeline: read all streams (one pass per log, :mod:`.read`) → per-stream clock offsets and
-inversion → one optimal calibration per pair of streams (:mod:`.pairwise`) → graph
-streams' noise, each pair's relative drift (its bias removed where significant) and the pairwise
-estimates' joint covariance (:mod:`.noise`) → graph synchronisation (chordal rotation averaging,
+inversion → one optimal calibration per pair of streams (:mod:`.pairwise`: ``calibrate``'s
+stages and default pair selection) → the streams' noise, each pair's relative drift (its bias
+removed where significant, and bounded: :func:`.noise.bias_bound`) and the pairwise estimates'
+joint covariance (:mod:`.noise`) → graph synchronisation (chordal rotation averaging,
 translation least squares, :mod:`.graph`) → the χ² test of the pairwise estimates against each
 other, naming the stream that spoils it (:func:`.joint.consistency`) → the generalised least
-squares of all pairwise estimates (:mod:`.joint`; a named stream informs no other sensor) → the
+squares of all pairwise estimates under that covariance plus the bias bound (:mod:`.joint`; a
+named stream informs no other sensor) → the
 block bootstrap → :class:`RigResult`.
 
 Frames: stream k holds ``T_wk_k(t)``; ``T_ref_k`` is the pose of sensor k in the reference
