@@ -15,6 +15,7 @@ Examples
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -35,41 +36,23 @@ from .analysis.diagnosis import data_warning, too_few_pairs
 from .analysis.fit_test import fit_test, sample_noise
 from .analysis.inversion import InversionVerdict, check_inversion
 from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit, scale_reading
+from .analysis.selection import Selection, select_pairs
 from .config import load_options
 from .errors import ConfigError, HandEyeError
 from .io.pairfile import read_extrinsic
+from .io.spec import StreamSpec
 from .options import FIELDS, Options, ReadOptions
-from .output.document import result_document
 from .solvers import Prior, Solution, solve
 from .solvers.scale import scale_translations, solve_with_scale
 from .stages.counts import SampleCounts
 from .stages.gates import sync_and_gate
 from .stages.pairs import Pairs, make_pairs
-from .stages.selection import Selection, select_pairs
 from .stages.stations import Stations, detect_stations
 from .stages.sync import Synced, default_max_dt_ns
 from .streams import PoseStream
 
 __all__ = ["Calibration", "StreamSpec", "calibrate", "calibrate_files", "calibrate_read", "inverted_as_read",
            "read_streams", "refuse_unread"]
-
-
-@dataclass(frozen=True)
-class StreamSpec:
-    """Where one stream comes from: a file (log or text; ``-`` is stdin) and, in a log, a topic
-    or a (parent, child) TF frame pair."""
-
-    path: str
-    topic: str | None = None
-    frames: tuple[str, str] | None = None
-
-    def describe(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"file": self.path}
-        if self.topic:
-            out["topic"] = self.topic
-        if self.frames:
-            out["frames"] = list(self.frames)
-        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -132,12 +115,6 @@ class Calibration:
         merging, and where the non-default ones came from."""
         return {"config_file": self.config_file, "preset": self.preset, "options": self.options.flat()}
 
-    def document(self) -> dict[str, Any]:
-        """The result as printed by ``handeye calibrate`` (schema in docs/design.md)."""
-        return result_document(self.solution, frames=self.frames, inputs=self.inputs,
-                               samples=self.samples.as_dict(), warnings=self.warnings,
-                               diagnostics={**self.diagnostics, "settings": self.settings()})
-
 
 Source = str | Path | StreamSpec | PoseStream
 
@@ -154,21 +131,24 @@ def _spec(source: Source, topic: str | None, frames: tuple[str, str] | None) -> 
                       "give a file path, a StreamSpec or a PoseStream")
 
 
-def read_streams(spec_a: StreamSpec | PoseStream, spec_b: StreamSpec | PoseStream, options: Options | None = None,
-                 *, quiet: bool = True) -> tuple[PoseStream, PoseStream]:
-    """Streams a and b from their specs, as the files hold them (:func:`calibrate_read` inverts them where the
-    options say so) — two streams of one log are read in one pass; a PoseStream is taken as it is."""
-    from .io import detect_format, read_log_streams  # mcap/rosbags: import only when reading
-    from .io.detect import LOG_FORMATS
+def read_streams(specs: Sequence[StreamSpec | PoseStream], options: Options | None = None, *,
+                 quiet: bool = True) -> list[PoseStream]:
+    """The streams of ``specs`` (a PoseStream is taken as it is), as the files hold them: the one read path of
+    calibrate, rig and batch. Each input is detected once and every stream of one log read in one pass
+    (:func:`~handeye_cli.io.read_specs`); ``options.read`` sets the time source, CSV columns and time unit of
+    every file, ``wxyz_a`` / ``wxyz_b`` the quaternion order of the first / second stream (a rig's others: the
+    format's, open to the fit). :func:`calibrate_read` inverts them where the options say so."""
+    from .io import read_specs  # mcap/rosbags: import only when reading
 
     read = (options or Options()).read
-    if (isinstance(spec_a, StreamSpec) and isinstance(spec_b, StreamSpec) and spec_a.path == spec_b.path
-            and spec_a.path != "-" and detect_format(spec_a.path) in LOG_FORMATS):
-        a, b = read_log_streams(spec_a.path, [(spec_a.topic, spec_a.frames), (spec_b.topic, spec_b.frames)],
-                                time_source=read.time_source, quiet=quiet)
-    else:
-        a, b = _read_one(spec_a, read, quiet, read.wxyz_a), _read_one(spec_b, read, quiet, read.wxyz_b)
-    return a, b
+    wxyz = (read.wxyz_a, read.wxyz_b)
+    files = [(k, s) for k, s in enumerate(specs) if isinstance(s, StreamSpec)]
+    orders = ["auto" if k > 1 or wxyz[k] is None else "wxyz" if wxyz[k] else "xyzw" for k, _ in files]
+    read_now = read_specs([s for _, s in files], time_source=read.time_source,
+                          columns=dict(read.csv_columns) if read.csv_columns else None, quaternion_orders=orders,
+                          time_unit=read.time_unit, quiet=quiet)
+    streams = dict(zip((k for k, _ in files), read_now, strict=True))
+    return [s if isinstance(s, PoseStream) else streams[k] for k, s in enumerate(specs)]
 
 
 def inverted_as_read(a: PoseStream, b: PoseStream, read: ReadOptions) -> tuple[PoseStream, PoseStream]:
@@ -199,18 +179,6 @@ def refuse_unread(read: ReadOptions, in_memory: tuple[bool, bool]) -> None:
             which = f"stream {'ab'[sides[0]]} is an in-memory PoseStream" if len(sides) == 1 else \
                 "both streams are in-memory PoseStreams"
             raise ConfigError(f"{name}={value!r} applies to reading a file, but {which}", name, fix)
-
-
-def _read_one(spec: StreamSpec | PoseStream, read: ReadOptions, quiet: bool, wxyz: bool | None) -> PoseStream:
-    if isinstance(spec, PoseStream):
-        return spec
-    from .io import read_stream
-
-    columns = dict(read.csv_columns) if read.csv_columns else None
-    return read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=read.time_source,
-                       columns=columns, quiet=quiet,
-                       quaternion_order="auto" if wxyz is None else "wxyz" if wxyz else "xyzw",
-                       time_unit=read.time_unit)
 
 
 def _quaternion_order(a: PoseStream, b: PoseStream, options: Options) -> tuple[PoseStream, PoseStream,
@@ -536,7 +504,7 @@ def calibrate_files(a: Source, b: Source | None = None, *, topic_a: str | None =
     opts = load_options(config_file, preset, base=options, **overrides)
     spec_a, spec_b = _spec(a, topic_a, frames_a), _spec(a if b is None else b, topic_b, frames_b)
     refuse_unread(opts.read, (isinstance(spec_a, PoseStream), isinstance(spec_b, PoseStream)))
-    stream_a, stream_b = read_streams(spec_a, spec_b, opts, quiet=quiet)
+    stream_a, stream_b = read_streams([spec_a, spec_b], opts, quiet=quiet)
     inputs: dict[str, Any] = {"a": _describe(spec_a), "b": _describe(spec_b), "time_source": opts.read.time_source,
                               **_inversion_inputs(opts.read)}
     return calibrate_read(stream_a, stream_b, opts, inputs=inputs).with_origin(config_file, preset)

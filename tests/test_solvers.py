@@ -9,9 +9,9 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 import handeye_cli
-from handeye_cli import se3
+from handeye_cli.geometry import dualquat, se3
 from handeye_cli.simulation import motion_pairs, random_transform
-from handeye_cli.solvers import METHODS, Prior, Problem, build_problem, dualquat, solve
+from handeye_cli.solvers import METHODS, Prior, Problem, build_problem, solve
 from handeye_cli.solvers.optimal import dqopt
 from handeye_cli.solvers.problem import pair_blocks, problem_from_blocks
 
@@ -304,7 +304,7 @@ def test_half_turn_motions_keep_the_sign_of_their_dual_quaternion():
     ``Q_A`` but not ``Q_B``): ``Q_B`` takes the sign of ``Q_A``'s dual scalar, the pairs' residuals at
     the true X stay at the noise level and the solution stays where the other pairs put it (with the
     ``w ≥ 0`` sign alone each such pair cost as much as a 180° error and moved X by millimetres)."""
-    from handeye_cli.solvers import dualquat
+    from handeye_cli.geometry import dualquat
     from handeye_cli.solvers.problem import pair_blocks
 
     rng = np.random.default_rng(11)

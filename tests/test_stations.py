@@ -6,7 +6,7 @@ import pytest
 import yaml
 from _util import pose_error, run, write_tum
 
-from handeye_cli import se3
+from handeye_cli.geometry import se3
 from handeye_cli.simulation import Rig, simulate_rig
 from handeye_cli.simulation.arm import ArmCapture, simulate_arm
 from handeye_cli.solvers import solve

@@ -1,7 +1,7 @@
 """Linearised (sandwich) covariance of the DQOpt estimate ``X = T_a_b`` under cost (8).
 
 Conventions: ``X = T_a_b`` (maps frame b to frame a), ``A_i X = X B_i``; dual quaternions
-``x = [q; q']`` with q in x-y-z-w order (:mod:`handeye_cli.solvers.dualquat`).
+``x = [q; q']`` with q in x-y-z-w order (:mod:`handeye_cli.geometry.dualquat`).
 
 The estimate is perturbed on the left in frame a, ``X(δ) = Δ(ω, v) X``, i.e.
 ``Q_X(δ) = Q_Δ ⊗ Q_X`` with ``Q_Δ ≈ (ω/2, 1) + ε (v/2, 0)``. This map stays on the unit dual
@@ -26,8 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
+from ..geometry import dualquat as dq
 from ..solvers import Prior
-from ..solvers import dualquat as dq
 from ..solvers.problem import pair_blocks, problem_from_blocks, validate_motions
 
 __all__ = ["LinearCovariance", "linear_covariance", "tangent_basis", "constrained_hessian"]

@@ -34,8 +34,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .. import se3
 from ..errors import DataError
+from ..geometry import se3
 from .readings import BETTER, MedianFit, median_fit
 
 __all__ = ["Candidate", "InversionVerdict", "check_inversion"]

@@ -27,8 +27,8 @@ import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import TooFewPairsError
+from ..geometry import dualquat as dq
 from ..solvers import Prior, Solution, solve
-from ..solvers import dualquat as dq
 from ..solvers.problem import pair_blocks, validate_motions
 from .residuals import Residuals, residuals_batch
 

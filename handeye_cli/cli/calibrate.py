@@ -8,10 +8,11 @@ import numpy as np
 
 from ..analysis.verdict import verdict_for
 from ..errors import ConfigError, HandEyeError
+from ..geometry import dualquat as dq
 from ..io.nominal import read_nominal
+from ..output.document import calibration_document
 from ..output.writers import check_writable, output_format
 from ..pipeline import Calibration, StreamSpec, calibrate_files
-from ..solvers import dualquat as dq
 from .check import verdict_options
 from .common import CONTEXT, Drifted, StrictFailure, emit, warn
 from .params import calibrate_options, options_from_cli, output_options, stream_options
@@ -87,7 +88,7 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
     nominal = read_nominal(p["against"]) if p["against"] else None      # a bad nominal fails before the work
     result = calibrate_files(spec_a, spec_b, options=options, quiet=p["quiet"])
     result = result.with_origin(config_file, preset)
-    doc = result.document()
+    doc = calibration_document(result)
     verdict = None if nominal is None else verdict_for(doc, nominal, p["max_rotation_deg"], p["max_translation_m"])
     if verdict is not None:
         doc["verdict"] = verdict.as_dict()

@@ -17,10 +17,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..analysis import extrinsic_error, pair_residuals
+from ..geometry import dualquat
 from ..output.document import plain, render
 from ..output.writers import check_writable, output_format, write_output
 from ..pipeline import Calibration, calibrate_files
-from ..solvers import METHODS, build_problem, dualquat, solve
+from ..solvers import METHODS, build_problem, solve
 from ..solvers.robot_world import RW_METHODS, robot_world
 from .calibrate import stream_specs
 from .common import CONTEXT

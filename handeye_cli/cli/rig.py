@@ -113,7 +113,7 @@ def rig(log: str | None, **p: Any) -> None:
     fmt = output_format(p["output"], p["fmt"])
     nominal = read_nominal(p["against"]) if p["against"] else None      # a bad nominal fails before the work
     if nominal is not None:
-        check_sensor_names([s.name for s in specs], nominal)
+        check_sensor_names([str(s.name) for s in specs], nominal)
     opts = RigOptions(reference=p["reference"], time_offsets=_named(p["offsets"], "--time-offset"),
                       invert=tuple(p["invert"]), block_s=p["block_s"], options=options)
     result = calibrate_rig_files(log, specs, opts, quiet=p["quiet"])

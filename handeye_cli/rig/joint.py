@@ -41,14 +41,15 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 from scipy.special import chdtrc, gammaln  # the χ² survival function: scipy.stats costs 1 s to import
 
-from .. import se3
 from ..analysis.covariance import constrained_hessian
-from ..solvers import dualquat as dq
+from ..geometry import dualquat as dq
+from ..geometry import se3
+from ..geometry.lie import log_errors
 from ..solvers.problem import split_forms
 from .graph import connected
 
 __all__ = ["Motions", "JointProblem", "refine", "bootstrap_rig", "RigUncertainty", "part_costs",
-           "resolve_pairs", "whitening", "log_errors", "Consistency", "consistency", "CONSISTENCY_P_VALUE"]
+           "resolve_pairs", "whitening", "Consistency", "consistency", "CONSISTENCY_P_VALUE"]
 
 Array = NDArray[np.float64]
 Motions = tuple[Array, Array, Array, Array, float]   # A, B (N, 4, 4); start stamps [ns] (N,); pair weights (N,); α
@@ -66,11 +67,6 @@ def part_costs(forms: Array, T: Array) -> Array:
     v = np.concatenate((qd, q), axis=1)
     return np.asarray(np.einsum("ei,epij,ej->ep", v, forms, v), dtype=np.float64)
 
-
-def log_errors(T: Array) -> Array:
-    """``(ω, t)`` (…, 6) of transforms near the identity: rotation vector [rad], translation [m]."""
-    rotvec = Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_rotvec().reshape(T.shape[:-2] + (3,))
-    return np.concatenate((rotvec, T[..., :3, 3]), axis=-1)
 
 
 def whitening(C: Array) -> Array:

@@ -14,10 +14,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .. import __version__, se3
 from ..analysis import extrinsic_error, pair_residuals
+from ..geometry import se3
 from ..output.document import plain
 from ..streams import PoseStream
+from ..version import __version__
 from .graph import Closure
 from .joint import CONSISTENCY_P_VALUE, Consistency, JointProblem, RigUncertainty
 from .noise import Correction, StreamNoise

@@ -1,7 +1,7 @@
 """Synthetic data with known truth: motion pairs (the paper's appendix D.2) and simulated rigs.
 
 Used by the tests, the benchmarks and ``sample_data/make_samples.py``. Conventions as in
-:mod:`handeye_cli.se3`: ``X = T_a_b``, motions satisfy ``A_i X = X B_i``.
+:mod:`handeye_cli.geometry.se3`: ``X = T_a_b``, motions satisfy ``A_i X = X B_i``.
 """
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .. import se3
 from .._typing import FloatArray
+from ..geometry import se3
 from ..streams import PoseStream
 
 __all__ = ["random_transform", "perturb", "motion_pairs", "Rig", "simulate_rig", "SCENARIOS"]

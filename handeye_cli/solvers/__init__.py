@@ -14,7 +14,7 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..errors import ConfigError, UnderdeterminedError
-from . import dualquat
+from ..geometry import dualquat
 from .approximate import dq2ndord, dq2steps, dqconvrlx
 from .certificate import Certificate, certify
 from .classical import CLASSICAL

@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import DataError
-from . import dualquat as dq
+from ..geometry import dualquat as dq
 from .problem import pair_blocks, validate_motions
 
 __all__ = ["ScaleSolution", "linear_scale", "scale_translations", "solve_with_scale"]

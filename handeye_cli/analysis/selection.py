@@ -32,14 +32,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .. import se3
-from ..analysis.covariance import tangent_basis
-from ..analysis.noise_model import NoiseModel, PairFeatures, cost_residuals, fit_noise_model, pair_features
+from ..geometry import dualquat as dq
+from ..geometry import se3
 from ..solvers import Prior, solve
-from ..solvers import dualquat as dq
 from ..solvers.problem import split_forms
-from .pairs import Pairs
-from .sync import Synced
+from ..stages.pairs import Pairs
+from ..stages.sync import Synced
+from .covariance import tangent_basis
+from .noise_model import NoiseModel, PairFeatures, cost_residuals, fit_noise_model, pair_features
 
 __all__ = ["Selection", "select_pairs", "ladder"]
 
