@@ -51,8 +51,18 @@ from .stages.stations import Stations, detect_stations
 from .stages.sync import Synced, default_max_dt_ns
 from .streams import PoseStream
 
-__all__ = ["Calibration", "StreamSpec", "calibrate", "calibrate_files", "calibrate_read", "inverted_as_read",
-           "read_streams", "refuse_unread"]
+__all__ = ["Calibration", "StreamSpec", "Uncertainty", "calibrate", "calibrate_files", "calibrate_read",
+           "inverted_as_read", "read_streams", "refuse_unread"]
+
+
+@dataclass(frozen=True, eq=False)
+class Uncertainty:
+    """The 1σ spread of an extrinsic ``T_a_b``: ``rotation_std_deg`` (3,) [deg] about the axes of frame a,
+    ``translation_std_m`` (3,) [m] along them; ``method``: ``"bootstrap"`` or ``"covariance"``."""
+
+    rotation_std_deg: np.ndarray
+    translation_std_m: np.ndarray
+    method: str
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,6 +99,57 @@ class Calibration:
     def matrix(self) -> np.ndarray:
         """``T_a_b`` (4x4)."""
         return self.solution.matrix
+
+    @property
+    def translation(self) -> np.ndarray:
+        """Translation of ``T_a_b`` [m]: b's origin in frame a."""
+        return self.solution.translation
+
+    @property
+    def quaternion_xyzw(self) -> np.ndarray:
+        """Rotation of ``T_a_b`` as a unit quaternion x, y, z, w (w ≥ 0)."""
+        return self.solution.quaternion_xyzw
+
+    @property
+    def uncertainty(self) -> Uncertainty | None:
+        """The 1σ spread of ``T_a_b`` per axis of frame a: the bootstrap's where it ran (``bootstrap=N``), else
+        the noise model's predicted (sandwich) covariance; None where neither could be formed."""
+        if self.bootstrap is not None:
+            return Uncertainty(self.bootstrap.rotation_std_deg, self.bootstrap.translation_std_m, "bootstrap")
+        obs = self.diagnostics.get("observability", {})
+        if "predicted_rotation_std_deg" not in obs:
+            return None
+        return Uncertainty(np.asarray(obs["predicted_rotation_std_deg"], dtype=float),
+                           np.asarray(obs["predicted_translation_std_m"], dtype=float), "covariance")
+
+    def __repr__(self) -> str:
+        """One line: frames, translation, rotation angle, method, pairs, fit test and certificate."""
+        return f"Calibration({self._line()})"
+
+    def _line(self) -> str:
+        from .geometry import se3
+
+        f, t = self.frames, self.translation
+        fit = self.diagnostics.get("fit_test", {})
+        cert = self.solution.certificate
+        return (f"T_{f['a']}_{f['b']}: t=[{t[0]:.4f}, {t[1]:.4f}, {t[2]:.4f}] m, "
+                f"rotation {np.rad2deg(float(se3.rotation_angle(self.matrix))):.3f}°, {self.solution.method} on "
+                f"{self.solution.pairs} pairs, fit ratio {fit.get('ratio', float('nan')):.3g}"
+                f"{'' if cert is None else ', certified' if cert.certified else ', NOT certified'}, "
+                f"{len(self.warnings)} warning(s)")
+
+    def _repr_html_(self) -> str:
+        """A small table for notebooks: the extrinsic, its spread and the checks."""
+        import html
+
+        rows = [("T_a_b", html.escape(self._line()))]
+        unc = self.uncertainty
+        if unc is not None:
+            rows.append((f"σ ({unc.method})", f"rotation {np.array2string(unc.rotation_std_deg, precision=3)} °, "
+                                              f"translation {np.array2string(unc.translation_std_m, precision=4)} m"))
+        rows += [("warning", html.escape(w)) for w in self.warnings]
+        body = "".join(f"<tr><th style='text-align:left'>{k}</th><td>{v}</td></tr>" for k, v in rows)
+        return f"<table>{body}</table>"
 
     @property
     def frames(self) -> dict[str, str]:

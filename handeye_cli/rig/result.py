@@ -75,6 +75,26 @@ class RigResult:
     inputs: dict[str, Any] = field(default_factory=dict)
     settings: dict[str, Any] = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        """One line: the sensors (the reference first), the consistency test and the warnings."""
+        return (f"RigResult({len(self.names)} sensors, reference {self.names[self.reference]}: "
+                f"{', '.join(self._sensor_lines())}; {len(self.warnings)} warning(s))")
+
+    def _sensor_lines(self) -> list[str]:
+        ref = self.names[self.reference]
+        return [f"T_{ref}_{name} t=[{', '.join(f'{v:.4f}' for v in T[:3, 3])}] m "
+                f"{np.rad2deg(float(se3.rotation_angle(T))):.3f}°"
+                for name, T in zip(self.names, self.matrices, strict=True) if name != ref]
+
+    def _repr_html_(self) -> str:
+        """A table for notebooks: each sensor's ``T_ref_k`` and the warnings."""
+        import html
+
+        rows = [("sensor", html.escape(line)) for line in self._sensor_lines()]
+        rows += [("warning", html.escape(w)) for w in self.warnings]
+        body = "".join(f"<tr><th style='text-align:left'>{k}</th><td>{v}</td></tr>" for k, v in rows)
+        return f"<table>{body}</table>"
+
     def T(self, parent: str, child: str) -> Array:
         """``T_parent_child`` (4x4) of the joint result."""
         i, j = self.names.index(parent), self.names.index(child)
