@@ -489,6 +489,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     → [bootstrap]. After the solve, b's translations found in other units by the fit are estimated with
     ``T_a_b`` (``scale_by_fit``; ``handeye rig`` passes False: its consistency test names such a stream).
     """
+    given = stream_a, stream_b                                 # as read: what a second reading starts from
     if opts.solver.scale not in (1.0, "auto"):
         stream_b = replace(stream_b, xyz=stream_b.xyz * float(opts.solver.scale))
     stream_a, stream_b, order = _quaternion_order(stream_a, stream_b, opts)
@@ -533,7 +534,10 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     diagnostics["fit_test"] = fit.as_dict()
     rejected = fit.refusal(opts, stations is not None, inverted=verdict is not None)
     if rejected and not opts.analysis.accept_poor_fit:
-        raise rejected
+        recovered = _robust_retry(*given, opts, inputs, scale_by_fit, fit.summary())
+        if recovered is None:
+            raise rejected
+        return recovered
     suspect = verdict.message() if verdict else data_warning(res, weights, samples)
     if suspect:
         warnings.insert(0, suspect)
@@ -548,6 +552,34 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     return Calibration(solution, stream_a, stream_b, kept, pairs, samples, opts, res, warnings=warnings,
                        diagnostics=diagnostics, inputs=dict(inputs or {}), weights=weights, robust=robust,
                        bootstrap=boot)
+
+
+def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inputs: dict[str, Any] | None,
+                  scale_by_fit: bool, refused: str) -> Calibration | None:
+    """A fit the fit test refused (``refused``: its figures), solved again with outliers rejected, as ``--robust``
+    does (RANSAC on minimal sets, then the weighted optimal solve on the inliers): kept, with the settings saying
+    ``robust`` and a first warning naming what was dropped, when at least ``RETRY_MIN_INLIERS`` of the pairs are
+    inliers and those fit as clean data do (a fit-test ratio within ``RETRY_MAX_RATIO``); else None (the refusal
+    stands). Not tried when ``robust``
+    was asked for already: a stream with a few bad poses (a station seen wrongly, a tracking glitch) gives a
+    verified result, a wrong convention or streams that are not rigidly attached do not."""
+    from .analysis.robust import RETRY_MAX_RATIO, RETRY_MIN_INLIERS
+
+    if opts.analysis.robust:
+        return None
+    try:
+        cal = calibrate_read(stream_a, stream_b, replace(opts, analysis=replace(opts.analysis, robust=True)),
+                             inputs=inputs, scale_by_fit=scale_by_fit)
+    except HandEyeError:
+        return None
+    if (cal.robust is None or cal.robust.inliers.mean() < RETRY_MIN_INLIERS
+            or not cal.diagnostics["fit_test"]["ratio"] <= RETRY_MAX_RATIO):
+        return None
+    n, kept = len(cal.robust.inliers), int(cal.robust.inliers.sum())
+    note = (f"outliers rejected: the fit of all pairs was refused ({refused}); {n - kept} of {n} pairs did not fit "
+            f"the consensus of the others and were dropped, as --robust does, and the {kept} left fit as clean data do "
+            "(robust.rejected lists them; --accept-poor-fit keeps the fit of all pairs, exit 3)")
+    return replace(cal, warnings=[note, *cal.warnings])
 
 
 def calibrate_files(a: Source, b: Source | None = None, *, topic_a: str | None = None, topic_b: str | None = None,
