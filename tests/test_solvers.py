@@ -48,11 +48,11 @@ def test_dqopt_is_the_global_optimum(block):
         r = solve(A, B, alpha=alpha, prior=Prior(*prior) if prior else None)
         c_opt = ref.cost(A, B, r.matrix, alpha, prior=prior)
         rng = np.random.default_rng(seed + 1000)
+        fun = ref.Residuals(A, B, alpha, prior)
         starts = [ref.params_of(r.matrix)] + [np.r_[Rotation.random(random_state=rng).as_rotvec(),
                                                      rng.uniform(-1, 1, 3)] for _ in range(3)]
         for x0 in starts:
-            nl = least_squares(ref.residuals, x0, args=(A, B, alpha, prior), method="lm",
-                               xtol=1e-15, ftol=1e-15, gtol=1e-15)
+            nl = least_squares(fun, x0, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
             c_nl = ref.cost(A, B, ref.transform(nl.x), alpha, prior=prior)
             worst = min(worst, (c_nl - c_opt) / (c_nl + c_opt))
     assert worst >= -1e-12
