@@ -9,6 +9,7 @@ Public API::
     handeye_cli.load_options(config_file=None, preset=None, **options) # defaults < preset < file < keywords
     handeye_cli.calibrate_rig_files("log.mcap", ["cam0=/cam0/pose", "imu=tf:odom,imu_link"], RigOptions())
     handeye_cli.document(calibration)                                  # the result as the CLI prints it
+    handeye_cli.compare_methods(calibration)                           # every method on its pairs
 
 Keyword options have the command line's names without dashes (``--max-jump`` → ``max_jump``);
 see :mod:`handeye_cli.options`.
@@ -24,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 from .version import __version__
 
 if TYPE_CHECKING:
+    from .comparison import MethodResult, compare_methods
     from .config import load_options
     from .errors import HandEyeError
     from .options import Options
@@ -36,6 +38,7 @@ if TYPE_CHECKING:
 # the stages it runs, so ``handeye calibrate`` does not pay for the rig, the fleet or the solvers
 # it does not call
 _HOMES = {
+    "compare_methods": "comparison", "MethodResult": "comparison",
     "load_options": "config", "HandEyeError": "errors", "Options": "options",
     "Calibration": "pipeline", "StreamSpec": "pipeline", "calibrate": "pipeline", "calibrate_files": "pipeline",
     "RigOptions": "rig", "RigResult": "rig", "calibrate_rig": "rig", "calibrate_rig_files": "rig",
@@ -44,7 +47,7 @@ _HOMES = {
 
 __all__ = ["HandEyeError", "METHODS", "PoseStream", "Prior", "Solution", "solve", "Calibration", "StreamSpec",
            "calibrate", "calibrate_files", "load_options", "Options", "RigOptions", "RigResult", "calibrate_rig",
-           "calibrate_rig_files", "document", "__version__"]
+           "calibrate_rig_files", "compare_methods", "MethodResult", "document", "__version__"]
 
 
 def document(result: Calibration | RigResult) -> dict[str, Any]:

@@ -47,3 +47,16 @@ def test_rig_result_repr_is_one_short_line() -> None:
     assert "\n" not in text and len(text) < 400 and text.startswith("RigResult(2 sensors, reference cam0: T_cam0_cam1")
     assert result._repr_html_().count("<tr>") == 1 + len(result.warnings)
     assert handeye_cli.document(result)["reference"] == "cam0"
+
+
+def test_compare_methods_is_library_code_with_typed_rows(cal) -> None:
+    """Issue 21: compare_methods lived in the CLI; it is handeye_cli.compare_methods, with typed rows the CLI
+    only formats. dqopt's row is the calibration itself, and no method reaches a lower cost (8)."""
+    rows = handeye_cli.compare_methods(cal)
+    assert rows[0].method == "dqopt" and rows[0].vs_dqopt_deg == 0.0
+    np.testing.assert_allclose(rows[0].matrix, cal.matrix, atol=1e-12)
+    assert {r.method for r in rows} >= {"tsai", "park", "daniilidis", "shah (robot-world)"}
+    pair_rows = [r for r in rows if "robot-world" not in r.method]
+    assert min(r.cost for r in pair_rows) >= rows[0].cost * (1 - 1e-9)
+    d = rows[1].as_dict()
+    assert d["milliseconds"] == 1e3 * rows[1].seconds and len(d["rotation_vector_deg"]) == 3
