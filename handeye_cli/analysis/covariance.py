@@ -112,6 +112,15 @@ def _meat(G: FloatArray, samples: tuple[IntArray, IntArray] | None) -> tuple[Flo
     return (V * np.clip(lam, 0.0, None)) @ V.T, len(nodes)
 
 
+def _block_meat(G: FloatArray, blocks: IntArray) -> tuple[FloatArray, int]:
+    """``Σ_b s_b s_bᵀ`` with ``s_b`` the summed scores of the pairs in block b (cluster-robust: errors
+    correlated inside a block, e.g. drift shared by pairs of one stretch of time), and the number of blocks."""
+    labels, inv = np.unique(np.asarray(blocks).reshape(-1), return_inverse=True)
+    S = np.zeros((len(labels), G.shape[1]))
+    np.add.at(S, inv, G)
+    return S.T @ S, len(labels)
+
+
 def select_samples(samples: tuple[IntArray, IntArray] | None, keep: BoolArray) -> tuple[IntArray, IntArray] | None:
     """The pose-sample indices ``(i, j)`` (flattened) of the pairs selected by the mask ``keep``; ``None`` stays."""
     if samples is None:
@@ -122,13 +131,16 @@ def select_samples(samples: tuple[IntArray, IntArray] | None, keep: BoolArray) -
 
 def linear_covariance(motions_a: FloatArray, motions_b: FloatArray, T_a_b: FloatArray, *,
                       alpha: float = 1.0, prior: Prior | None = None, weights: FloatArray | None = None,
-                      samples: tuple[IntArray, IntArray] | None = None) -> LinearCovariance:
+                      samples: tuple[IntArray, IntArray] | None = None,
+                      blocks: IntArray | None = None) -> LinearCovariance:
     """Sandwich covariance of the cost-(8) minimiser at ``T_a_b`` (which should be that minimiser).
 
     Parameters are those of :func:`handeye_cli.solvers.solve`; α in 1/m. The prior adds
     curvature (eq 29) but no noise. ``samples = (i, j)`` (the pose samples each pair was formed
     from) switches to the dyadic-robust form for pairs that share samples (see
-    :func:`handeye_cli.analysis.bootstrap`). Returns a :class:`LinearCovariance`; for a singular
+    :func:`handeye_cli.analysis.bootstrap`). ``blocks`` (N,) labels each pair with a block (e.g. of time)
+    and switches to the cluster-robust form instead: pairs of one block may share errors (drift), pairs
+    of different blocks do not. Returns a :class:`LinearCovariance`; for a singular
     Hessian the pseudo-inverse is used and ``singular`` is set.
     """
     A, B, w = validate_motions(motions_a, motions_b, weights)
@@ -145,7 +157,8 @@ def linear_covariance(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Float
     singular = bool(ev[0] <= 1e-12 * max(abs(ev[-1]), 1e-300))
     Hinv = np.linalg.pinv(H, hermitian=True)
     keep = w > 0
-    meat, n = _meat(G[keep], select_samples(samples, keep))
+    meat, n = (_meat(G[keep], select_samples(samples, keep)) if blocks is None
+               else _block_meat(G[keep], np.asarray(blocks)[keep]))
     cov = Hinv @ meat @ Hinv * (n / (n - 6) if n > 12 else 2.0)              # HC1 correction
     Tm = _error_map(np.asarray(T_a_b, dtype=np.float64)[:3, 3])
     Tinv = np.linalg.inv(Tm)
