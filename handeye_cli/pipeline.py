@@ -30,7 +30,8 @@ from .analysis import (
     pair_residuals,
     robust_solve,
 )
-from .analysis.alpha import noise_model_alpha
+from .analysis.alpha import TIME_BLOCKS, noise_model_alpha, time_blocks
+from .analysis.covariance import drift_check
 from .analysis.diagnosis import data_warning, too_few_pairs
 from .analysis.fit_test import fit_test, sample_noise
 from .analysis.inversion import InversionVerdict, check_inversion
@@ -509,6 +510,12 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     warnings += [str(w) for w in obs.warnings]
     warnings += solution.warnings                             # a failed optimality certificate
     diagnostics["observability"] = obs.as_dict()
+    if len(A) > 2 * TIME_BLOCKS:        # σ from independent samples beside σ from blocks of time (drift)
+        check = drift_check(A, B, solution.matrix, time_blocks(pairs.t_i_ns, pairs.t_j_ns), alpha=alpha,
+                            prior=prior, weights=weights, samples=ij)
+        diagnostics["uncertainty_check"] = check.as_dict()
+        if check.overconfident:
+            warnings.append(check.warning())
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
     fit = fit_test(pairs, res, solution.matrix, sample_noise(stream_a, stream_b, kept, stations, opts.sync.sync),

@@ -22,6 +22,7 @@ Finally δ is mapped to the error of X itself: rotation ``ω`` [rad] and transla
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -30,7 +31,8 @@ from ..solvers import Prior
 from ..solvers import dualquat as dq
 from ..solvers.problem import pair_blocks, problem_from_blocks, validate_motions
 
-__all__ = ["LinearCovariance", "linear_covariance", "tangent_basis", "constrained_hessian"]
+__all__ = ["LinearCovariance", "linear_covariance", "tangent_basis", "constrained_hessian", "DriftCheck", "drift_check",
+           "DRIFT_INFLATION_LIMIT"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -163,3 +165,59 @@ def linear_covariance(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Float
     Tm = _error_map(np.asarray(T_a_b, dtype=np.float64)[:3, 3])
     Tinv = np.linalg.inv(Tm)
     return LinearCovariance(Tm @ cov @ Tm.T, Tinv.T @ H @ Tinv, singular)
+
+
+#: The blocked σ this many times the independent one: the residuals share errors across time.
+DRIFT_INFLATION_LIMIT = 2.0
+
+
+@dataclass(frozen=True, eq=False)
+class DriftCheck:
+    """The sandwich σ of ``T_a_b`` with pairs (or their pose samples) independent, beside the
+    cluster-robust σ with ``blocks`` stretches of time as the independent units. ``ratio`` (rotation,
+    translation) is blocked σ ÷ independent σ (root of the traces); above :data:`DRIFT_INFLATION_LIMIT`
+    the errors are correlated across time (drift) and the independent σ is overconfident."""
+
+    independent: LinearCovariance
+    blocked: LinearCovariance
+    blocks: int
+
+    @property
+    def ratio(self) -> tuple[float, float]:
+        """Blocked ÷ independent RMS error (rotation, translation)."""
+        tiny = 1e-300
+        return (self.blocked.rotation_rms_deg / max(self.independent.rotation_rms_deg, tiny),
+                self.blocked.translation_rms_m / max(self.independent.translation_rms_m, tiny))
+
+    @property
+    def overconfident(self) -> bool:
+        """Whether either ratio exceeds :data:`DRIFT_INFLATION_LIMIT`."""
+        return max(self.ratio) > DRIFT_INFLATION_LIMIT
+
+    def warning(self) -> str:
+        """The warning text for an overconfident σ (frames: rotation [deg], translation [m], frame a)."""
+        r = self.ratio
+        return (f"the residuals are correlated across time (drift): blocks of time give a {max(r):.3g}× larger "
+                f"uncertainty than independent pairs — σ {self.blocked.rotation_rms_deg:.3g}° / "
+                f"{self.blocked.translation_rms_m:.3g} m (uncertainty_check.blocked); "
+                "record longer or more varied motion, or check the streams for drift")
+
+    def as_dict(self) -> dict[str, Any]:
+        """The result's ``uncertainty_check``: both σ per axis of frame a [deg], [m], the ratios, the verdict."""
+        return {"blocks": self.blocks, "ratio": list(self.ratio), "limit": DRIFT_INFLATION_LIMIT,
+                "overconfident": self.overconfident,
+                "independent": {"rotation_std_deg": self.independent.rotation_std_deg.tolist(),
+                                "translation_std_m": self.independent.translation_std_m.tolist()},
+                "blocked": {"rotation_std_deg": self.blocked.rotation_std_deg.tolist(),
+                            "translation_std_m": self.blocked.translation_std_m.tolist()}}
+
+
+def drift_check(motions_a: FloatArray, motions_b: FloatArray, T_a_b: FloatArray, blocks: IntArray, *,
+                alpha: float = 1.0, prior: Prior | None = None, weights: FloatArray | None = None,
+                samples: tuple[IntArray, IntArray] | None = None) -> DriftCheck:
+    """:class:`DriftCheck` of the solution ``T_a_b``: :func:`linear_covariance` with ``samples``
+    (independent pose samples) and with ``blocks`` (N,) (independent stretches of time)."""
+    kw: dict[str, Any] = {"alpha": alpha, "prior": prior, "weights": weights}
+    return DriftCheck(linear_covariance(motions_a, motions_b, T_a_b, samples=samples, **kw),
+                      linear_covariance(motions_a, motions_b, T_a_b, blocks=blocks, **kw),
+                      int(len(np.unique(blocks))))
