@@ -106,11 +106,13 @@ def _smooth_trajectory(t: FloatArray, motion: str, rng: np.random.Generator) -> 
     if motion == "planar":
         rotvec[:, :2] = 0.0
         pos[:, 2] = 0.0
+    elif motion == "handheld":     # a device held upright (gravity along z): full yaw, tilts of ±10–20°
+        rotvec[:, :2] *= 0.2
     elif motion == "linear":
         rotvec[:] = 0.0
         pos[:, 1:] = 0.0
     elif motion != "3d":
-        raise ValueError(f"unknown motion {motion!r}; expected 3d, planar or linear")
+        raise ValueError(f"unknown motion {motion!r}; expected 3d, handheld, planar or linear")
     T = np.tile(np.eye(4), (len(t), 1, 1))
     T[:, :3, :3] = Rotation.from_rotvec(rotvec).as_matrix()
     T[:, :3, 3] = pos
