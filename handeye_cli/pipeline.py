@@ -409,13 +409,30 @@ def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float,
     return verdict
 
 
-def _scale_by_fit(kept: Synced, pairs: Pairs, X: np.ndarray, options: Options, prior: Prior | None,
-                  selection: Selection | None, diagnostics: dict[str, Any], warnings: list[str]
-                  ) -> tuple[Synced, Pairs, tuple[Solution, float, np.ndarray | None, RobustResult | None]] | None:
+def _scaled(stream_a: PoseStream, stream_b: PoseStream, paired: _Paired, options: Options, offset_ns: int,
+            prior: Prior | None, diagnostics: dict[str, Any]) -> _Paired:
+    """``--scale auto`` (and b's units found by the fit): b's scale estimated with ``T_a_b`` on ``paired``
+    (:func:`pairs_of`'s); with the ``auto`` pair strategy the pairs, weights and α are then chosen again on b
+    scaled by that estimate, and the scale refined on them. Returns the pairing in metres."""
+    kept, pairs, samples, stations, selection = paired
+    kept, pairs = _with_scale(kept, pairs, options, diagnostics)
+    if selection is None:
+        return kept, pairs, samples, stations, selection
+    scale = float(diagnostics["scale"]["value"])
+    kept, pairs, samples, stations, selection = pairs_of(stream_a, replace(stream_b, xyz=stream_b.xyz * scale),
+                                                         options, offset_ns, prior)
+    kept, pairs = _with_scale(kept, pairs, options, diagnostics, selection, scale)
+    return kept, pairs, samples, stations, selection
+
+
+def _scale_by_fit(stream_a: PoseStream, stream_b: PoseStream, paired: _Paired, X: np.ndarray, options: Options,
+                  offset_ns: int, prior: Prior | None, diagnostics: dict[str, Any], warnings: list[str]
+                  ) -> tuple[_Paired, tuple[Solution, float, np.ndarray | None, RobustResult | None]] | None:
     """b's translations in other units, found by the fit (:func:`~.analysis.readings.scale_reading` at the
     solution ``X`` of the pairs): decisively better scaled (monocular units), the scale is estimated with
     ``T_a_b`` as ``--scale auto`` does and the pairs re-solved — returned; noticeably better (a SLAM scale off by
     percents), a warning naming ``--scale auto``; else None. ``diagnostics`` and ``warnings`` are filled in."""
+    pairs = paired[1]
     reading = scale_reading(pairs.A, pairs.B, X)
     if reading is None or not (reading.decisive or reading.noticeable):
         return None
@@ -425,13 +442,13 @@ def _scale_by_fit(kept: Synced, pairs: Pairs, X: np.ndarray, options: Options, p
                            f"(median residual {reading.medians_m[0]:.3g} → {reading.medians_m[1]:.3g} m): if its "
                            "scale is off (SLAM), pass --scale auto")
         return None
-    kept, pairs = _with_scale(kept, pairs, options, diagnostics)
-    solved = _solve_and_analyse(pairs, options, prior, selection, diagnostics)
+    paired = _scaled(stream_a, stream_b, paired, options, offset_ns, prior, diagnostics)
+    solved = _solve_and_analyse(paired[1], options, prior, paired[4], diagnostics)
     warnings.insert(0, f"stream b's translations fit a rigid rig {reading.gain:.3g}× better scaled (median residual "
                        f"{reading.medians_m[0]:.3g} m as given): its scale was estimated with T_a_b, "
                        f"{diagnostics['scale']['value']:.6g} ± {diagnostics['scale']['std']:.2g} m per unit "
                        "(--scale auto); give it with --scale NUMBER to fix it")
-    return kept, pairs, solved
+    return paired, solved
 
 
 def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None, selection: Selection | None,
@@ -520,21 +537,18 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     else:
         diagnostics["sync"] = kept.describe()
     if opts.solver.scale == "auto":
-        kept, pairs = _with_scale(kept, pairs, opts, diagnostics)
-        if selection is not None:       # pairs, weights and α chosen again on metric translations, scale refined
-            scale = float(diagnostics["scale"]["value"])
-            kept, pairs, samples, stations, selection = pairs_of(
-                stream_a, replace(stream_b, xyz=stream_b.xyz * scale), opts, offset_ns, prior)
-            kept, pairs = _with_scale(kept, pairs, opts, diagnostics, selection, scale)
+        kept, pairs, samples, stations, selection = _scaled(stream_a, stream_b, (kept, pairs, samples, stations,
+                                                            selection), opts, offset_ns, prior, diagnostics)
     solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, selection, diagnostics)
     verdict = _inversion(kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha,   # thresholds set at α 1
                          inputs or {})
     if verdict is not None:
         diagnostics["inversion"] = verdict.as_dict()
     elif scale_by_fit and opts.solver.scale == 1.0 and prior is None:   # inverted streams also fit "better scaled"
-        scaled = _scale_by_fit(kept, pairs, solution.matrix, opts, prior, selection, diagnostics, warnings)
+        scaled = _scale_by_fit(stream_a, stream_b, (kept, pairs, samples, stations, selection), solution.matrix,
+                               opts, offset_ns, prior, diagnostics, warnings)
         if scaled is not None:
-            kept, pairs, (solution, alpha, weights, robust) = scaled
+            (kept, pairs, samples, stations, selection), (solution, alpha, weights, robust) = scaled
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
     obs = assess_observability(A, B, solution.matrix, alpha=alpha, prior=prior, weights=weights, samples=ij)
     warnings += [str(w) for w in obs.warnings]
