@@ -48,8 +48,8 @@ from typing import Any
 import numpy as np
 
 import handeye_cli
-from handeye_cli import se3
 from handeye_cli.analysis import extrinsic_error
+from handeye_cli.geometry import se3
 from handeye_cli.io import read_stream
 from handeye_cli.solvers import solve
 from handeye_cli.streams import PoseStream

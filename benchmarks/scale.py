@@ -55,7 +55,7 @@ def build(path: Path, seconds: float, image_hz: float = 0.0, image_mb: float = 1
     (distinct ones, or one repeated with ``same_image``)."""
     from _logs import POSE, image_channel, pose_channel, records, write_mcap
 
-    from handeye_cli import se3
+    from handeye_cli.geometry import se3
     from handeye_cli.simulation import Rig, simulate_rig
 
     X = se3.from_xyz_quat(np.array([0.1, 0.25, -0.05]), np.array([0.2, 0.1, -0.3, 0.9]))
@@ -187,7 +187,7 @@ def stage_times(path: Path) -> dict[str, float]:
 
     opts, times = Options(), {}
     t0 = time.perf_counter()
-    a, b = read_streams(StreamSpec(str(path), "/a/pose"), StreamSpec(str(path), "/b/pose"), opts)
+    a, b = read_streams([StreamSpec(str(path), "/a/pose"), StreamSpec(str(path), "/b/pose")], opts)
     times["read"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     pairs = pairs_of(a, b, opts, 0, None)[1]

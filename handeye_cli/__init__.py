@@ -8,6 +8,8 @@ Public API::
     handeye_cli.calibrate(stream_a, stream_b, max_jump="off")          # two PoseStreams → Calibration
     handeye_cli.load_options(config_file=None, preset=None, **options) # defaults < preset < file < keywords
     handeye_cli.calibrate_rig_files("log.mcap", ["cam0=/cam0/pose", "imu=tf:odom,imu_link"], RigOptions())
+    handeye_cli.document(calibration)                                  # the result as the CLI prints it
+    handeye_cli.compare_methods(calibration)                           # every method on its pairs
 
 Keyword options have the command line's names without dashes (``--max-jump`` → ``max_jump``);
 see :mod:`handeye_cli.options`.
@@ -15,12 +17,15 @@ see :mod:`handeye_cli.options`.
 Conventions: ``T_a_b`` is the pose of frame b in frame a (maps points from b to a);
 quaternions are x-y-z-w; time is int64 nanoseconds; metres and radians.
 """
-__version__ = "0.1.0"
+from __future__ import annotations
 
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
+from .version import __version__
+
 if TYPE_CHECKING:
+    from .comparison import MethodResult, compare_methods
     from .config import load_options
     from .errors import HandEyeError
     from .options import Options
@@ -33,6 +38,7 @@ if TYPE_CHECKING:
 # the stages it runs, so ``handeye calibrate`` does not pay for the rig, the fleet or the solvers
 # it does not call
 _HOMES = {
+    "compare_methods": "comparison", "MethodResult": "comparison",
     "load_options": "config", "HandEyeError": "errors", "Options": "options",
     "Calibration": "pipeline", "StreamSpec": "pipeline", "calibrate": "pipeline", "calibrate_files": "pipeline",
     "RigOptions": "rig", "RigResult": "rig", "calibrate_rig": "rig", "calibrate_rig_files": "rig",
@@ -41,7 +47,16 @@ _HOMES = {
 
 __all__ = ["HandEyeError", "METHODS", "PoseStream", "Prior", "Solution", "solve", "Calibration", "StreamSpec",
            "calibrate", "calibrate_files", "load_options", "Options", "RigOptions", "RigResult", "calibrate_rig",
-           "calibrate_rig_files", "__version__"]
+           "calibrate_rig_files", "compare_methods", "MethodResult", "document", "__version__"]
+
+
+def document(result: Calibration | RigResult) -> dict[str, Any]:
+    """The result document of a calibration or a rig calibration, as ``handeye calibrate`` / ``handeye
+    rig`` print it (keys and units in docs/design.md: ``matrix`` is ``T_a_b``, quaternions x-y-z-w)."""
+    from .output.document import calibration_document
+    from .pipeline import Calibration
+
+    return calibration_document(result) if isinstance(result, Calibration) else result.document()
 
 
 def __getattr__(name: str) -> Any:

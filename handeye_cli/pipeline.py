@@ -15,6 +15,7 @@ Examples
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -30,46 +31,39 @@ from .analysis import (
     pair_residuals,
     robust_solve,
 )
-from .analysis.alpha import noise_model_alpha
+from .analysis.alpha import TIME_BLOCKS, noise_model_alpha, time_blocks
+from .analysis.covariance import drift_check
 from .analysis.diagnosis import data_warning, too_few_pairs
 from .analysis.fit_test import fit_test, sample_noise
 from .analysis.inversion import InversionVerdict, check_inversion
 from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit, scale_reading
+from .analysis.selection import Selection, select_pairs
 from .config import load_options
 from .errors import ConfigError, HandEyeError
 from .io.pairfile import read_extrinsic
+from .io.spec import StreamSpec
 from .options import FIELDS, Options, ReadOptions
-from .output.document import result_document
 from .solvers import Prior, Solution, solve
 from .solvers.scale import scale_translations, solve_with_scale
 from .stages.counts import SampleCounts
 from .stages.gates import sync_and_gate
 from .stages.pairs import Pairs, make_pairs
-from .stages.selection import Selection, select_pairs
 from .stages.stations import Stations, detect_stations
 from .stages.sync import Synced, default_max_dt_ns
 from .streams import PoseStream
 
-__all__ = ["Calibration", "StreamSpec", "calibrate", "calibrate_files", "calibrate_read", "inverted_as_read",
-           "read_streams", "refuse_unread"]
+__all__ = ["Calibration", "StreamSpec", "Uncertainty", "calibrate", "calibrate_files", "calibrate_read",
+           "inverted_as_read", "read_streams", "refuse_unread"]
 
 
-@dataclass(frozen=True)
-class StreamSpec:
-    """Where one stream comes from: a file (log or text; ``-`` is stdin) and, in a log, a topic
-    or a (parent, child) TF frame pair."""
+@dataclass(frozen=True, eq=False)
+class Uncertainty:
+    """The 1σ spread of an extrinsic ``T_a_b``: ``rotation_std_deg`` (3,) [deg] about the axes of frame a,
+    ``translation_std_m`` (3,) [m] along them; ``method``: ``"bootstrap"`` or ``"covariance"``."""
 
-    path: str
-    topic: str | None = None
-    frames: tuple[str, str] | None = None
-
-    def describe(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"file": self.path}
-        if self.topic:
-            out["topic"] = self.topic
-        if self.frames:
-            out["frames"] = list(self.frames)
-        return out
+    rotation_std_deg: np.ndarray
+    translation_std_m: np.ndarray
+    method: str
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,6 +102,57 @@ class Calibration:
         return self.solution.matrix
 
     @property
+    def translation(self) -> np.ndarray:
+        """Translation of ``T_a_b`` [m]: b's origin in frame a."""
+        return self.solution.translation
+
+    @property
+    def quaternion_xyzw(self) -> np.ndarray:
+        """Rotation of ``T_a_b`` as a unit quaternion x, y, z, w (w ≥ 0)."""
+        return self.solution.quaternion_xyzw
+
+    @property
+    def uncertainty(self) -> Uncertainty | None:
+        """The 1σ spread of ``T_a_b`` per axis of frame a: the bootstrap's where it ran (``bootstrap=N``), else
+        the noise model's predicted (sandwich) covariance; None where neither could be formed."""
+        if self.bootstrap is not None:
+            return Uncertainty(self.bootstrap.rotation_std_deg, self.bootstrap.translation_std_m, "bootstrap")
+        obs = self.diagnostics.get("observability", {})
+        if "predicted_rotation_std_deg" not in obs:
+            return None
+        return Uncertainty(np.asarray(obs["predicted_rotation_std_deg"], dtype=float),
+                           np.asarray(obs["predicted_translation_std_m"], dtype=float), "covariance")
+
+    def __repr__(self) -> str:
+        """One line: frames, translation, rotation angle, method, pairs, fit test and certificate."""
+        return f"Calibration({self._line()})"
+
+    def _line(self) -> str:
+        from .geometry import se3
+
+        f, t = self.frames, self.translation
+        fit = self.diagnostics.get("fit_test", {})
+        cert = self.solution.certificate
+        return (f"T_{f['a']}_{f['b']}: t=[{t[0]:.4f}, {t[1]:.4f}, {t[2]:.4f}] m, "
+                f"rotation {np.rad2deg(float(se3.rotation_angle(self.matrix))):.3f}°, {self.solution.method} on "
+                f"{self.solution.pairs} pairs, fit ratio {fit.get('ratio', float('nan')):.3g}"
+                f"{'' if cert is None else ', certified' if cert.certified else ', NOT certified'}, "
+                f"{len(self.warnings)} warning(s)")
+
+    def _repr_html_(self) -> str:
+        """A small table for notebooks: the extrinsic, its spread and the checks."""
+        import html
+
+        rows = [("T_a_b", html.escape(self._line()))]
+        unc = self.uncertainty
+        if unc is not None:
+            rows.append((f"σ ({unc.method})", f"rotation {np.array2string(unc.rotation_std_deg, precision=3)} °, "
+                                              f"translation {np.array2string(unc.translation_std_m, precision=4)} m"))
+        rows += [("warning", html.escape(w)) for w in self.warnings]
+        body = "".join(f"<tr><th style='text-align:left'>{k}</th><td>{v}</td></tr>" for k, v in rows)
+        return f"<table>{body}</table>"
+
+    @property
     def frames(self) -> dict[str, str]:
         """Names of frames a and b: ``name_a``/``name_b`` if given, else the streams' child frames
         (as valid tf2 frame ids: no leading '/')."""
@@ -132,12 +177,6 @@ class Calibration:
         merging, and where the non-default ones came from."""
         return {"config_file": self.config_file, "preset": self.preset, "options": self.options.flat()}
 
-    def document(self) -> dict[str, Any]:
-        """The result as printed by ``handeye calibrate`` (schema in docs/design.md)."""
-        return result_document(self.solution, frames=self.frames, inputs=self.inputs,
-                               samples=self.samples.as_dict(), warnings=self.warnings,
-                               diagnostics={**self.diagnostics, "settings": self.settings()})
-
 
 Source = str | Path | StreamSpec | PoseStream
 
@@ -154,21 +193,24 @@ def _spec(source: Source, topic: str | None, frames: tuple[str, str] | None) -> 
                       "give a file path, a StreamSpec or a PoseStream")
 
 
-def read_streams(spec_a: StreamSpec | PoseStream, spec_b: StreamSpec | PoseStream, options: Options | None = None,
-                 *, quiet: bool = True) -> tuple[PoseStream, PoseStream]:
-    """Streams a and b from their specs, as the files hold them (:func:`calibrate_read` inverts them where the
-    options say so) — two streams of one log are read in one pass; a PoseStream is taken as it is."""
-    from .io import detect_format, read_log_streams  # mcap/rosbags: import only when reading
-    from .io.detect import LOG_FORMATS
+def read_streams(specs: Sequence[StreamSpec | PoseStream], options: Options | None = None, *,
+                 quiet: bool = True) -> list[PoseStream]:
+    """The streams of ``specs`` (a PoseStream is taken as it is), as the files hold them: the one read path of
+    calibrate, rig and batch. Each input is detected once and every stream of one log read in one pass
+    (:func:`~handeye_cli.io.read_specs`); ``options.read`` sets the time source, CSV columns and time unit of
+    every file, ``wxyz_a`` / ``wxyz_b`` the quaternion order of the first / second stream (a rig's others: the
+    format's, open to the fit). :func:`calibrate_read` inverts them where the options say so."""
+    from .io import read_specs  # mcap/rosbags: import only when reading
 
     read = (options or Options()).read
-    if (isinstance(spec_a, StreamSpec) and isinstance(spec_b, StreamSpec) and spec_a.path == spec_b.path
-            and spec_a.path != "-" and detect_format(spec_a.path) in LOG_FORMATS):
-        a, b = read_log_streams(spec_a.path, [(spec_a.topic, spec_a.frames), (spec_b.topic, spec_b.frames)],
-                                time_source=read.time_source, quiet=quiet)
-    else:
-        a, b = _read_one(spec_a, read, quiet, read.wxyz_a), _read_one(spec_b, read, quiet, read.wxyz_b)
-    return a, b
+    wxyz = (read.wxyz_a, read.wxyz_b)
+    files = [(k, s) for k, s in enumerate(specs) if isinstance(s, StreamSpec)]
+    orders = ["auto" if k > 1 or wxyz[k] is None else "wxyz" if wxyz[k] else "xyzw" for k, _ in files]
+    read_now = read_specs([s for _, s in files], time_source=read.time_source,
+                          columns=dict(read.csv_columns) if read.csv_columns else None, quaternion_orders=orders,
+                          time_unit=read.time_unit, quiet=quiet)
+    streams = dict(zip((k for k, _ in files), read_now, strict=True))
+    return [s if isinstance(s, PoseStream) else streams[k] for k, s in enumerate(specs)]
 
 
 def inverted_as_read(a: PoseStream, b: PoseStream, read: ReadOptions) -> tuple[PoseStream, PoseStream]:
@@ -199,18 +241,6 @@ def refuse_unread(read: ReadOptions, in_memory: tuple[bool, bool]) -> None:
             which = f"stream {'ab'[sides[0]]} is an in-memory PoseStream" if len(sides) == 1 else \
                 "both streams are in-memory PoseStreams"
             raise ConfigError(f"{name}={value!r} applies to reading a file, but {which}", name, fix)
-
-
-def _read_one(spec: StreamSpec | PoseStream, read: ReadOptions, quiet: bool, wxyz: bool | None) -> PoseStream:
-    if isinstance(spec, PoseStream):
-        return spec
-    from .io import read_stream
-
-    columns = dict(read.csv_columns) if read.csv_columns else None
-    return read_stream(spec.path, topic=spec.topic, frames=spec.frames, time_source=read.time_source,
-                       columns=columns, quiet=quiet,
-                       quaternion_order="auto" if wxyz is None else "wxyz" if wxyz else "xyzw",
-                       time_unit=read.time_unit)
 
 
 def _quaternion_order(a: PoseStream, b: PoseStream, options: Options) -> tuple[PoseStream, PoseStream,
@@ -342,11 +372,18 @@ def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options, offse
     return kept, pairs, samples, stations, selection
 
 
-def _with_scale(kept: Synced, pairs: Pairs, options: Options, diagnostics: dict[str, Any]) -> tuple[Synced, Pairs]:
-    """``--scale auto``: estimate b's scale with T_a_b and return b's samples and motions in metres."""
+def _with_scale(kept: Synced, pairs: Pairs, options: Options, diagnostics: dict[str, Any],
+                selection: Selection | None = None, given: float = 1.0) -> tuple[Synced, Pairs]:
+    """``--scale auto``: estimate b's scale with T_a_b and return b's samples and motions in metres. With a
+    ``selection`` made on b already scaled by ``given``, its α is used and the scale refined; not its weights,
+    which favour short drifting pairs whose translations are mostly noise and so bias the scale low
+    (errors in variables: 0.433 ± 0.021 weighted against 0.491 ± 0.004 unweighted for kinhec's 0.5)."""
     alpha = 1.0 if options.solver.alpha == "auto" else float(options.solver.alpha)
+    if selection is not None and options.solver.alpha == "auto":
+        alpha = selection.alpha
     est = solve_with_scale(pairs.A, pairs.B, alpha=alpha, samples=(pairs.i, pairs.j))
-    diagnostics["scale"] = est.as_dict()
+    diagnostics["scale"] = {**est.as_dict(), "value": est.scale * given, "std": est.scale_std * given,
+                            "linear": est.linear_scale * given}
     return (replace(kept, xyz_b=kept.xyz_b * est.scale),
             replace(pairs, B=scale_translations(pairs.B, est.scale)))
 
@@ -372,13 +409,30 @@ def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float,
     return verdict
 
 
-def _scale_by_fit(kept: Synced, pairs: Pairs, X: np.ndarray, options: Options, prior: Prior | None,
-                  selection: Selection | None, diagnostics: dict[str, Any], warnings: list[str]
-                  ) -> tuple[Synced, Pairs, tuple[Solution, float, np.ndarray | None, RobustResult | None]] | None:
+def _scaled(stream_a: PoseStream, stream_b: PoseStream, paired: _Paired, options: Options, offset_ns: int,
+            prior: Prior | None, diagnostics: dict[str, Any]) -> _Paired:
+    """``--scale auto`` (and b's units found by the fit): b's scale estimated with ``T_a_b`` on ``paired``
+    (:func:`pairs_of`'s); with the ``auto`` pair strategy the pairs, weights and α are then chosen again on b
+    scaled by that estimate, and the scale refined on them. Returns the pairing in metres."""
+    kept, pairs, samples, stations, selection = paired
+    kept, pairs = _with_scale(kept, pairs, options, diagnostics)
+    if selection is None:
+        return kept, pairs, samples, stations, selection
+    scale = float(diagnostics["scale"]["value"])
+    kept, pairs, samples, stations, selection = pairs_of(stream_a, replace(stream_b, xyz=stream_b.xyz * scale),
+                                                         options, offset_ns, prior)
+    kept, pairs = _with_scale(kept, pairs, options, diagnostics, selection, scale)
+    return kept, pairs, samples, stations, selection
+
+
+def _scale_by_fit(stream_a: PoseStream, stream_b: PoseStream, paired: _Paired, X: np.ndarray, options: Options,
+                  offset_ns: int, prior: Prior | None, diagnostics: dict[str, Any], warnings: list[str]
+                  ) -> tuple[_Paired, tuple[Solution, float, np.ndarray | None, RobustResult | None]] | None:
     """b's translations in other units, found by the fit (:func:`~.analysis.readings.scale_reading` at the
     solution ``X`` of the pairs): decisively better scaled (monocular units), the scale is estimated with
     ``T_a_b`` as ``--scale auto`` does and the pairs re-solved — returned; noticeably better (a SLAM scale off by
     percents), a warning naming ``--scale auto``; else None. ``diagnostics`` and ``warnings`` are filled in."""
+    pairs = paired[1]
     reading = scale_reading(pairs.A, pairs.B, X)
     if reading is None or not (reading.decisive or reading.noticeable):
         return None
@@ -388,13 +442,13 @@ def _scale_by_fit(kept: Synced, pairs: Pairs, X: np.ndarray, options: Options, p
                            f"(median residual {reading.medians_m[0]:.3g} → {reading.medians_m[1]:.3g} m): if its "
                            "scale is off (SLAM), pass --scale auto")
         return None
-    kept, pairs = _with_scale(kept, pairs, options, diagnostics)
-    solved = _solve_and_analyse(pairs, options, prior, selection, diagnostics)
+    paired = _scaled(stream_a, stream_b, paired, options, offset_ns, prior, diagnostics)
+    solved = _solve_and_analyse(paired[1], options, prior, paired[4], diagnostics)
     warnings.insert(0, f"stream b's translations fit a rigid rig {reading.gain:.3g}× better scaled (median residual "
                        f"{reading.medians_m[0]:.3g} m as given): its scale was estimated with T_a_b, "
                        f"{diagnostics['scale']['value']:.6g} ± {diagnostics['scale']['std']:.2g} m per unit "
                        "(--scale auto); give it with --scale NUMBER to fix it")
-    return kept, pairs, solved
+    return paired, solved
 
 
 def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None, selection: Selection | None,
@@ -460,6 +514,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     → [bootstrap]. After the solve, b's translations found in other units by the fit are estimated with
     ``T_a_b`` (``scale_by_fit``; ``handeye rig`` passes False: its consistency test names such a stream).
     """
+    given = stream_a, stream_b                                 # as read: what a second reading starts from
     if opts.solver.scale not in (1.0, "auto"):
         stream_b = replace(stream_b, xyz=stream_b.xyz * float(opts.solver.scale))
     stream_a, stream_b, order = _quaternion_order(stream_a, stream_b, opts)
@@ -482,21 +537,29 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     else:
         diagnostics["sync"] = kept.describe()
     if opts.solver.scale == "auto":
-        kept, pairs = _with_scale(kept, pairs, opts, diagnostics)
+        kept, pairs, samples, stations, selection = _scaled(stream_a, stream_b, (kept, pairs, samples, stations,
+                                                            selection), opts, offset_ns, prior, diagnostics)
     solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, selection, diagnostics)
     verdict = _inversion(kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha,   # thresholds set at α 1
                          inputs or {})
     if verdict is not None:
         diagnostics["inversion"] = verdict.as_dict()
     elif scale_by_fit and opts.solver.scale == 1.0 and prior is None:   # inverted streams also fit "better scaled"
-        scaled = _scale_by_fit(kept, pairs, solution.matrix, opts, prior, selection, diagnostics, warnings)
+        scaled = _scale_by_fit(stream_a, stream_b, (kept, pairs, samples, stations, selection), solution.matrix,
+                               opts, offset_ns, prior, diagnostics, warnings)
         if scaled is not None:
-            kept, pairs, (solution, alpha, weights, robust) = scaled
+            (kept, pairs, samples, stations, selection), (solution, alpha, weights, robust) = scaled
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
     obs = assess_observability(A, B, solution.matrix, alpha=alpha, prior=prior, weights=weights, samples=ij)
     warnings += [str(w) for w in obs.warnings]
     warnings += solution.warnings                             # a failed optimality certificate
     diagnostics["observability"] = obs.as_dict()
+    if len(A) > 2 * TIME_BLOCKS:        # σ from independent samples beside σ from blocks of time (drift)
+        check = drift_check(A, B, solution.matrix, time_blocks(pairs.t_i_ns, pairs.t_j_ns), alpha=alpha,
+                            prior=prior, weights=weights, samples=ij)
+        diagnostics["uncertainty_check"] = check.as_dict()
+        if check.overconfident:
+            warnings.append(check.warning())
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
     fit = fit_test(pairs, res, solution.matrix, sample_noise(stream_a, stream_b, kept, stations, opts.sync.sync),
@@ -504,7 +567,10 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     diagnostics["fit_test"] = fit.as_dict()
     rejected = fit.refusal(opts, stations is not None, inverted=verdict is not None)
     if rejected and not opts.analysis.accept_poor_fit:
-        raise rejected
+        recovered = _robust_retry(*given, opts, inputs, scale_by_fit, fit.summary())
+        if recovered is None:
+            raise rejected
+        return recovered
     suspect = verdict.message() if verdict else data_warning(res, weights, samples)
     if suspect:
         warnings.insert(0, suspect)
@@ -519,6 +585,34 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     return Calibration(solution, stream_a, stream_b, kept, pairs, samples, opts, res, warnings=warnings,
                        diagnostics=diagnostics, inputs=dict(inputs or {}), weights=weights, robust=robust,
                        bootstrap=boot)
+
+
+def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inputs: dict[str, Any] | None,
+                  scale_by_fit: bool, refused: str) -> Calibration | None:
+    """A fit the fit test refused (``refused``: its figures), solved again with outliers rejected, as ``--robust``
+    does (RANSAC on minimal sets, then the weighted optimal solve on the inliers): kept, with the settings saying
+    ``robust`` and a first warning naming what was dropped, when at least ``RETRY_MIN_INLIERS`` of the pairs are
+    inliers and those fit as clean data do (a fit-test ratio within ``RETRY_MAX_RATIO``); else None (the refusal
+    stands). Not tried when ``robust``
+    was asked for already: a stream with a few bad poses (a station seen wrongly, a tracking glitch) gives a
+    verified result, a wrong convention or streams that are not rigidly attached do not."""
+    from .analysis.robust import RETRY_MAX_RATIO, RETRY_MIN_INLIERS
+
+    if opts.analysis.robust:
+        return None
+    try:
+        cal = calibrate_read(stream_a, stream_b, replace(opts, analysis=replace(opts.analysis, robust=True)),
+                             inputs=inputs, scale_by_fit=scale_by_fit)
+    except HandEyeError:
+        return None
+    if (cal.robust is None or cal.robust.inliers.mean() < RETRY_MIN_INLIERS
+            or not cal.diagnostics["fit_test"]["ratio"] <= RETRY_MAX_RATIO):
+        return None
+    n, kept = len(cal.robust.inliers), int(cal.robust.inliers.sum())
+    note = (f"outliers rejected: the fit of all pairs was refused ({refused}); {n - kept} of {n} pairs did not fit "
+            f"the consensus of the others and were dropped, as --robust does, and the {kept} left fit as clean data do "
+            "(robust.rejected lists them; --accept-poor-fit keeps the fit of all pairs, exit 3)")
+    return replace(cal, warnings=[note, *cal.warnings])
 
 
 def calibrate_files(a: Source, b: Source | None = None, *, topic_a: str | None = None, topic_b: str | None = None,
@@ -536,7 +630,7 @@ def calibrate_files(a: Source, b: Source | None = None, *, topic_a: str | None =
     opts = load_options(config_file, preset, base=options, **overrides)
     spec_a, spec_b = _spec(a, topic_a, frames_a), _spec(a if b is None else b, topic_b, frames_b)
     refuse_unread(opts.read, (isinstance(spec_a, PoseStream), isinstance(spec_b, PoseStream)))
-    stream_a, stream_b = read_streams(spec_a, spec_b, opts, quiet=quiet)
+    stream_a, stream_b = read_streams([spec_a, spec_b], opts, quiet=quiet)
     inputs: dict[str, Any] = {"a": _describe(spec_a), "b": _describe(spec_b), "time_source": opts.read.time_source,
                               **_inversion_inputs(opts.read)}
     return calibrate_read(stream_a, stream_b, opts, inputs=inputs).with_origin(config_file, preset)

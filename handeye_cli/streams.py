@@ -5,11 +5,46 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from . import se3
 from .errors import DataError
+from .geometry import dualquat as dq
+from .geometry import se3
 
-__all__ = ["PoseStream"]
+__all__ = ["PoseStream", "Samples", "SAMPLING", "bracket"]
+
+SAMPLING = ("interpolate", "nearest")
+"""How :meth:`PoseStream.sample` reads a stream between its samples."""
+
+
+def bracket(stamps_ns: NDArray[np.int64], query_ns: NDArray[np.int64]
+            ) -> tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.int64], NDArray[np.float64]]:
+    """The samples around each query (int64 ns, the stamps' clock): ``(inside, lo, hi, frac)`` with
+    ``value(query) = (1 - frac) value[lo] + frac value[hi]``, ``hi = lo + 1``, or ``hi = lo`` and
+    ``frac = 0`` at an exact stamp. ``inside`` marks the queries within the stamps' span; the other
+    entries are meaningless for the rest (indices are clipped to the samples)."""
+    n = len(stamps_ns)
+    after = np.searchsorted(stamps_ns, query_ns, side="right")   # first sample strictly after the query
+    lo = np.maximum(after - 1, 0)
+    exact = stamps_ns[lo] == query_ns
+    inside = exact | ((after >= 1) & (after < n))
+    hi = np.where(exact, lo, np.minimum(lo + 1, n - 1))
+    frac = np.where(exact, 0.0, (query_ns - stamps_ns[lo]) / np.maximum(stamps_ns[hi] - stamps_ns[lo], 1))
+    return inside, lo, hi, frac
+
+
+@dataclass(frozen=True, eq=False)
+class Samples:
+    """A stream read at query stamps (:meth:`PoseStream.sample`). ``inside`` (Q,) marks the queries
+    sampled; the other arrays hold only those: ``used`` the index of a stream sample each one used
+    (the lower neighbour, or the nearest), ``xyz`` [m], ``quat_xyzw`` (x-y-z-w), and ``gap_ns`` the
+    distance [ns] to the farther neighbour used (to the nearest sample for ``nearest``)."""
+
+    inside: NDArray[np.bool_]
+    used: NDArray[np.int64]
+    xyz: NDArray[np.float64]
+    quat_xyzw: NDArray[np.float64]
+    gap_ns: NDArray[np.int64]
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,6 +165,28 @@ class PoseStream:
         """A stream with only the samples selected by a boolean mask or index array."""
         return replace(self, stamps_ns=self.stamps_ns[mask_or_index], xyz=self.xyz[mask_or_index],
                        quat_xyzw=self.quat_xyzw[mask_or_index])
+
+    def sample(self, query_ns: Any, method: str = "interpolate", segment: NDArray[np.int64] | None = None
+               ) -> Samples:
+        """The poses at the stamps ``query_ns`` (int64 ns, the stream's clock).
+
+        ``"interpolate"``: linear position and SLERP between the bracketing samples; ``"nearest"``:
+        the closer sample. Queries outside the stream's span are not sampled. With ``segment``
+        (an int64 label per stream sample), interpolation never bridges two segments: such queries
+        count as outside.
+        """
+        query = np.asarray(query_ns, dtype=np.int64)
+        stamps = self.stamps_ns
+        inside, lo, hi, frac = bracket(stamps, query)
+        if segment is not None and method != "nearest":
+            inside &= segment[lo] == segment[hi]
+        lo, hi, frac, q = lo[inside], hi[inside], frac[inside], query[inside]
+        d_lo, d_hi = q - stamps[lo], stamps[hi] - q
+        if method == "nearest":
+            pick = np.where(d_hi < d_lo, hi, lo)
+            return Samples(inside, pick, self.xyz[pick], self.quat_xyzw[pick], np.minimum(d_lo, d_hi))
+        xyz = self.xyz[lo] + frac[:, None] * (self.xyz[hi] - self.xyz[lo])
+        return Samples(inside, lo, xyz, dq.slerp(self.quat_xyzw[lo], self.quat_xyzw[hi], frac), np.maximum(d_lo, d_hi))
 
     def shifted(self, offset_ns: int) -> PoseStream:
         """The same stream with ``offset_ns`` added to every stamp."""

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handeye_cli import se3
+from handeye_cli.geometry import se3
 from handeye_cli.io.pairfile import write_pairs_csv
 from handeye_cli.output.document import render
 from handeye_cli.simulation import motion_pairs

@@ -32,7 +32,7 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 
 from _logs import ODOM, POSE, TF, pose_channel, records, write_mcap  # noqa: E402
 
-from handeye_cli import se3  # noqa: E402
+from handeye_cli.geometry import se3  # noqa: E402
 from handeye_cli.rig.simulate import SimSensor, simulate_streams  # noqa: E402
 
 SEED = 4

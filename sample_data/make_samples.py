@@ -47,7 +47,7 @@ from _logs import (  # noqa: E402
     write_tum,
 )
 
-from handeye_cli import se3  # noqa: E402
+from handeye_cli.geometry import se3  # noqa: E402
 from handeye_cli.simulation import Rig, simulate_rig  # noqa: E402
 from handeye_cli.streams import PoseStream  # noqa: E402
 

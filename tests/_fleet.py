@@ -16,7 +16,7 @@ import numpy as np
 from _logs import POSE, pose_channel, records, write_log, write_mcap, write_tum
 from scipy.spatial.transform import Rotation
 
-from handeye_cli import se3
+from handeye_cli.geometry import se3
 from handeye_cli.simulation import Rig, simulate_rig
 
 NOMINAL = se3.from_xyz_quat(np.array([0.12, -0.03, 0.02]),

@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from handeye_cli import se3
 from handeye_cli.cli import main
+from handeye_cli.geometry import se3
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from _util import write_tum
 
-from handeye_cli import se3
+from handeye_cli.geometry import se3
 from handeye_cli.simulation import Rig, simulate_rig
 
 

@@ -23,8 +23,9 @@ import yaml
 from _logs import ODOM, TF, Channel, pose_channel, records, write_mcap
 from _util import run
 
-from handeye_cli import se3
+from handeye_cli import document
 from handeye_cli.errors import ConfigError, HandEyeError
+from handeye_cli.geometry import se3
 from handeye_cli.output.document import _static_transform_command, render
 from handeye_cli.output.formats import ALL_FORMATS, render_format
 from handeye_cli.rig.result import transform_entry
@@ -261,7 +262,7 @@ def test_reports_escape_hostile_names(tmp_path):
     evil = "cam<script>alert(1)</script><img src=x onerror=alert(2)>'\""
     a, b = simulate_rig(Rig(random_transform(np.random.default_rng(3), 0.3)), duration_s=8.0, seed=4)
     cal = calibrate(a, b)
-    plain_doc = {**cal.document(), "warnings": ["a plain warning"]}
+    plain_doc = {**document(cal), "warnings": ["a plain warning"]}
     doc = {**plain_doc, "frames": {"a": evil, "b": "imu"}, "warnings": [evil], "inputs": {"a": evil},
            "ros2_static_transform": evil}
     assert _tags(render_report(cal, doc, None)) == _tags(render_report(cal, plain_doc, None))

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 from _util import write_tum
 
-from handeye_cli import se3
+from handeye_cli import document
 from handeye_cli.errors import ConfigError, DataError, HandEyeError
+from handeye_cli.geometry import se3
 from handeye_cli.options import FIELDS, SECTIONS, flag, optional_flag
 from handeye_cli.pipeline import StreamSpec, calibrate, calibrate_files, read_streams
 from handeye_cli.simulation import Rig, simulate_rig
@@ -54,7 +55,7 @@ def recording(tmp_path_factory):
     prior = d / "prior.yaml"
     prior.write_text(f"translation: {X[:3, 3].tolist()}\nquaternion_xyzw: "
                      f"{se3.to_xyz_quat(X[None])[1][0].tolist()}\n", encoding="utf-8")
-    streams = read_streams(StreamSpec(str(fa)), StreamSpec(str(fb)))      # what the files hold, as read
+    streams = read_streams([StreamSpec(str(fa)), StreamSpec(str(fb))])    # what the files hold, as read
     return {"files": (fa, fb), "streams": streams, "prior": str(prior)}
 
 
@@ -65,7 +66,7 @@ def _outcome(run):
         cal = run()
     except HandEyeError as e:
         return type(e), str(e)
-    doc = cal.document()
+    doc = document(cal)
     inputs = doc.pop("inputs")
     return doc, {k: v for k, v in inputs.items() if k.startswith("invert")}
 

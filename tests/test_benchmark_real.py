@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from _util import ROOT, write_tum
 
-from handeye_cli import se3
+from handeye_cli.geometry import se3
 from handeye_cli.simulation import random_transform
 from handeye_cli.simulation.recordings import absolute, scenario, simulate_recording
 from handeye_cli.streams import PoseStream

@@ -8,9 +8,9 @@ from scipy.spatial.transform import Rotation
 from handeye_cli.analysis import bootstrap, linear_covariance
 from handeye_cli.analysis.bootstrap import replicate_problems
 from handeye_cli.errors import HandEyeError
+from handeye_cli.geometry import dualquat as dq
 from handeye_cli.simulation import motion_pairs, random_transform
 from handeye_cli.solvers import Prior, build_problem, solve
-from handeye_cli.solvers import dualquat as dq
 from handeye_cli.solvers.optimal import dqopt
 
 SIGMA_R, SIGMA_T = np.deg2rad(0.57), 0.01

@@ -7,9 +7,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from handeye_cli import document
+from handeye_cli.geometry import dualquat
 from handeye_cli.output.document import result_document
 from handeye_cli.simulation import SCENARIOS, motion_pairs, perturb, random_transform
-from handeye_cli.solvers import METHODS, Prior, Problem, Solution, build_problem, dualquat, solve
+from handeye_cli.solvers import METHODS, Prior, Problem, Solution, build_problem, solve
 from handeye_cli.solvers.certificate import RELATIVE_TOLERANCE, certify
 
 SIGMA_R, SIGMA_T = np.deg2rad(0.57), 0.01    # the paper's noise levels (appendix D.2)
@@ -170,4 +172,4 @@ def test_an_uncertified_solve_warns_in_the_calibration(monkeypatch, rig):
     monkeypatch.setattr(pipeline, "solve", off_by_a_little)
     cal = pipeline.calibrate_files(rig["a"], rig["b"], max_pairs=100)
     assert any("not certified as the global optimum" in w for w in cal.warnings)
-    assert cal.document()["solver"]["certificate"]["certified"] is False
+    assert document(cal)["solver"]["certificate"]["certified"] is False

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handeye_cli import se3
 from handeye_cli.analysis import extrinsic_error
 from handeye_cli.cli import main
 from handeye_cli.errors import ConfigError, DataError
+from handeye_cli.geometry import se3
 from handeye_cli.simulation import perturb
 from handeye_cli.solvers import METHODS, solve
 from handeye_cli.solvers.classical import CLASSICAL

@@ -9,7 +9,7 @@ import pytest
 import yaml
 from _util import ROOT, pose_error, run, write_tum
 
-from handeye_cli import se3
+from handeye_cli.geometry import se3
 from handeye_cli.io.pairfile import read_extrinsic
 from handeye_cli.simulation import Rig, motion_pairs, random_transform, simulate_rig
 

@@ -9,7 +9,8 @@ import numpy as np
 import yaml
 from _util import pose_error, run, write_tum
 
-from handeye_cli import se3
+from handeye_cli import document
+from handeye_cli.geometry import se3
 from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import Rig, simulate_rig
 
@@ -96,7 +97,7 @@ def test_robust_rejects_outlier_pairs(tmp_path):
     assert robust.robust is not None and len(robust.robust.rejected) > 0
     assert err(robust) < err(plain)
     assert err(robust) < 1.5 * err(clean) + 1e-4
-    doc = robust.document()
+    doc = document(robust)
     spans = doc["robust"]["rejected_spans_since_start_s"]
     assert len(spans) == len(robust.robust.rejected)
     assert all(0 <= t0 <= t1 <= 40 for t0, t1 in spans)              # readable: seconds since the start

@@ -187,7 +187,7 @@ def test_readme_python_example_runs(monkeypatch):
 
 def test_calibrate_against_a_nominal_exits_1_on_drift_and_0_within_tolerance(capsys, rig, tmp_path):
     truth = yaml.safe_dump({"translation": rig["X"][:3, 3].tolist(),
-                            "quaternion_xyzw": handeye_cli.se3.to_xyz_quat(rig["X"])[1].tolist()})
+                            "quaternion_xyzw": handeye_cli.geometry.se3.to_xyz_quat(rig["X"])[1].tolist()})
     (tmp_path / "nominal.yaml").write_text(truth)
     code, out, err = run(capsys, "calibrate", rig["a"], rig["b"], "--against", tmp_path / "nominal.yaml",
                          "--max-rotation-deg", "1", "--max-translation-m", "0.01")

@@ -179,7 +179,7 @@ def _documented_keys(page: str) -> set[str]:
 def test_result_schema_page_names_every_key() -> None:
     cal = handeye_cli.calibrate_files(ROOT / "sample_data" / "rig_a.tum", ROOT / "sample_data" / "rig_b.tum",
                                       robust=True, alpha="auto", bootstrap=20, max_pairs=150)
-    doc = cal.document()
+    doc = handeye_cli.document(cal)
     keys = set(doc) | set(doc["samples"]) | set(doc["settings"]) | set(doc["solver"])
     for block in ("time_offset", "robust", "alpha_auto", "observability", "residuals", "uncertainty"):
         keys |= set(doc[block])

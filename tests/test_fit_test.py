@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from _util import run, write_tum
 
-from handeye_cli import calibrate
+from handeye_cli import calibrate, document
 from handeye_cli.analysis.fit_test import THRESHOLD, FitTest, fit_test, sample_noise
 from handeye_cli.analysis.residuals import pair_residuals
 from handeye_cli.analysis.stream_noise import stream_noise
@@ -70,7 +70,7 @@ def test_clean_recordings_of_every_kind_pass_over_seeds():
         for seed in range(8):
             ratios["stations sparse" if sparse else "stations dwell", seed] = _judge(*_stations(seed, sparse)).ratio
     values = np.array(list(ratios.values()))
-    assert len(values) == 112
+    assert len(values) == 16 * len(SCENARIOS) + 16
     assert np.mean(values <= THRESHOLD) >= 0.99, sorted(ratios.items(), key=lambda kv: -kv[1])[:3]
     # absolute sources are predicted to within their scatter; drifting ones stay well under the limit
     assert 0.6 < np.median([r for (k, _), r in ratios.items() if k == "mocap-mocap"]) < 1.5
@@ -117,10 +117,10 @@ def test_refusal_is_a_data_error_naming_the_causes_and_the_override():
 def test_accept_poor_fit_keeps_the_result_with_a_warning():
     rec = scenario("mocap-mocap", 3, 6.0)
     cal = calibrate(rec.a, _w_first_read_as_x_first(rec.b), pairs="stride:6", max_pairs=120, accept_poor_fit=True)
-    doc = cal.document()
+    doc = document(cal)
     assert doc["fit_test"]["passed"] is False and doc["fit_test"]["ratio"] > THRESHOLD
     assert doc["warnings"][0].startswith("poor fit accepted with --accept-poor-fit")
-    good = calibrate(rec.a, rec.b, pairs="stride:6", max_pairs=120).document()["fit_test"]
+    good = document(calibrate(rec.a, rec.b, pairs="stride:6", max_pairs=120))["fit_test"]
     assert good["passed"] is True and good["ratio"] <= good["threshold"] == THRESHOLD
     assert set(good) >= {"rotation", "translation", "noise_source", "noise"}
     assert set(good["rotation"]) >= {"statistic", "expected", "ratio", "median_residual_deg", "predicted_median_deg"}

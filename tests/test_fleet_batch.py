@@ -17,8 +17,8 @@ from _fleet import NOMINAL, TOPICS, crashed, make_fleet, moved, write_rig
 from _util import run
 from test_report import _images, _run_chromium
 
-from handeye_cli import se3
 from handeye_cli.fleet import engine
+from handeye_cli.geometry import se3
 
 TOLERANCE = ["--max-rotation-deg", "0.5", "--max-translation-m", "0.005"]
 

@@ -8,8 +8,8 @@ import pytest
 from _util import run
 from scipy.spatial.transform import Rotation
 
-from handeye_cli import se3
 from handeye_cli.errors import HandEyeError
+from handeye_cli.geometry import se3
 from handeye_cli.io.nominal import read_nominal, static_publisher_transform
 from handeye_cli.output.formats import ALL_FORMATS, render_format
 from handeye_cli.output.writers import output_format as format_for_output

@@ -11,8 +11,8 @@ from _logs import write_tum
 from _util import run
 from scipy.spatial.transform import Rotation
 
-from handeye_cli import se3
 from handeye_cli.analysis.verdict import compare
+from handeye_cli.geometry import se3
 from handeye_cli.output.formats import render_format
 from handeye_cli.simulation import Rig, simulate_rig
 

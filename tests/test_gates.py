@@ -8,8 +8,8 @@ import re
 import numpy as np
 import pytest
 
-from handeye_cli import se3
 from handeye_cli.errors import ConfigError, DataError
+from handeye_cli.geometry import se3
 from handeye_cli.simulation import Rig, random_transform
 from handeye_cli.simulation.rates import Jumps, simulate_rates
 from handeye_cli.stages import gates

@@ -6,7 +6,7 @@ import pytest
 import yaml
 from _util import pose_error, run, write_tum
 
-from handeye_cli.analysis.inversion import check_inversion
+from handeye_cli.analysis.inversion import Candidate, InversionVerdict, check_inversion
 from handeye_cli.errors import DataError
 from handeye_cli.simulation.arm import simulate_arm
 from handeye_cli.stages.stations import detect_stations
@@ -42,6 +42,22 @@ def test_refusal_with_or_without_an_explicit_invert_flag():
         text = str(info.value)
         assert "no result was written" in text and "--invert-b or --invert-a" in text
         assert ("contradict the data" in text) is explicit
+
+
+def test_an_explicit_flag_decisively_contradicted_is_refused_below_overwhelming():
+    """Issue 19: the real arm read with --invert-a fitted 6.2× better the other way (given fit 1.0° / 15 mm):
+    below the 10× that refuses a default reading, it was a warning with exit 0 and a result 0.6 m wrong. An
+    explicit flag the data decisively contradict, with an implausible given fit, is refused; the same evidence
+    without a flag stays a warning, and a plausible given fit is never refused for a flag."""
+    candidate = Candidate("b", (0.5, 0.0024), 6.2, "--invert-b")
+    contradicted = InversionVerdict((1.02, 0.0147), (candidate,), overwhelming=False, implausible=True)
+    refusal = contradicted.refusal(explicit=True)
+    assert refusal is not None and "contradict the data" in str(refusal) and "--accept-poor-fit" in str(refusal)
+    assert contradicted.refusal(explicit=False) is None
+    plausible = InversionVerdict((0.2, 0.004), (candidate,), overwhelming=False, implausible=False)
+    assert plausible.refusal(explicit=True) is None
+    verdict = check_inversion(*_stations(invert_b=False))
+    assert verdict is not None and verdict.implausible          # the simulated inverted capture: 5° and more
 
 
 def test_flag_names_the_undo_when_the_user_inverted_the_wrong_stream():

@@ -10,7 +10,7 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation, Slerp
 
-from handeye_cli import se3
+from handeye_cli.geometry import se3
 from handeye_cli.io import read_stream
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_data"

@@ -16,8 +16,8 @@ import pytest
 from _logs import LOG_KINDS, TF, Channel, write_log, write_mcap
 from scipy.spatial.transform import Rotation
 
-from handeye_cli import se3
 from handeye_cli.errors import HandEyeError
+from handeye_cli.geometry import se3
 from handeye_cli.io import inspect_log, read_stream
 
 START = 1_700_000_000_000_000_000

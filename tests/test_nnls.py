@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.optimize import nnls as scipy_nnls
 
-from handeye_cli.analysis.nnls import nnls
+from handeye_cli.numeric.nnls import nnls
 
 
 @pytest.mark.parametrize("seed", range(40))

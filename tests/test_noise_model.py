@@ -7,10 +7,10 @@ import pytest
 
 from handeye_cli.analysis.noise_model import PairFeatures, cost_residuals, fit_noise_model
 from handeye_cli.analysis.residuals import pair_residuals
+from handeye_cli.analysis.selection import select_pairs
 from handeye_cli.simulation import motion_pairs, random_transform
 from handeye_cli.simulation.recordings import scenario
 from handeye_cli.stages.gates import pose_jump_gate
-from handeye_cli.stages.selection import select_pairs
 from handeye_cli.stages.sync import associate
 
 

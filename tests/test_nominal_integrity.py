@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from _util import run
 
-from handeye_cli import se3
 from handeye_cli.errors import ReadError
+from handeye_cli.geometry import se3
 from handeye_cli.io.nominal import read_nominal
 from handeye_cli.output.document import _static_transform_command, render
 from handeye_cli.output.formats import ALL_FORMATS, render_format

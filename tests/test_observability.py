@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handeye_cli import se3
 from handeye_cli.analysis import assess_observability, describe_direction
+from handeye_cli.geometry import se3
 from handeye_cli.simulation import motion_pairs, random_transform
 from handeye_cli.solvers import Prior
 

@@ -7,13 +7,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from handeye_cli import se3
+from handeye_cli.analysis.selection import ladder, select_pairs
 from handeye_cli.errors import HandEyeError
+from handeye_cli.geometry import se3
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
 from handeye_cli.solvers import solve
 from handeye_cli.stages.gates import pose_jump_gate
 from handeye_cli.stages.pairs import keyframes, make_pairs
-from handeye_cli.stages.selection import ladder, select_pairs
 from handeye_cli.stages.sync import Synced, associate
 
 X = random_transform(np.random.default_rng(21), 0.3)

@@ -17,8 +17,8 @@ import pytest
 import scipy.linalg as sla
 from scipy.linalg import lapack
 
+from handeye_cli.geometry import dualquat
 from handeye_cli.simulation import motion_pairs, random_transform
-from handeye_cli.solvers import dualquat
 from handeye_cli.solvers import problem as P
 from handeye_cli.solvers.problem import Problem, build_problem, eigh, pair_blocks, problem_from_blocks
 

@@ -6,8 +6,9 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from handeye_cli import se3, solve
+from handeye_cli import solve
 from handeye_cli.config import load_options
+from handeye_cli.geometry import se3
 from handeye_cli.options import Options
 from handeye_cli.simulation import motion_pairs, random_transform
 

@@ -1,4 +1,4 @@
-"""The batched quaternion functions of ``solvers/dualquat.py`` (x-y-z-w) against scipy's ``Rotation``,
+"""The batched quaternion functions of ``geometry/dualquat.py`` (x-y-z-w) against scipy's ``Rotation``,
 the reference: products, relative rotations, rotation vectors both ways and SLERP agree within 1e-12
 on random rotations and at the edges — angles near 0 and near π, exact half-turns, ``q`` against
 ``-q``, interpolation fractions 0 and 1."""
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handeye_cli.solvers import dualquat as dq
+from handeye_cli.geometry import dualquat as dq
 
 TOL = 1e-12
 EDGE_ANGLES = np.array([0.0, 1e-300, 1e-15, 1e-9, 1e-6, 9.999e-4, 1e-3, 1.0001e-3, 0.1, 1.0, 3.0, np.pi - 1e-3,

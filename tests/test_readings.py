@@ -10,7 +10,7 @@ import pytest
 import yaml
 from _util import pose_error, run, write_tum
 
-from handeye_cli import calibrate
+from handeye_cli import calibrate, document
 from handeye_cli.analysis.readings import choose_quaternion_order
 from handeye_cli.errors import DataError
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
@@ -81,7 +81,7 @@ def test_streams_whose_order_is_not_open_are_left_alone():
     a, b = simulate_rig(Rig(X), duration_s=10, rate_a=50, rate_b=30, seed=5)
     a2, b2, choice = choose_quaternion_order(a, b)
     assert choice is None and a2 is a and b2 is b
-    assert "interpretation" not in calibrate(a, b).document()
+    assert "interpretation" not in document(calibrate(a, b))
 
 
 def test_orders_that_fit_alike_with_other_extrinsics_are_refused(monkeypatch, tmp_path):

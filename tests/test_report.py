@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from handeye_cli import document
 from handeye_cli.errors import HandEyeError
 from handeye_cli.output.report import render_report, world_alignment, write_report
 from handeye_cli.pipeline import calibrate
@@ -35,7 +36,7 @@ def rig():
 @pytest.fixture(scope="module")
 def full_doc(rig):
     _, _, cal = rig
-    doc = cal.document()
+    doc = document(cal)
     doc["warnings"] = [WARNING, "second warning"]
     doc["residuals"] = {"rotation_median_deg": 0.1, "rotation_p95_deg": 0.3, "translation_median_m": 0.002}
     doc["uncertainty"] = {"bootstrap": {"replicates": 200, "rotation_std_deg": [0.01, 0.02, 0.03],

@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handeye_cli import se3
 from handeye_cli.analysis import extrinsic_error, pair_residuals, summarize
 from handeye_cli.analysis.residuals import Residuals
 from handeye_cli.errors import HandEyeError
+from handeye_cli.geometry import se3
 from handeye_cli.simulation import motion_pairs, random_transform
 
 

@@ -11,12 +11,13 @@ import pytest
 from _util import pose_error
 from scipy.special import chdtrc
 
-from handeye_cli import se3
 from handeye_cli.errors import ConfigError
+from handeye_cli.geometry import se3
+from handeye_cli.geometry.lie import log_errors
 from handeye_cli.options import Options
 from handeye_cli.rig import RigOptions, calibrate_rig
 from handeye_cli.rig.graph import chains, synchronise
-from handeye_cli.rig.joint import CONSISTENCY_P_VALUE, log_errors
+from handeye_cli.rig.joint import CONSISTENCY_P_VALUE
 from handeye_cli.rig.simulate import SimSensor, simulate_streams, with_fault
 from handeye_cli.simulation import _smooth_trajectory, random_transform
 from handeye_cli.streams import PoseStream

@@ -8,10 +8,10 @@ import pytest
 import yaml
 from _util import ROOT, pose_error, run, write_tum
 
-from handeye_cli import se3
+import handeye_cli.io as handeye_io
 from handeye_cli.cli import main
+from handeye_cli.geometry import se3
 from handeye_cli.io import read_stream
-from handeye_cli.rig import read as rig_read
 from handeye_cli.solvers import METHODS
 
 RIG4 = ROOT / "sample_data" / "rig4.mcap"
@@ -66,17 +66,23 @@ def test_rig4_document_sections(rig4_doc: dict) -> None:
 
 
 def test_rig_reads_the_log_once(monkeypatch, capsys) -> None:
-    calls = []
-    real = rig_read.read_log_streams
+    """One pass over the log for all four streams, and the log detected once (the read path of calibrate)."""
+    calls, detected = [], []
+    real, real_detect = handeye_io._read_log, handeye_io.detect_format
 
     def counting(*args, **kwargs):
         calls.append(args)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(rig_read, "read_log_streams", counting)
+    def detecting(*args, **kwargs):
+        detected.append(args)
+        return real_detect(*args, **kwargs)
+
+    monkeypatch.setattr(handeye_io, "_read_log", counting)
+    monkeypatch.setattr(handeye_io, "detect_format", detecting)
     code, out, _ = run(capsys, "rig", RIG4, *STREAMS, "--time-offset", "cam1=0.015", "--time-offset", "lidar=-0.04",
                        "--time-offset", "imu=0.025", "--format", "json", "-q")
-    assert code == 0 and len(calls) == 1 and len(calls[0][1]) == 4
+    assert code == 0 and len(calls) == 1 and len(calls[0][2]) == 4 and len(detected) == 1
     doc = json.loads(out)
     assert {s["name"]: s["time_offset"]["method"] for s in doc["streams"]} == {
         "cam0": "reference", "cam1": "fixed", "lidar": "fixed", "imu": "fixed"}
@@ -132,3 +138,34 @@ def test_compare_table_and_json(capsys) -> None:
     assert all(cost["dqopt"] <= c * (1 + 1e-9) for c in cost.values())      # the optimum is the optimum
     best = next(r for r in rows if r["method"] == "dqopt")
     assert best["vs_dqopt_deg"] == 0.0 and all(r["vs_dqopt_deg"] < 0.5 for r in rows)
+
+
+def test_rig_applies_every_read_option_to_its_files(tmp_path) -> None:
+    """Issue 21: ``handeye rig --time-unit`` was accepted and ignored for file streams. The rig reads through
+    calibrate's read path: a TUM file written in milliseconds reads back in seconds only with ``time_unit``."""
+    from handeye_cli.errors import ReadError
+    from handeye_cli.options import Options
+    from handeye_cli.rig import parse_stream, read_rig
+
+    imu = read_stream(RIG4, frames=("odom", "imu_link"))
+    path = tmp_path / "imu_ms.tum"
+    np.savetxt(path, np.c_[imu.stamps_ns / 1e6, imu.xyz, imu.quat_xyzw], fmt="%.6f")
+    specs = [parse_stream("cam0=/cam0/pose"), parse_stream(f"imu={path}")]
+    as_ms = read_rig(str(RIG4), specs, Options.from_flat(None, time_unit="ms"))
+    np.testing.assert_allclose(as_ms["imu"].stamps_ns, imu.stamps_ns, atol=1_000)
+    with pytest.raises(ReadError, match="--time-unit"):       # epoch milliseconds read as seconds: out of range
+        read_rig(str(RIG4), specs, Options.from_flat(None, time_unit="s"))
+
+
+def test_the_package_docstrings_rig_example_runs() -> None:
+    """Issue 21: ``calibrate_rig_files("log.mcap", ["cam0=/cam0/pose", …], RigOptions())``, as the package
+    docstring writes it, raised AttributeError (a str is not a StreamSpec): the command-line form is accepted."""
+    import handeye_cli
+    from handeye_cli import RigOptions, calibrate_rig_files
+
+    assert 'calibrate_rig_files("log.mcap", ["cam0=/cam0/pose", "imu=tf:odom,imu_link"], RigOptions())' in \
+        (handeye_cli.__doc__ or "")
+    result = calibrate_rig_files(str(RIG4), ["cam0=/cam0/pose", "imu=tf:odom,imu_link"], RigOptions())
+    assert result.names == ["cam0", "imu"]
+    rot, trans = pose_error(result.matrices[1], _truth("imu"))
+    assert rot < 0.5 and trans < 0.02

@@ -10,8 +10,8 @@ import yaml
 from _util import ROOT, run
 
 from handeye_cli import rig as rig_module
-from handeye_cli import se3
 from handeye_cli.cli import main
+from handeye_cli.geometry import se3
 from handeye_cli.io.nominal import read_nominal
 from handeye_cli.output.formats import render_format
 from handeye_cli.rig.verdicts import rig_verdicts

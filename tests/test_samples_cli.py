@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import yaml
 
-from handeye_cli import se3
 from handeye_cli.cli import main
+from handeye_cli.geometry import se3
 
 ROOT = Path(__file__).resolve().parents[1]
 TRUTH = yaml.safe_load((ROOT / "sample_data" / "truth.yaml").read_text(encoding="utf-8"))

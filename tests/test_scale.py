@@ -6,8 +6,8 @@ import pytest
 import yaml
 from _util import pose_error, run, write_tum
 
-from handeye_cli import se3
 from handeye_cli.errors import DataError
+from handeye_cli.geometry import se3
 from handeye_cli.simulation import Rig, motion_pairs, random_transform, simulate_rig
 from handeye_cli.simulation.arm import monocular, simulate_arm
 from handeye_cli.solvers.scale import scale_translations, solve_with_scale

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handeye_cli import PoseStream, se3
+from handeye_cli import PoseStream
 from handeye_cli.config import load_options
+from handeye_cli.geometry import se3
 from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import perturb
 

@@ -9,9 +9,9 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 import handeye_cli
-from handeye_cli import se3
+from handeye_cli.geometry import dualquat, se3
 from handeye_cli.simulation import motion_pairs, random_transform
-from handeye_cli.solvers import METHODS, Prior, Problem, build_problem, dualquat, solve
+from handeye_cli.solvers import METHODS, Prior, Problem, build_problem, solve
 from handeye_cli.solvers.optimal import dqopt
 from handeye_cli.solvers.problem import pair_blocks, problem_from_blocks
 
@@ -48,11 +48,11 @@ def test_dqopt_is_the_global_optimum(block):
         r = solve(A, B, alpha=alpha, prior=Prior(*prior) if prior else None)
         c_opt = ref.cost(A, B, r.matrix, alpha, prior=prior)
         rng = np.random.default_rng(seed + 1000)
+        fun = ref.Residuals(A, B, alpha, prior)
         starts = [ref.params_of(r.matrix)] + [np.r_[Rotation.random(random_state=rng).as_rotvec(),
                                                      rng.uniform(-1, 1, 3)] for _ in range(3)]
         for x0 in starts:
-            nl = least_squares(ref.residuals, x0, args=(A, B, alpha, prior), method="lm",
-                               xtol=1e-15, ftol=1e-15, gtol=1e-15)
+            nl = least_squares(fun, x0, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
             c_nl = ref.cost(A, B, ref.transform(nl.x), alpha, prior=prior)
             worst = min(worst, (c_nl - c_opt) / (c_nl + c_opt))
     assert worst >= -1e-12
@@ -304,7 +304,7 @@ def test_half_turn_motions_keep_the_sign_of_their_dual_quaternion():
     ``Q_A`` but not ``Q_B``): ``Q_B`` takes the sign of ``Q_A``'s dual scalar, the pairs' residuals at
     the true X stay at the noise level and the solution stays where the other pairs put it (with the
     ``w ≥ 0`` sign alone each such pair cost as much as a 180° error and moved X by millimetres)."""
-    from handeye_cli.solvers import dualquat
+    from handeye_cli.geometry import dualquat
     from handeye_cli.solvers.problem import pair_blocks
 
     rng = np.random.default_rng(11)

@@ -6,7 +6,7 @@ import pytest
 import yaml
 from _util import pose_error, run, write_tum
 
-from handeye_cli import se3
+from handeye_cli.geometry import se3
 from handeye_cli.simulation import Rig, simulate_rig
 from handeye_cli.simulation.arm import ArmCapture, simulate_arm
 from handeye_cli.solvers import solve
@@ -129,3 +129,34 @@ def test_stations_pair_one_to_one_whatever_the_slack(sparse):
     rot_deg, _ = pose_error(solve(*(se3.relative(T[:-1], T[1:]) for T in (st.synced.T_a, st.synced.T_b))).matrix,
                             c.truth)
     assert rot_deg < 0.5                                                    # every pair is a true pair
+
+
+def _with_bad_stations(c: ArmCapture, bad: list[int], seed: int = 1) -> PoseStream:
+    """The camera stream with the target pose of stations ``bad`` detected wrongly (a flipped, shifted pose)."""
+    rng = np.random.default_rng(seed)
+    T = c.camera.matrices().copy()
+    for k in bad:
+        flip = se3.from_xyz_quat(rng.normal(0.0, 0.05, 3), np.r_[rng.normal(0.0, 1.0, 3), 0.3])
+        T[k] = T[k] @ flip
+    return PoseStream.from_matrices(c.camera.stamps_ns, T, frame_id=c.camera.frame_id,
+                                    child_frame_id=c.camera.child_frame_id)
+
+
+def test_a_few_bad_stations_are_rejected_by_default_and_named(capsys, tmp_path):
+    """A station capture with 3 of 15 stations detected wrongly: the fit of all pairs is refused by the fit test,
+    and the default re-solves with outliers rejected (as --robust): exit 0, the truth within the clean capture's
+    error, the robust setting recorded and a warning saying what was dropped. (A wrong reading stays refused:
+    test_fit_test.py's wrong quaternion order, whose least-bad consensus fits 14.5× the noise.)"""
+    c = simulate_arm(15, setup="eye-in-hand", sparse=True, seed=3)
+    robot = write_tum(tmp_path / "robot.tum", c.robot)
+    camera = write_tum(tmp_path / "camera.tum", _with_bad_stations(c, [2, 7, 11]))
+    code, out, err = run(capsys, "calibrate", robot, camera, "--invert-b", "--format", "json")
+    assert code == 0, err
+    doc = yaml.safe_load(out)
+    rot, trans = pose_error(np.array(doc["matrix"]), c.truth)
+    assert rot < 0.1 and trans < 0.002
+    assert doc["settings"]["options"]["robust"] is True
+    assert doc["warnings"][0].startswith("outliers rejected: the fit of all pairs was refused")
+    assert len(doc["robust"]["rejected"]) == 3 * 14 - 3                        # every pair touching a bad station
+    code, _, err = run(capsys, "calibrate", robot, camera, "--invert-b", "--accept-poor-fit", "--format", "json")
+    assert code == 3 and "poor fit accepted" in err                            # the plain fit, on request

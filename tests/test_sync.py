@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handeye_cli import se3
 from handeye_cli.errors import ConfigError, DataError, HandEyeError
+from handeye_cli.geometry import se3
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
-from handeye_cli.stages.sync import Synced, associate, default_max_dt_ns, interpolate
+from handeye_cli.stages.sync import Synced, associate, default_max_dt_ns
 from handeye_cli.streams import PoseStream
 
 T0 = 1_700_000_000_000_000_000        # epoch-scale stamps [ns]: float seconds would lose precision
@@ -77,13 +77,17 @@ def test_both_methods_are_exact_where_the_stamps_coincide() -> None:
         assert rot < 1e-12 and trans < 1e-12
 
 
-def test_interpolate_function_marks_queries_outside_the_span() -> None:
+def test_sampling_a_stream_marks_queries_outside_the_span() -> None:
     b = analytic_stream(T0 + np.arange(0, 10) * 100_000_000)
     query = T0 + np.array([-1, 0, 50_000_000, 900_000_000, 900_000_001])
-    inside, xyz, quat, gap = interpolate(b, query)
-    np.testing.assert_array_equal(inside, [False, True, True, True, False])
-    np.testing.assert_array_equal(gap, [0, 50_000_000, 0])
-    assert len(xyz) == len(quat) == 3
+    at = b.sample(query)
+    np.testing.assert_array_equal(at.inside, [False, True, True, True, False])
+    np.testing.assert_array_equal(at.gap_ns, [0, 50_000_000, 0])
+    np.testing.assert_array_equal(at.used, [0, 0, 9])
+    assert len(at.xyz) == len(at.quat_xyzw) == 3
+    near = b.sample(T0 + np.array([40_000_000, 60_000_000]), "nearest")
+    np.testing.assert_array_equal(near.used, [0, 1])
+    np.testing.assert_array_equal(near.gap_ns, [40_000_000, 40_000_000])
 
 
 @pytest.mark.parametrize("method", ["interpolate", "nearest"])

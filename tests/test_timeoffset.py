@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handeye_cli import se3
 from handeye_cli.errors import HandEyeError
+from handeye_cli.geometry import se3
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
 from handeye_cli.solvers import solve
 from handeye_cli.stages.pairs import make_pairs

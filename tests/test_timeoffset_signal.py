@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import fft, ndimage, optimize, signal
 
-from handeye_cli.analysis.minimize import minimize_bounded
+from handeye_cli.numeric.minimize import minimize_bounded
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
 from handeye_cli.stages import timeoffset
 from handeye_cli.stages.timeoffset import _correlate, _prominent_peaks

@@ -12,7 +12,12 @@ cheaper textbook rule α = σ_rot / σ_trans from the residuals of a first solve
 :func:`noise_model_alpha` is the maximum-likelihood α under the recording's noise model
 (:mod:`.noise_model`): α² = σ_rot²/σ_trans² with both variances predicted per pair in the
 cost's own units (the translation one including rotation noise times the motion's lever),
-combined as the geometric mean over the pairs — the rule the default ``auto`` uses.
+combined as the geometric mean over the pairs — the rule the default ``auto`` uses, capped by
+:func:`blocked_alpha`: the ML α assumes the pairs' errors independent, and on drifting odometry they
+are not — the yaw drift of a VIO turns every later displacement about gravity, an error shared by
+the pairs of one stretch of time and shaped like a rotation of X, which the translational residuals
+then tilt X's rotation by. :func:`blocked_alpha` lowers α to where the cluster-robust sandwich
+(blocks of time as clusters) predicts the rotation and translation errors best.
 """
 from __future__ import annotations
 
@@ -27,10 +32,13 @@ from .covariance import linear_covariance
 from .noise_model import NoiseModel, PairFeatures, cost_residuals, fit_noise_model
 from .residuals import residuals_batch
 
-__all__ = ["AlphaChoice", "auto_alpha", "residual_ratio_alpha", "noise_model_alpha", "DEFAULT_GRID"]
+__all__ = ["AlphaChoice", "auto_alpha", "residual_ratio_alpha", "noise_model_alpha", "blocked_alpha", "time_blocks",
+           "DEFAULT_GRID"]
 
 _EXACT_DEG, _EXACT_M = 1e-9, 1e-9         # predicted errors this small mean noise-free data
 _ROUNDING = 1e-12                          # residuals [rad], [m] at rounding level
+TIME_BLOCKS = 20                           # blocks of time the cluster-robust sandwich treats as independent
+_BLOCKED_STEPS = 9                         # α tried by blocked_alpha: the cap, then down by 10^¼ each step (to 1/100)
 
 #: The paper's α range, 10⁻² … 10^1.7 [1/m] (appendix D), 25 log-spaced values.
 DEFAULT_GRID = np.logspace(-2.0, 1.7, 25)
@@ -67,14 +75,38 @@ class AlphaChoice:
 
 
 def _predicted_errors(A: np.ndarray, B: np.ndarray, grid: np.ndarray, prior: Prior | None,
-                      weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted RMS rotation [deg] and translation [m] error of DQOpt at each α of the grid."""
+                      weights: np.ndarray, blocks: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted RMS rotation [deg] and translation [m] error of DQOpt at each α of the grid
+    (cluster-robust over ``blocks`` when given, see :func:`~.covariance.linear_covariance`)."""
     rot, trans = np.empty(len(grid)), np.empty(len(grid))
     for k, a in enumerate(grid):
         X = solve(A, B, alpha=float(a), prior=prior, weights=weights).matrix
-        c = linear_covariance(A, B, X, alpha=float(a), prior=prior, weights=weights)
+        c = linear_covariance(A, B, X, alpha=float(a), prior=prior, weights=weights, blocks=blocks)
         rot[k], trans[k] = c.rotation_rms_deg, c.translation_rms_m
     return rot, trans
+
+
+def time_blocks(t_i_ns: np.ndarray, t_j_ns: np.ndarray, count: int = TIME_BLOCKS) -> np.ndarray:
+    """(N,) block of each pair: ``count`` equal stretches of time, by the pair's midpoint."""
+    mid = (np.asarray(t_i_ns, dtype=float) + np.asarray(t_j_ns, dtype=float)) / 2
+    span = max(float(mid.max() - mid.min()), 1.0)
+    blocks: np.ndarray = np.minimum(((mid - mid.min()) / span * count).astype(np.int64), count - 1)
+    return blocks
+
+
+def blocked_alpha(motions_a: np.ndarray, motions_b: np.ndarray, cap: float, blocks: np.ndarray, *,
+                  prior: Prior | None = None, weights: np.ndarray | None = None) -> AlphaChoice:
+    """α [1/m] ≤ ``cap`` whose errors predicted by the cluster-robust sandwich (pairs of one of
+    ``blocks`` may share errors) are both closest to their minimum over α = cap·10^(-k/4), k < 9
+    (:func:`_minimax_ratio`; ties to the larger α). Shared drift that tilts the rotation shows as
+    a larger predicted rotation error at the larger α; independent errors keep α = ``cap``.
+    Noise-free data (predicted errors at rounding level) keeps ``cap``."""
+    A, B, w = validate_motions(motions_a, motions_b, weights)
+    grid = cap * 10.0 ** (-np.arange(_BLOCKED_STEPS) / 4)
+    rot, trans = _predicted_errors(A, B, grid, prior, w, blocks)
+    if (rot.max() < _EXACT_DEG and trans.max() < _EXACT_M) or not (np.isfinite(rot).all() and np.isfinite(trans).all()):
+        return AlphaChoice(cap, "blocked-sandwich", grid, rot, trans)
+    return AlphaChoice(float(grid[_minimax_ratio(rot, trans)]), "blocked-sandwich", grid, rot, trans)
 
 
 def _minimax_ratio(rot: np.ndarray, trans: np.ndarray) -> int:

@@ -20,8 +20,8 @@ import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import ConfigError, DataError
+from ..geometry import dualquat as dq
 from ..solvers import Prior, solve
-from ..solvers import dualquat as dq
 from ..solvers.optimal import dqopt
 from ..solvers.problem import Problem, build_problem, pair_blocks, validate_motions
 

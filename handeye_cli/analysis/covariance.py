@@ -1,7 +1,7 @@
 """Linearised (sandwich) covariance of the DQOpt estimate ``X = T_a_b`` under cost (8).
 
 Conventions: ``X = T_a_b`` (maps frame b to frame a), ``A_i X = X B_i``; dual quaternions
-``x = [q; q']`` with q in x-y-z-w order (:mod:`handeye_cli.solvers.dualquat`).
+``x = [q; q']`` with q in x-y-z-w order (:mod:`handeye_cli.geometry.dualquat`).
 
 The estimate is perturbed on the left in frame a, ``X(δ) = Δ(ω, v) X``, i.e.
 ``Q_X(δ) = Q_Δ ⊗ Q_X`` with ``Q_Δ ≈ (ω/2, 1) + ε (v/2, 0)``. This map stays on the unit dual
@@ -22,15 +22,17 @@ Finally δ is mapped to the error of X itself: rotation ``ω`` [rad] and transla
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
+from ..geometry import dualquat as dq
 from ..solvers import Prior
-from ..solvers import dualquat as dq
 from ..solvers.problem import pair_blocks, problem_from_blocks, validate_motions
 
-__all__ = ["LinearCovariance", "linear_covariance", "tangent_basis", "constrained_hessian"]
+__all__ = ["LinearCovariance", "linear_covariance", "tangent_basis", "constrained_hessian", "DriftCheck", "drift_check",
+           "DRIFT_INFLATION_LIMIT"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,6 +114,15 @@ def _meat(G: FloatArray, samples: tuple[IntArray, IntArray] | None) -> tuple[Flo
     return (V * np.clip(lam, 0.0, None)) @ V.T, len(nodes)
 
 
+def _block_meat(G: FloatArray, blocks: IntArray) -> tuple[FloatArray, int]:
+    """``Σ_b s_b s_bᵀ`` with ``s_b`` the summed scores of the pairs in block b (cluster-robust: errors
+    correlated inside a block, e.g. drift shared by pairs of one stretch of time), and the number of blocks."""
+    labels, inv = np.unique(np.asarray(blocks).reshape(-1), return_inverse=True)
+    S = np.zeros((len(labels), G.shape[1]))
+    np.add.at(S, inv, G)
+    return S.T @ S, len(labels)
+
+
 def select_samples(samples: tuple[IntArray, IntArray] | None, keep: BoolArray) -> tuple[IntArray, IntArray] | None:
     """The pose-sample indices ``(i, j)`` (flattened) of the pairs selected by the mask ``keep``; ``None`` stays."""
     if samples is None:
@@ -122,13 +133,16 @@ def select_samples(samples: tuple[IntArray, IntArray] | None, keep: BoolArray) -
 
 def linear_covariance(motions_a: FloatArray, motions_b: FloatArray, T_a_b: FloatArray, *,
                       alpha: float = 1.0, prior: Prior | None = None, weights: FloatArray | None = None,
-                      samples: tuple[IntArray, IntArray] | None = None) -> LinearCovariance:
+                      samples: tuple[IntArray, IntArray] | None = None,
+                      blocks: IntArray | None = None) -> LinearCovariance:
     """Sandwich covariance of the cost-(8) minimiser at ``T_a_b`` (which should be that minimiser).
 
     Parameters are those of :func:`handeye_cli.solvers.solve`; α in 1/m. The prior adds
     curvature (eq 29) but no noise. ``samples = (i, j)`` (the pose samples each pair was formed
     from) switches to the dyadic-robust form for pairs that share samples (see
-    :func:`handeye_cli.analysis.bootstrap`). Returns a :class:`LinearCovariance`; for a singular
+    :func:`handeye_cli.analysis.bootstrap`). ``blocks`` (N,) labels each pair with a block (e.g. of time)
+    and switches to the cluster-robust form instead: pairs of one block may share errors (drift), pairs
+    of different blocks do not. Returns a :class:`LinearCovariance`; for a singular
     Hessian the pseudo-inverse is used and ``singular`` is set.
     """
     A, B, w = validate_motions(motions_a, motions_b, weights)
@@ -145,8 +159,65 @@ def linear_covariance(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Float
     singular = bool(ev[0] <= 1e-12 * max(abs(ev[-1]), 1e-300))
     Hinv = np.linalg.pinv(H, hermitian=True)
     keep = w > 0
-    meat, n = _meat(G[keep], select_samples(samples, keep))
+    meat, n = (_meat(G[keep], select_samples(samples, keep)) if blocks is None
+               else _block_meat(G[keep], np.asarray(blocks)[keep]))
     cov = Hinv @ meat @ Hinv * (n / (n - 6) if n > 12 else 2.0)              # HC1 correction
     Tm = _error_map(np.asarray(T_a_b, dtype=np.float64)[:3, 3])
     Tinv = np.linalg.inv(Tm)
     return LinearCovariance(Tm @ cov @ Tm.T, Tinv.T @ H @ Tinv, singular)
+
+
+#: The blocked σ this many times the independent one: the residuals share errors across time.
+DRIFT_INFLATION_LIMIT = 2.0
+
+
+@dataclass(frozen=True, eq=False)
+class DriftCheck:
+    """The sandwich σ of ``T_a_b`` with pairs (or their pose samples) independent, beside the
+    cluster-robust σ with ``blocks`` stretches of time as the independent units. ``ratio`` (rotation,
+    translation) is blocked σ ÷ independent σ (root of the traces); above :data:`DRIFT_INFLATION_LIMIT`
+    the errors are correlated across time (drift) and the independent σ is overconfident."""
+
+    independent: LinearCovariance
+    blocked: LinearCovariance
+    blocks: int
+
+    @property
+    def ratio(self) -> tuple[float, float]:
+        """Blocked ÷ independent RMS error (rotation, translation)."""
+        tiny = 1e-300
+        return (self.blocked.rotation_rms_deg / max(self.independent.rotation_rms_deg, tiny),
+                self.blocked.translation_rms_m / max(self.independent.translation_rms_m, tiny))
+
+    @property
+    def overconfident(self) -> bool:
+        """Whether either ratio exceeds :data:`DRIFT_INFLATION_LIMIT`."""
+        return max(self.ratio) > DRIFT_INFLATION_LIMIT
+
+    def warning(self) -> str:
+        """The warning text for an overconfident σ (frames: rotation [deg], translation [m], frame a)."""
+        r = self.ratio
+        return (f"the residuals are correlated across time (drift): blocks of time give a {max(r):.3g}× larger "
+                f"uncertainty than independent pairs — σ {self.blocked.rotation_rms_deg:.3g}° / "
+                f"{self.blocked.translation_rms_m:.3g} m (uncertainty_check.blocked); "
+                "record longer or more varied motion, or check the streams for drift")
+
+    def as_dict(self) -> dict[str, Any]:
+        """The result's ``uncertainty_check``: both σ per axis of frame a [deg], [m], the ratios, the verdict."""
+        return {"blocks": self.blocks, "ratio": list(self.ratio), "limit": DRIFT_INFLATION_LIMIT,
+                "overconfident": self.overconfident,
+                "independent": {"rotation_std_deg": self.independent.rotation_std_deg.tolist(),
+                                "translation_std_m": self.independent.translation_std_m.tolist()},
+                "blocked": {"rotation_std_deg": self.blocked.rotation_std_deg.tolist(),
+                            "translation_std_m": self.blocked.translation_std_m.tolist()}}
+
+
+def drift_check(motions_a: FloatArray, motions_b: FloatArray, T_a_b: FloatArray, blocks: IntArray, *,
+                alpha: float = 1.0, prior: Prior | None = None, weights: FloatArray | None = None,
+                samples: tuple[IntArray, IntArray] | None = None) -> DriftCheck:
+    """:class:`DriftCheck` of the solution ``T_a_b``: :func:`linear_covariance` with ``samples``
+    (independent pose samples) and with ``blocks`` (N,) (independent stretches of time)."""
+    kw: dict[str, Any] = {"alpha": alpha, "prior": prior, "weights": weights}
+    return DriftCheck(linear_covariance(motions_a, motions_b, T_a_b, samples=samples, **kw),
+                      linear_covariance(motions_a, motions_b, T_a_b, blocks=blocks, **kw),
+                      int(len(np.unique(blocks))))

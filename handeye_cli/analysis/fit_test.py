@@ -38,10 +38,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .. import se3
 from .._typing import BoolArray, FloatArray
 from ..errors import FitRejectedError
-from ..solvers import dualquat as dq
+from ..geometry import dualquat as dq
+from ..geometry import se3
 from .residuals import Residuals, residuals_batch
 from .stream_noise import StreamNoise, stream_noise
 

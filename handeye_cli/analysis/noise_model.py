@@ -28,9 +28,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..solvers import dualquat as dq
+from ..geometry import dualquat as dq
+from ..numeric.nnls import nnls
 from ..solvers.problem import pair_blocks
-from .nnls import nnls
 
 __all__ = ["NoiseModel", "PairFeatures", "pair_features", "cost_residuals", "fit_noise_model"]
 

@@ -23,11 +23,11 @@ from typing import Any
 
 import numpy as np
 
-from .. import se3
 from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import HandEyeError, UnderdeterminedError
+from ..geometry import dualquat as dq
+from ..geometry import se3
 from ..solvers import Prior, build_problem, solve
-from ..solvers import dualquat as dq
 from ..solvers.approximate import dqconvrlx
 from ..solvers.problem import validate_motions
 from .covariance import LinearCovariance, linear_covariance, select_samples

@@ -29,8 +29,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .. import se3
 from ..errors import DataError, HandEyeError
+from ..geometry import se3
 from ..solvers import solve
 from ..streams import PoseStream
 from .residuals import extrinsic_error, pair_residuals

@@ -1,6 +1,6 @@
 """Per-pair residuals of ``A_i X = X B_i`` for an extrinsic ``X = T_a_b``, and their summary.
 
-Conventions (see :mod:`handeye_cli.se3`): ``X = T_a_b`` maps points from frame b to frame a;
+Conventions (see :mod:`handeye_cli.geometry.se3`): ``X = T_a_b`` maps points from frame b to frame a;
 motions ``A_i = T_wa(t_i)⁻¹ T_wa(t_j)``, ``B_i = T_wb(t_i)⁻¹ T_wb(t_j)``. Quaternions are
 Hamilton, x-y-z-w.
 
@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import se3
 from .._typing import BoolArray, FloatArray
-from ..solvers import dualquat as dq
+from ..geometry import dualquat as dq
+from ..geometry import se3
 from ..solvers.problem import validate_motions
 
 __all__ = ["Residuals", "ResidualSummary", "extrinsic_error", "pair_residuals", "residuals_batch", "summarize"]

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from .._typing import FloatArray
-from ..solvers import dualquat as dq
+from ..geometry import dualquat as dq
 from ..streams import PoseStream
 
 __all__ = ["StreamNoise", "stream_noise"]

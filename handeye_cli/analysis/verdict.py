@@ -16,10 +16,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .. import se3
 from ..errors import DataError
+from ..geometry import dualquat as dq
+from ..geometry import se3
 from ..io.nominal import Nominal
-from ..solvers import dualquat as dq
 
 __all__ = ["DEFAULT_MAX_ROTATION_DEG", "DEFAULT_MAX_TRANSLATION_M", "Verdict", "compare", "verdict_for"]
 

@@ -25,8 +25,8 @@ if not {"OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"} & set(os.e
 
 import click
 
-from .. import __version__
 from ..errors import HandEyeError
+from ..version import __version__
 from .common import CONTEXT, Drifted, StrictFailure
 
 __all__ = ["COMMANDS", "cli", "main"]

@@ -8,12 +8,13 @@ import numpy as np
 
 from ..analysis.verdict import verdict_for
 from ..errors import ConfigError, HandEyeError
+from ..geometry import dualquat as dq
 from ..io.nominal import read_nominal
+from ..output.document import calibration_document
 from ..output.writers import check_writable, output_format
 from ..pipeline import Calibration, StreamSpec, calibrate_files
-from ..solvers import dualquat as dq
 from .check import verdict_options
-from .common import CONTEXT, Drifted, StrictFailure, emit, warn
+from .common import CONTEXT, emit, finish
 from .params import calibrate_options, options_from_cli, output_options, stream_options
 
 
@@ -87,7 +88,7 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
     nominal = read_nominal(p["against"]) if p["against"] else None      # a bad nominal fails before the work
     result = calibrate_files(spec_a, spec_b, options=options, quiet=p["quiet"])
     result = result.with_origin(config_file, preset)
-    doc = result.document()
+    doc = calibration_document(result)
     verdict = None if nominal is None else verdict_for(doc, nominal, p["max_rotation_deg"], p["max_translation_m"])
     if verdict is not None:
         doc["verdict"] = verdict.as_dict()
@@ -95,16 +96,9 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
     emit(doc, p["output"], fmt)
     if not p["quiet"]:
         click.echo(_summary(doc), err=True)
-    for w in doc["warnings"]:
-        warn(w)
-    if verdict is not None and not verdict.drift and not p["quiet"]:
-        click.echo(verdict.summary(), err=True)
-    if report_error is not None:
-        raise HandEyeError(f"the result was written, but not the report: {report_error.what}", report_error.where,
-                           report_error.fix)
-    if verdict is not None and verdict.drift:
-        raise Drifted(verdict.summary())
-    if not doc["fit_test"]["passed"]:          # only with --accept-poor-fit: otherwise refused before
-        raise StrictFailure("the result failed the fit test and was written because of --accept-poor-fit")
-    if doc["warnings"] and options.analysis.strict:
-        raise StrictFailure(f"{len(doc['warnings'])} warning(s) under --strict (the result was still written)")
+    late = None if report_error is None else type(report_error)(
+        f"the result was written, but not the report: {report_error.what}", report_error.where, report_error.fix)
+    finish(doc, strict=options.analysis.strict, quiet=p["quiet"],
+           drift=verdict.summary() if verdict is not None and verdict.drift else None,
+           within=verdict.summary() if verdict is not None else None,
+           late=late, poor_fit_accepted=not doc["fit_test"]["passed"])   # not passed: only with --accept-poor-fit

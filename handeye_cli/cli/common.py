@@ -5,11 +5,11 @@ from typing import Any
 
 import click
 
-from ..errors import one_line
+from ..errors import HandEyeError, one_line
 from ..output.formats import render_format
 from ..output.writers import output_format, write_output
 
-__all__ = ["CONTEXT", "Drifted", "StrictFailure", "emit", "warn"]
+__all__ = ["CONTEXT", "Drifted", "StrictFailure", "emit", "finish", "warn"]
 
 CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 
@@ -31,3 +31,24 @@ def warn(message: str) -> None:
     """One ``warning:`` line on stderr; names from a log or file it quotes cannot break the line
     (newlines, U+2028, terminal escapes are written as escapes)."""
     click.echo(f"warning: {one_line(message)}", err=True)
+
+
+def finish(doc: dict[str, Any], *, strict: bool, quiet: bool, drift: str | None = None, within: str | None = None,
+           late: HandEyeError | None = None, poor_fit_accepted: bool = False) -> None:
+    """The ending every command that writes a result shares, once the result is written: its warnings on
+    stderr, then the exit code a CI job reads — a failure after the result (``late``, e.g. the report) exit 2,
+    a drift from the nominal (``drift``: its one-line summary) exit 1, a poor fit kept by
+    ``--accept-poor-fit`` or warnings under ``--strict`` exit 3; else 0, with ``within`` (the verdict that
+    passed) on stderr unless ``quiet``."""
+    for w in doc["warnings"]:
+        warn(w)
+    if late is not None:
+        raise late
+    if drift is not None:
+        raise Drifted(drift)
+    if within is not None and not quiet:
+        click.echo(within, err=True)
+    if poor_fit_accepted:
+        raise StrictFailure("the result failed the fit test and was written because of --accept-poor-fit")
+    if doc["warnings"] and strict:
+        raise StrictFailure(f"{len(doc['warnings'])} warning(s) under --strict (the result was still written)")

@@ -9,62 +9,32 @@ residual medians, the difference to dqopt, and the time taken.
 """
 from __future__ import annotations
 
-import time
 from typing import Any
 
 import click
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from ..analysis import extrinsic_error, pair_residuals
+from ..comparison import MethodResult, compare_methods
 from ..output.document import plain, render
 from ..output.writers import check_writable, output_format, write_output
-from ..pipeline import Calibration, calibrate_files
-from ..solvers import METHODS, build_problem, dualquat, solve
-from ..solvers.robot_world import RW_METHODS, robot_world
+from ..pipeline import calibrate_files
 from .calibrate import stream_specs
 from .common import CONTEXT
 from .params import calibrate_options, options_from_cli, stream_options
 
-__all__ = ["compare", "compare_methods"]
+__all__ = ["compare"]
 
 
-def _row(name: str, X: np.ndarray, cal: Calibration, alpha: float, seconds: float, best: np.ndarray) -> dict[str, Any]:
-    A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
-    res = pair_residuals(A, B, X).summary(None if w is None else w > 0)
-    rot, trans = extrinsic_error(X, best)
-    return {"method": name, "translation": X[:3, 3].tolist(),
-            "rotation_vector_deg": Rotation.from_matrix(X[:3, :3]).as_rotvec(degrees=True).tolist(),
-            "cost": build_problem(A, B, alpha, weights=w).cost(*dualquat.from_transforms(X)),
-            "rotation_median_deg": res.rotation_median_deg, "translation_median_m": res.translation_median_m,
-            "vs_dqopt_deg": rot, "vs_dqopt_m": trans, "milliseconds": 1e3 * seconds}
-
-
-def compare_methods(cal: Calibration) -> list[dict[str, Any]]:
-    """One row per method (see the module docstring) on the pairs and synced poses of ``cal``."""
-    A, B, w, alpha = cal.pairs.A, cal.pairs.B, cal.weights, cal.solution.alpha
-    solved = {}
-    for method in METHODS:
-        t0 = time.perf_counter()
-        solved[method] = (solve(A, B, method=method, alpha=alpha, weights=w).matrix, time.perf_counter() - t0)
-    for method in RW_METHODS:
-        t0 = time.perf_counter()
-        X = robot_world(cal.synced.T_a, cal.synced.T_b, method=method, alpha=alpha).X
-        solved[f"{method} (robot-world)"] = (X, time.perf_counter() - t0)
-    best = solved["dqopt"][0]
-    return [_row(name, X, cal, alpha, sec, best) for name, (X, sec) in solved.items()]
-
-
-def _table(rows: list[dict[str, Any]]) -> str:
+def _table(rows: list[MethodResult]) -> str:
     head = (f"{'method':<20} {'x [m]':>9} {'y [m]':>9} {'z [m]':>9} {'angle [°]':>9} {'cost':>11} "
             f"{'res [°]':>8} {'res [mm]':>8} {'Δ [°]':>8} {'Δ [mm]':>8} {'ms':>8}")
     lines = [head]
     for r in rows:
-        x, y, z = r["translation"]
-        angle = float(np.linalg.norm(r["rotation_vector_deg"]))
-        lines.append(f"{r['method']:<20} {x:>9.4f} {y:>9.4f} {z:>9.4f} {angle:>9.3f} {r['cost']:>11.4e} "
-                     f"{r['rotation_median_deg']:>8.3f} {1e3 * r['translation_median_m']:>8.2f} "
-                     f"{r['vs_dqopt_deg']:>8.4f} {1e3 * r['vs_dqopt_m']:>8.2f} {r['milliseconds']:>8.2f}")
+        x, y, z = r.matrix[:3, 3]
+        angle = float(np.linalg.norm(r.rotation_vector_deg))
+        lines.append(f"{r.method:<20} {x:>9.4f} {y:>9.4f} {z:>9.4f} {angle:>9.3f} {r.cost:>11.4e} "
+                     f"{r.rotation_median_deg:>8.3f} {1e3 * r.translation_median_m:>8.2f} "
+                     f"{r.vs_dqopt_deg:>8.4f} {1e3 * r.vs_dqopt_m:>8.2f} {1e3 * r.seconds:>8.2f}")
     return "\n".join(lines) + "\n"
 
 
@@ -95,5 +65,6 @@ def compare(inputs: tuple[str, ...], **p: Any) -> None:
     cal = calibrate_files(spec_a, spec_b, options=options, quiet=p["quiet"])
     rows = compare_methods(cal)
     text = _table(rows) if fmt == "text" else render(plain({"frames": cal.frames, "pairs_used": len(cal.pairs),
-                                                            "alpha": cal.solution.alpha, "methods": rows}), fmt)
+                                                            "alpha": cal.solution.alpha,
+                                                            "methods": [r.as_dict() for r in rows]}), fmt)
     write_output(p["output"], text)

@@ -20,7 +20,7 @@ from ..errors import ConfigError
 from ..io.nominal import read_nominal
 from ..output.writers import check_writable, output_format
 from .check import verdict_options
-from .common import CONTEXT, Drifted, StrictFailure, emit, warn
+from .common import CONTEXT, emit, finish
 from .params import apply, flags, options_from_cli, output_options
 
 __all__ = ["rig"]
@@ -113,7 +113,7 @@ def rig(log: str | None, **p: Any) -> None:
     fmt = output_format(p["output"], p["fmt"])
     nominal = read_nominal(p["against"]) if p["against"] else None      # a bad nominal fails before the work
     if nominal is not None:
-        check_sensor_names([s.name for s in specs], nominal)
+        check_sensor_names([str(s.name) for s in specs], nominal)
     opts = RigOptions(reference=p["reference"], time_offsets=_named(p["offsets"], "--time-offset"),
                       invert=tuple(p["invert"]), block_s=p["block_s"], options=options)
     result = calibrate_rig_files(log, specs, opts, quiet=p["quiet"])
@@ -124,11 +124,6 @@ def rig(log: str | None, **p: Any) -> None:
     emit(doc, p["output"], fmt)
     if not p["quiet"]:
         click.echo(_summary(doc), err=True, nl=False)
-    for w in doc["warnings"]:
-        warn(w)
-    if any(v.drift for v in verdicts.values()):
-        raise Drifted(_drift_message(verdicts))
-    if verdicts and not p["quiet"]:
-        click.echo(f"every sensor within tolerance of the nominal {p['against']}", err=True)
-    if doc["warnings"] and options.analysis.strict:
-        raise StrictFailure(f"{len(doc['warnings'])} warning(s) under --strict (the result was still written)")
+    finish(doc, strict=options.analysis.strict, quiet=p["quiet"],
+           drift=_drift_message(verdicts) if any(v.drift for v in verdicts.values()) else None,
+           within=f"every sensor within tolerance of the nominal {p['against']}" if verdicts else None)

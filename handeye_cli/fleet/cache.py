@@ -21,9 +21,9 @@ from typing import Any
 
 import yaml
 
-from .. import __version__
 from ..output.document import render
 from ..output.writers import write_output
+from ..version import __version__
 from .engine import Job
 
 __all__ = ["job_key", "result_path", "load_done", "store"]

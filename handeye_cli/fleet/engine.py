@@ -28,6 +28,7 @@ from typing import Any
 
 from ..errors import ConfigError, HandEyeError
 from ..options import Options
+from ..output.document import calibration_document
 from .discovery import BatchInput
 
 __all__ = ["DEFAULT_TIMEOUT_S", "Interrupted", "Job", "Streams", "run_job", "run_jobs"]
@@ -85,7 +86,7 @@ def _calibrate(job: Job) -> Record:
         result = calibrate_files(paths[0], topic_a=s.topic_a, topic_b=s.topic_b, frames_a=s.frames_a,
                                  frames_b=s.frames_b, options=job.options)
     stamps = result.synced.stamps_ns
-    return {**result.document(), "log_span_ns": [int(stamps[0]), int(stamps[-1])]}
+    return {**calibration_document(result), "log_span_ns": [int(stamps[0]), int(stamps[-1])]}
 
 
 class _Expired(BaseException):

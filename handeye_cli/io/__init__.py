@@ -17,9 +17,11 @@ from .detect import LOG_FORMATS, detect_format
 from .inputs import existing, spooled, valid_frame_id
 from .logs import Request, inspect_source, read_requests
 from .opening import open_log
+from .spec import StreamSpec
 from .text import read_text
 
-__all__ = ["read_stream", "read_log_streams", "inspect_log", "detect_format", "valid_frame_id"]
+__all__ = ["StreamSpec", "read_specs", "read_stream", "read_log_streams", "inspect_log", "detect_format",
+           "valid_frame_id"]
 
 _TIME_SOURCES = ("header", "log")
 _SUFFIX = {"mcap": ".mcap", "rosbag1": ".bag", "rosbag2": ".db3"}
@@ -71,6 +73,40 @@ def read_stream(paths: str | Path | Sequence[str | Path], *, topic: str | None =
                                "drop --topic/--frames and pass one text file per stream")
         return read_text(plist[0], fmts[0], columns, quaternion_order=quaternion_order, time_unit=time_unit)
     return _read_log(plist, fmts, [(topic, frames)], time_source, quiet)[0]
+
+
+def read_specs(specs: Sequence[StreamSpec], *, time_source: str = "header", columns: Mapping[str, str] | None = None,
+               quaternion_orders: Sequence[str] | None = None, time_unit: str = "auto", quiet: bool = True
+               ) -> list[PoseStream]:
+    """The streams of ``specs``, in their order, each as :func:`read_stream` returns it: each input is
+    found, detected and (a pipe) spooled once; every stream of one log is read in a single pass over it.
+    ``quaternion_orders``: per spec, as :func:`read_stream`'s ``quaternion_order`` (default ``"auto"``);
+    the other keywords as :func:`read_stream`'s, for every spec. Raises HandEyeError on any bad input."""
+    if time_source not in _TIME_SOURCES:
+        raise ConfigError(f"unknown time source {time_source!r}", "time_source", "use 'header' or 'log'")
+    orders = list(quaternion_orders or ["auto"] * len(specs))
+    found: dict[str, tuple[Path, str]] = {}
+    in_log: dict[str, list[int]] = {}
+    streams: dict[int, PoseStream] = {}
+    for k, spec in enumerate(specs):
+        if spec.path is None:
+            raise ConfigError(f"stream {spec.name or k} names no file", "read_specs", "give every StreamSpec a path")
+        if spec.path not in found:
+            (p,), (fmt,) = _inputs(spec.path)
+            found[spec.path] = (p, fmt)
+        p, fmt = found[spec.path]
+        if fmt in LOG_FORMATS:
+            in_log.setdefault(spec.path, []).append(k)
+        elif spec.topic is not None or spec.frames is not None:
+            raise ConfigError(f"a {fmt.upper()} text file holds one stream: no topic/frames and one file per stream",
+                              str(p), "drop --topic/--frames and pass one text file per stream")
+        else:
+            streams[k] = read_text(p, fmt, columns, quaternion_order=orders[k], time_unit=time_unit)
+    for path, ks in in_log.items():
+        p, fmt = found[path]
+        read = _read_log([p], [fmt], [(specs[k].topic, specs[k].frames) for k in ks], time_source, quiet)
+        streams.update(zip(ks, read, strict=True))
+    return [streams[k] for k in range(len(specs))]
 
 
 def read_log_streams(paths: str | Path | Sequence[str | Path], requests: Sequence[Request], *,

@@ -32,9 +32,9 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from .. import se3
 from ..errors import ReadError
-from ..solvers import dualquat as dq
+from ..geometry import dualquat as dq
+from ..geometry import se3
 from ..untrusted import frame_id_problem, load_yaml, yaml_problem
 from .pairfile import extrinsic_of
 

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 import yaml
 
 from ..errors import ReadError
+from ..untrusted import load_yaml, yaml_problem
 from .mcap_reader import McapSource
 from .source import LogSource
 
@@ -35,13 +36,11 @@ def _bag2_storage(directory: Path) -> tuple[Path | None, str]:
     storage = sorted(directory.glob("*.mcap")) + sorted(directory.glob("*.db3"))
     if meta.is_file():
         try:
-            doc = yaml.safe_load(meta.read_text(encoding="utf-8", errors="replace"))
+            doc = load_yaml(meta.read_text(encoding="utf-8", errors="replace"))   # a log's file: no aliases, bounded
         except yaml.YAMLError as exc:
-            mark = getattr(exc, "problem_mark", None)
-            at = f", line {mark.line + 1}" if mark is not None else ""
-            raise ReadError(f"corrupt metadata.yaml: {getattr(exc, 'problem', None) or type(exc).__name__}",
-                            f"{meta}{at}", "restore metadata.yaml, or delete it to read the storage file "
-                                           "directly") from exc
+            what, where = yaml_problem(exc, str(meta))
+            raise ReadError(f"corrupt metadata.yaml: {what}", where, "restore metadata.yaml, or delete it to read "
+                                                                     "the storage file directly") from exc
         if not isinstance(doc, dict) or "rosbag2_bagfile_information" not in doc:
             raise ReadError("corrupt metadata.yaml: no rosbag2_bagfile_information", str(meta),
                             "restore metadata.yaml, or delete it to read the storage file directly")

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 import yaml
 
-from .. import se3
 from ..errors import HandEyeError, ReadError
+from ..geometry import se3
 from ..untrusted import load_yaml, yaml_problem
 
 __all__ = ["CSV_COLUMNS", "read_pairs", "write_pairs_csv", "read_extrinsic", "extrinsic_of"]

@@ -13,9 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import se3
 from ..errors import ConfigError, DataError
-from ..stages.sync import interpolate
+from ..geometry import se3
 from ..streams import PoseStream
 from .common import LOG_STAMPS_FIX, PoseBuffer, make_stream
 from .messages import PoseRecord
@@ -82,8 +81,8 @@ class TfTree:
         """
         if static or len(edge) == 1:
             return np.broadcast_to(edge.matrices()[-1], (len(t), 4, 4))
-        _, xyz, quat, _ = interpolate(edge, t)      # every stamp is inside the span: none left out
-        return se3.from_xyz_quat(xyz, quat)
+        at = edge.sample(t)                         # every stamp is inside the span: none left out
+        return se3.from_xyz_quat(at.xyz, at.quat_xyzw)
 
     def _chain(self, parent: str, child: str) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
         """Edges ``(parent_of[f], f)`` from ``parent`` and from ``child`` up to their common ancestor."""

@@ -13,17 +13,20 @@ from __future__ import annotations
 import json
 import math
 import shlex
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
 
-from .. import __version__
 from .._typing import FloatArray
 from ..errors import HandEyeError
 from ..solvers import Solution
 
-__all__ = ["FORMATS", "result_document", "render", "plain", "finite"]
+if TYPE_CHECKING:
+    from ..pipeline import Calibration
+from ..version import __version__
+
+__all__ = ["FORMATS", "calibration_document", "result_document", "render", "plain", "finite"]
 
 FORMATS = ("yaml", "json")
 
@@ -85,6 +88,14 @@ def result_document(solution: Solution, *, frames: dict[str, str] | None = None,
     }
     plain_doc: dict[str, Any] = plain(doc)
     return plain_doc
+
+
+def calibration_document(calibration: Calibration) -> dict[str, Any]:
+    """The result of a calibration as ``handeye calibrate`` prints it (schema in docs/design.md):
+    the solution, frames, inputs, sample counts, warnings, diagnostics and the settings used."""
+    return result_document(calibration.solution, frames=calibration.frames, inputs=calibration.inputs,
+                           samples=calibration.samples.as_dict(), warnings=calibration.warnings,
+                           diagnostics={**calibration.diagnostics, "settings": calibration.settings()})
 
 
 class _Dumper(yaml.SafeDumper):

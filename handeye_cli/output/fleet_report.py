@@ -21,8 +21,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .. import __version__
 from ..errors import HandEyeError, ReadError
+from ..version import __version__
 from .report import _CSS, _SCRIPT, _esc
 from .svgplot import DPI
 from .writers import check_writable, write_output

@@ -39,9 +39,10 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from .. import __version__, se3
 from ..errors import ConfigError, one_line
+from ..geometry import se3
 from ..untrusted import frame_id_problem
+from ..version import __version__
 from .document import render
 
 __all__ = ["ALL_FORMATS", "Frame", "render_format", "transforms_of"]

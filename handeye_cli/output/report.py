@@ -28,10 +28,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .. import __version__
 from .._typing import BoolArray, FloatArray, IntArray
 from ..analysis.residuals import pair_residuals
-from ..solvers import dualquat as dq
+from ..geometry import dualquat as dq
+from ..geometry.lie import nearest_rotation
+from ..version import __version__
+from .document import calibration_document
 from .svgplot import Chart
 from .writers import check_writable, write_output
 
@@ -170,10 +172,8 @@ def world_alignment(synced: Synced, T_a_b: FloatArray) -> FloatArray:
     q_x, _ = dq.from_transforms(X)
     R_g = Rotation.from_quat(dq.multiply(dq.multiply(synced.quat_a, q_x), dq.conjugate(synced.quat_b)))   # T_wa_wb(t)
     t_g = synced.xyz_a + Rotation.from_quat(synced.quat_a).apply(X[:3, 3]) - R_g.apply(synced.xyz_b)
-    U, _, Vt = np.linalg.svd(R_g.as_matrix().sum(axis=0))
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
     out = np.eye(4)
-    out[:3, :3] = U @ D @ Vt
+    out[:3, :3] = nearest_rotation(R_g.as_matrix().sum(axis=0))
     out[:3, 3] = np.median(t_g, axis=0)
     return out
 
@@ -425,12 +425,12 @@ def render_report(calibration: Calibration, document: dict[str, Any],
 def write_report(path: str | Path, calibration: Calibration) -> None:
     """Write a self-contained HTML report of ``calibration`` to ``path`` (``-``: stdout).
 
-    The report shows the result (``calibration.document()``), the trajectories after applying
-    ``T_a_b``, the per-pair residuals over time, the samples each stage kept and dropped and, when
-    the bootstrap ran, its spread. Raises :class:`~handeye_cli.errors.HandEyeError` when the file
-    cannot be written; a regular file is replaced atomically, so a failure leaves no half-written
-    report.
+    The report shows the result (:func:`~handeye_cli.output.document.calibration_document`), the
+    trajectories after applying ``T_a_b``, the per-pair residuals over time, the samples each stage
+    kept and dropped and, when the bootstrap ran, its spread. Raises
+    :class:`~handeye_cli.errors.HandEyeError` when the file cannot be written; a regular file is
+    replaced atomically, so a failure leaves no half-written report.
     """
     check_writable(path, "--report")           # fail before the rendering work
-    write_output(path, render_report(calibration, calibration.document(), calibration.bootstrap_deviations()),
-                 "--report")
+    page = render_report(calibration, calibration_document(calibration), calibration.bootstrap_deviations())
+    write_output(path, page, "--report")

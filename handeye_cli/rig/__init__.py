@@ -16,7 +16,7 @@ sensor's frame (maps points from k to ref); quaternions x-y-z-w; metres; int64 n
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -155,11 +155,14 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
                      variances, covariances, unc, warnings, dict(inputs or {}), settings)
 
 
-def calibrate_rig_files(log: str | None, specs: list[StreamSpec], options: RigOptions | None = None, *,
+def calibrate_rig_files(log: str | None, specs: Sequence[str | StreamSpec], options: RigOptions | None = None, *,
                         quiet: bool = True) -> RigResult:
-    """Read the streams (:func:`read_rig`) and :func:`calibrate_rig`."""
+    """Read the streams (:func:`read_rig`) and :func:`calibrate_rig`. ``specs``: named :class:`StreamSpec`\\ s or
+    their command-line form (``"cam0=/cam0/pose"``, ``"imu=tf:odom,imu_link"``, ``"wheels=wheels.tum"``,
+    :func:`parse_stream`)."""
     opts = options or RigOptions()
     read = opts.options.read
-    streams = read_rig(log, specs, time_source=read.time_source, columns=read.csv_columns, quiet=quiet)
-    inputs = {"log": log, "streams": {s.name: s.describe() for s in specs}, "time_source": read.time_source}
+    named = [parse_stream(s) if isinstance(s, str) else s for s in specs]
+    streams = read_rig(log, named, opts.options, quiet=quiet)
+    inputs = {"log": log, "streams": {s.name: s.describe() for s in named}, "time_source": read.time_source}
     return calibrate_rig(streams, opts, inputs=inputs)

@@ -21,9 +21,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import eigh
 
-from .. import se3
 from ..errors import DataError
-from ..solvers.classical import _nearest_rotation
+from ..geometry import se3
+from ..geometry.lie import nearest_rotation
 
 __all__ = ["Closure", "synchronise", "loop_closures", "connected"]
 
@@ -64,7 +64,7 @@ def _rotations(n: int, pairs: list[tuple[int, int]], X: Array, w: Array, referen
     V = vecs[:, -3:].reshape(n, 3, 3)                   # V_k ≈ R_kᵀ Q, one Q for all
     if np.sum(np.linalg.det(V)) < 0:
         V = -V
-    R = np.stack([_nearest_rotation(Vk.T) for Vk in V])
+    R = nearest_rotation(np.swapaxes(V, 1, 2), up_to_sign=True)
     return np.asarray(R[reference].T @ R, dtype=np.float64)
 
 

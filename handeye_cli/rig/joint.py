@@ -39,14 +39,16 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import chdtrc, gammaln  # the χ² survival function: scipy.stats costs 1 s to import
 
-from .. import se3
 from ..analysis.covariance import constrained_hessian
-from ..solvers import dualquat as dq
+from ..geometry import dualquat as dq
+from ..geometry import se3
+from ..geometry.lie import log_errors
+from ..solvers.classical import _skew
 from ..solvers.problem import split_forms
 from .graph import connected
 
 __all__ = ["Motions", "JointProblem", "refine", "bootstrap_rig", "RigUncertainty", "part_costs",
-           "resolve_pairs", "whitening", "log_errors", "Consistency", "consistency", "CONSISTENCY_P_VALUE"]
+           "resolve_pairs", "whitening", "Consistency", "consistency", "CONSISTENCY_P_VALUE"]
 
 Array = NDArray[np.float64]
 Motions = tuple[Array, Array, Array, Array, float]   # A, B (N, 4, 4); start stamps [ns] (N,); pair weights (N,); α
@@ -65,11 +67,6 @@ def part_costs(forms: Array, T: Array) -> Array:
     v = np.concatenate((qd, q), axis=1)
     return np.asarray(np.einsum("ei,epij,ej->ep", v, forms, v), dtype=np.float64)
 
-
-def log_errors(T: Array) -> Array:
-    """``(ω, t)`` (…, 6) of transforms near the identity: rotation vector [rad], translation [m]."""
-    rotvec = dq.to_rotvec(dq.from_matrix(T[..., :3, :3]))
-    return np.concatenate((rotvec, T[..., :3, 3]), axis=-1)
 
 
 def whitening(C: Array) -> Array:
@@ -146,10 +143,6 @@ def _perturbed(T0: Array, free: NDArray[np.bool_], p: Array) -> Array:
     T[free, :3, :3] = T0[free, :3, :3] @ dq.to_matrix(dq.from_rotvec(d[:, :3]))
     T[free, :3, 3] = T0[free, :3, 3] + d[:, 3:]
     return np.asarray(T, dtype=np.float64)
-
-
-def _skew(v: Array) -> Array:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def _jacobian(problem: JointProblem, T: Array, free: NDArray[np.bool_], edges: NDArray[np.bool_],

@@ -59,14 +59,15 @@ from numpy.typing import NDArray
 from scipy import sparse
 from scipy.special import chdtrc
 
-from .. import se3
 from ..analysis.covariance import constrained_hessian
-from ..analysis.nnls import nnls
-from ..solvers import dualquat as dq
+from ..analysis.selection import ladder
+from ..geometry import dualquat as dq
+from ..geometry import se3
+from ..geometry.lie import adjoint, log_errors
+from ..numeric.nnls import nnls
 from ..solvers.problem import pair_blocks
-from ..stages.selection import ladder
-from ..stages.sync import Synced, bracket
-from .joint import log_errors
+from ..stages.sync import Synced
+from ..streams import bracket
 from .pairwise import Edge
 
 __all__ = ["EdgeNoise", "EdgeDrift", "Correction", "StreamNoise", "edge_noise", "stream_variances",
@@ -159,17 +160,6 @@ class StreamNoise:
         """Stream k's per-sample noise as an angle [rad] and a distance [m] (3-D, root of the sum)."""
         return float(np.sqrt(3 * self.rotation[k])), float(np.sqrt(3 * self.translation[k]))
 
-
-def adjoint(T: Array) -> Array:
-    """``Ad_T`` (N, 6, 6) on twists ``(ω, v)``: ``T Exp(ξ) T⁻¹ = Exp(Ad_T ξ)``."""
-    R, t = T[:, :3, :3], T[:, :3, 3]
-    tx = np.zeros_like(R)
-    tx[:, 0, 1], tx[:, 0, 2], tx[:, 1, 2] = -t[:, 2], t[:, 1], -t[:, 0]
-    tx -= np.swapaxes(tx, 1, 2)
-    Ad = np.zeros((len(T), 6, 6))
-    Ad[:, :3, :3] = Ad[:, 3:, 3:] = R
-    Ad[:, 3:, :3] = tx @ R
-    return Ad
 
 
 def _residual_sensitivity(M: Array, q: Array, qd: Array, alpha: float, side: int) -> Array:

@@ -14,10 +14,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .. import __version__, se3
 from ..analysis import extrinsic_error, pair_residuals
+from ..geometry import se3
 from ..output.document import plain
 from ..streams import PoseStream
+from ..version import __version__
 from .graph import Closure
 from .joint import CONSISTENCY_P_VALUE, Consistency, JointProblem, RigUncertainty
 from .noise import Correction, StreamNoise
@@ -73,6 +74,26 @@ class RigResult:
     warnings: list[str] = field(default_factory=list)
     inputs: dict[str, Any] = field(default_factory=dict)
     settings: dict[str, Any] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        """One line: the sensors (the reference first), the consistency test and the warnings."""
+        return (f"RigResult({len(self.names)} sensors, reference {self.names[self.reference]}: "
+                f"{', '.join(self._sensor_lines())}; {len(self.warnings)} warning(s))")
+
+    def _sensor_lines(self) -> list[str]:
+        ref = self.names[self.reference]
+        return [f"T_{ref}_{name} t=[{', '.join(f'{v:.4f}' for v in T[:3, 3])}] m "
+                f"{np.rad2deg(float(se3.rotation_angle(T))):.3f}°"
+                for name, T in zip(self.names, self.matrices, strict=True) if name != ref]
+
+    def _repr_html_(self) -> str:
+        """A table for notebooks: each sensor's ``T_ref_k`` and the warnings."""
+        import html
+
+        rows = [("sensor", html.escape(line)) for line in self._sensor_lines()]
+        rows += [("warning", html.escape(w)) for w in self.warnings]
+        body = "".join(f"<tr><th style='text-align:left'>{k}</th><td>{v}</td></tr>" for k, v in rows)
+        return f"<table>{body}</table>"
 
     def T(self, parent: str, child: str) -> Array:
         """``T_parent_child`` (4x4) of the joint result."""

@@ -17,8 +17,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from ..geometry import dualquat as dq
 from ..simulation import _smooth_trajectory, perturb, random_transform
-from ..solvers import dualquat as dq
 from ..streams import PoseStream
 
 __all__ = ["SimSensor", "simulate_streams", "with_fault", "FAULTS", "START_NS"]

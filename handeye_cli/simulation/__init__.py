@@ -1,7 +1,7 @@
 """Synthetic data with known truth: motion pairs (the paper's appendix D.2) and simulated rigs.
 
 Used by the tests, the benchmarks and ``sample_data/make_samples.py``. Conventions as in
-:mod:`handeye_cli.se3`: ``X = T_a_b``, motions satisfy ``A_i X = X B_i``.
+:mod:`handeye_cli.geometry.se3`: ``X = T_a_b``, motions satisfy ``A_i X = X B_i``.
 """
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .. import se3
 from .._typing import FloatArray
+from ..geometry import se3
 from ..streams import PoseStream
 
 __all__ = ["random_transform", "perturb", "motion_pairs", "Rig", "simulate_rig", "SCENARIOS"]
@@ -106,11 +106,13 @@ def _smooth_trajectory(t: FloatArray, motion: str, rng: np.random.Generator) -> 
     if motion == "planar":
         rotvec[:, :2] = 0.0
         pos[:, 2] = 0.0
+    elif motion == "handheld":     # a device held upright (gravity along z): full yaw, tilts of ±10–20°
+        rotvec[:, :2] *= 0.2
     elif motion == "linear":
         rotvec[:] = 0.0
         pos[:, 1:] = 0.0
     elif motion != "3d":
-        raise ValueError(f"unknown motion {motion!r}; expected 3d, planar or linear")
+        raise ValueError(f"unknown motion {motion!r}; expected 3d, handheld, planar or linear")
     T = np.tile(np.eye(4), (len(t), 1, 1))
     T[:, :3, :3] = Rotation.from_rotvec(rotvec).as_matrix()
     T[:, :3, 3] = pos

@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .. import se3
+from ..geometry import se3
 from ..streams import PoseStream
 from . import perturb
 

@@ -4,7 +4,7 @@ Built on :func:`handeye_cli.simulation.simulate_rig` (smooth sums of sinusoids, 
 noise, per-stream timing jitter, clock offset); this module only fixes the defaults of issue 13
 (4 minutes, 0.02° / 0.5 mm pose noise) and adds tracking jumps of a fixed size to either stream.
 
-Conventions as in :mod:`handeye_cli.se3`: streams hold ``T_world_sensor(t)``, positions [m],
+Conventions as in :mod:`handeye_cli.geometry.se3`: streams hold ``T_world_sensor(t)``, positions [m],
 quaternions x-y-z-w, stamps int64 ns; ``Rig.time_offset_ns`` is how far b's clock is ahead of a's.
 """
 from __future__ import annotations

@@ -124,6 +124,11 @@ def _vio_mocap(seed: int, d: float) -> Recording:
                               rate_b=100, seed=seed, speed=0.5)
 
 
+def _vio_mocap_handheld(seed: int, d: float) -> Recording:
+    return simulate_recording(_rig(seed), drifting(), absolute(0.05, 0.0005), duration_s=d, rate_a=30,
+                              rate_b=100, seed=seed, speed=0.5, motion="handheld")
+
+
 def _mocap_mocap(seed: int, d: float) -> Recording:
     return simulate_recording(_rig(seed), absolute(0.05, 0.0005), absolute(0.2, 0.002), duration_s=d,
                               rate_a=100, rate_b=30, seed=seed, speed=0.5)
@@ -148,6 +153,8 @@ def _offset(seed: int, d: float) -> Recording:
 SCENARIOS: dict[str, tuple[Callable[[int, float], Recording], str]] = {
     "vio-vio": (_vio_vio, "two phones running VIO (drift in yaw, position, scale) at 30 Hz"),
     "vio-mocap": (_vio_mocap, "VIO at 30 Hz against a motion-capture body at 100 Hz"),
+    "vio-mocap-upright": (_vio_mocap_handheld, "the same with the device held upright (mostly yaw, tilts of "
+                          "±10–20°): VIO's yaw drift about gravity turns the translations like a rotation of X"),
     "mocap-mocap": (_mocap_mocap, "motion capture at 100 Hz against a camera on a target at 30 Hz"),
     "arm": (_arm, "a robot arm moving continuously: kinematics and a target camera at 10 Hz, no drift"),
     "rates": (_rates, "VIO at 200 Hz against a 15 Hz absolute tracker"),

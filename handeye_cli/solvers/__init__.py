@@ -14,7 +14,7 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..errors import ConfigError, UnderdeterminedError
-from . import dualquat
+from ..geometry import dualquat
 from .approximate import dq2ndord, dq2steps, dqconvrlx
 from .certificate import Certificate, certify
 from .classical import CLASSICAL
@@ -32,7 +32,7 @@ from .problem import (
     validate_motions,
 )
 
-__all__ = ["Certificate", "METHODS", "OPTIMAL", "Prior", "Problem", "Solution", "build_problem", "solve", "dq_cost"]
+__all__ = ["Certificate", "METHODS", "OPTIMAL", "Prior", "Problem", "Solution", "build_problem", "solve"]
 
 METHODS = ("dqopt", "dq2steps", "dqconvrlx", "dq2ndord", "dqitr", "daniilidis", *CLASSICAL)
 OPTIMAL = ("dqopt", "dqitr")
@@ -125,11 +125,6 @@ def _check_determined(problem: Problem) -> None:
                            "them exactly (all motions about one axis, or planar, or too few)",
                            "motions", "add motion about a second rotation axis, or pass a prior "
                            "(--prior FILE) to fix the unobservable directions")
-
-
-def dq_cost(problem: Problem, q: FloatArray, qd: FloatArray) -> float:
-    """Cost (8) (+ prior) of a dual quaternion; alias of :meth:`Problem.cost`."""
-    return problem.cost(q, qd)
 
 
 def solve(motions_a: FloatArray, motions_b: FloatArray, method: str = "dqopt", alpha: float = 1.0,

@@ -32,7 +32,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from . import dualquat as dq
+from ..geometry import dualquat as dq
+from ..geometry.lie import nearest_rotation
 from .problem import eigh, pair_blocks
 
 __all__ = ["CLASSICAL", "tsai", "park", "horaud", "andreff"]
@@ -82,17 +83,11 @@ def tsai(A: Array, B: Array, w: Array) -> Array:
     return _transform(R, _translation(A, B, R, w))
 
 
-def _procrustes(H: Array) -> Array:
-    """The rotation ``R`` maximising ``tr(Rᵀ H)`` (det +1)."""
-    U, _, Vt = np.linalg.svd(H)
-    return np.asarray(U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt, dtype=np.float64)
-
-
 def park(A: Array, B: Array, w: Array) -> Array:
     """Park–Martin: ``X = T_a_b`` (4x4) from motions ``A_i X = X B_i`` (N, 4, 4) and weights (N,)."""
     a = dq.to_rotvec(dq.from_matrix(A[:, :3, :3]))
     b = dq.to_rotvec(dq.from_matrix(B[:, :3, :3]))
-    R = _procrustes((a * w[:, None]).T @ b)          # a_i = R b_i
+    R = nearest_rotation((a * w[:, None]).T @ b)          # a_i = R b_i
     return _transform(R, _translation(A, B, R, w))
 
 
@@ -102,11 +97,6 @@ def horaud(A: Array, B: Array, w: Array) -> Array:
     _, V = eigh(np.einsum("n,nki,nkj->ij", w, E, E))
     R = dq.to_matrix(V[:, 0])
     return _transform(R, _translation(A, B, R, w))
-
-
-def _nearest_rotation(M: Array) -> Array:
-    """Project a 3x3 matrix onto SO(3): flip it to a positive determinant, then the polar factor."""
-    return _procrustes(np.sign(np.linalg.det(M)) * M)
 
 
 def andreff(A: Array, B: Array, w: Array) -> Array:
@@ -120,7 +110,7 @@ def andreff(A: Array, B: Array, w: Array) -> Array:
     y = np.zeros((n, 12))
     y[:, 9:] = ta
     x = _weighted_lstsq(M, y, w)
-    return _transform(_nearest_rotation(x[:9].reshape(3, 3)), x[9:])
+    return _transform(nearest_rotation(x[:9].reshape(3, 3), up_to_sign=True), x[9:])
 
 
 CLASSICAL: dict[str, Callable[[Array, Array, Array], Array]] = {

@@ -33,11 +33,11 @@ from functools import cached_property
 
 import numpy as np
 
-from .. import se3
 from .._typing import FloatArray
 from ..errors import ConfigError, DataError
-from . import dualquat as dq
-from .dualquat import _L_INDEX, _L_SIGN
+from ..geometry import dualquat as dq
+from ..geometry import se3
+from ..geometry.dualquat import _L_INDEX, _L_SIGN
 
 __all__ = ["Prior", "Problem", "build_problem", "checked_arrays", "motion_problem", "pair_blocks",
            "problem_from_blocks", "split_forms", "validate_motions"]
@@ -344,7 +344,7 @@ def _checked_chunks(A: FloatArray, B: FloatArray, chunk: int, block: int = 1,
     ``X`` (12, 2p) batch-last (``X[4i + j]`` holds ``T_ij``; reused between chunks): the transforms of
     ``A[start:stop]``, identities up to p (``stop - start`` rounded up to a multiple of ``block``), then
     those of ``B[start:stop]`` and identities again. A chunk with a non-finite entry or a rotation block
-    off by more than 1e-6 (:func:`~handeye_cli.se3.rotation_residuals`, as ``se3.is_rotation``) raises
+    off by more than 1e-6 (:func:`~handeye_cli.geometry.se3.rotation_residuals`, as ``se3.is_rotation``) raises
     the error for the first bad motion of all (:func:`_raise_first_bad`). ``work`` (16, 2p) is
     scratch; with it nothing is allocated per chunk."""
     n = len(A)
@@ -384,7 +384,7 @@ def validate_motions(motions_a: FloatArray, motions_b: FloatArray,
 def pair_blocks(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1.0) -> tuple[FloatArray, FloatArray]:
     """The per-pair blocks ``E_i = L(q_C) - R(q_H)`` and ``F_i = L(q'_C) - R(q'_H)`` (eqs 6–7), (N,4,4) each;
     the sign of ``Q_H`` agrees with ``Q_C``'s dual scalar part weighed by α [1/m]
-    (:func:`~handeye_cli.solvers.dualquat.align_signs`)."""
+    (:func:`~handeye_cli.geometry.dualquat.align_signs`)."""
     return dq.pair_difference_blocks(motions_a, motions_b, alpha)
 
 
@@ -401,10 +401,10 @@ def split_forms(A: FloatArray, B: FloatArray, counts: FloatArray, alpha: float) 
 
 def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float, chunk: int) -> FloatArray:
     """The 8x8 R factor of the rows ``√w_i [E_i F_i]`` of all pairs (signs agreed at α [1/m]: see
-    :func:`~handeye_cli.solvers.dualquat.align_signs`), in one checked pass (TSQR).
+    :func:`~handeye_cli.geometry.dualquat.align_signs`), in one checked pass (TSQR).
 
     Per chunk, the pairs' dual quaternions give the blocks by one product
-    (:func:`~handeye_cli.solvers.dualquat.difference_blocks`), laid out as the columns of Fortran-ordered
+    (:func:`~handeye_cli.geometry.dualquat.difference_blocks`), laid out as the columns of Fortran-ordered
     (4b, 8) matrices of b pairs each (rows in any order: R does not depend on it; the identity pairs
     that pad the last matrix give zero rows), factorised a few per QR call; their R factors,
     stacked, are factorised again (:func:`_tree_factor`), unless there is only one."""

@@ -29,9 +29,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .. import se3
 from ..errors import ConfigError, DataError
-from .classical import _nearest_rotation, _transform, _weighted_lstsq
+from ..geometry import se3
+from ..geometry.lie import nearest_rotation
+from .classical import _transform, _weighted_lstsq
 
 __all__ = ["RW_METHODS", "RobotWorldSolution", "robot_world", "shah", "li", "station_residuals"]
 
@@ -73,8 +74,8 @@ def shah(A: Array, B: Array, w: Array) -> tuple[Array, Array]:
     Ra, Rb, _, _ = _rotation_blocks(A, B)
     K = np.einsum("n,nij,nkl->ikjl", w, Rb, Ra).reshape(9, 9)      # Σ w R_B ⊗ R_A
     U, _, Vt = np.linalg.svd(K)
-    Rx = _nearest_rotation(Vt[0].reshape(3, 3).T)                   # column-major vec
-    Ry = _nearest_rotation(U[:, 0].reshape(3, 3).T)
+    Rx = nearest_rotation(Vt[0].reshape(3, 3).T, up_to_sign=True)                   # column-major vec
+    Ry = nearest_rotation(U[:, 0].reshape(3, 3).T, up_to_sign=True)
     tx, ty = _translations(A, B, Ry, w)
     return _transform(Rx, tx), _transform(Ry, ty)
 
@@ -92,8 +93,8 @@ def li(A: Array, B: Array, w: Array) -> tuple[Array, Array]:
     y = np.zeros((n, 12))
     y[:, 9:] = ta
     x = _weighted_lstsq(M, y, w)
-    return (_transform(_nearest_rotation(x[:9].reshape(3, 3)), x[18:21]),
-            _transform(_nearest_rotation(x[9:18].reshape(3, 3)), x[21:]))
+    return (_transform(nearest_rotation(x[:9].reshape(3, 3), up_to_sign=True), x[18:21]),
+            _transform(nearest_rotation(x[9:18].reshape(3, 3), up_to_sign=True), x[21:]))
 
 
 def station_residuals(A: Array, B: Array, X: Array, Y: Array) -> tuple[Array, Array]:

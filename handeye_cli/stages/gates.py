@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ConfigError, DataError
-from ..solvers import dualquat as dq
+from ..geometry import dualquat as dq
 from ..streams import PoseStream
 from .sync import Synced, associate, median_step_ns, rates_text
 

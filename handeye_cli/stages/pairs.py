@@ -29,7 +29,7 @@ stratified sample of evenly spaced positions in the (i, j)-ordered list of all p
 (growing until it yields the cap) and ``candidate_pairs`` is the estimate from it.
 
 ``auto`` (the default of ``handeye calibrate``) chooses and weighs pairs by a noise model fitted
-to the recording: see :mod:`handeye_cli.stages.selection`.
+to the recording: see :mod:`handeye_cli.analysis.selection`.
 """
 from __future__ import annotations
 
@@ -39,8 +39,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import se3
 from ..errors import HandEyeError
+from ..geometry import se3
 from .sync import Synced
 
 __all__ = ["Pairs", "make_pairs", "STRATEGIES"]
@@ -81,7 +81,7 @@ def _parse(strategy: str) -> tuple[str, int]:
         return name, int(arg)
     if name == "auto":
         raise HandEyeError("the auto strategy needs a solve", "make_pairs",
-                           "call handeye_cli.stages.selection.select_pairs for auto")
+                           "call handeye_cli.analysis.selection.select_pairs for auto")
     raise HandEyeError(f"unknown pair strategy {strategy!r}", "pairs",
                        f"use one of {', '.join(STRATEGIES)} (K, N positive integers)")
 

@@ -44,8 +44,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .. import se3
-from ..solvers import dualquat as dq
+from ..geometry import dualquat as dq
+from ..geometry import se3
 from ..streams import PoseStream
 from .sync import Synced
 

@@ -1,6 +1,6 @@
 """Associate the two pose streams in time: both streams' poses at common stamps, with the timestamp gate.
 
-Conventions (see :mod:`handeye_cli.se3`): each stream holds absolute poses ``T_w_sensor(t)``;
+Conventions (see :mod:`handeye_cli.geometry.se3`): each stream holds absolute poses ``T_w_sensor(t)``;
 stamps are int64 nanoseconds; positions [m]; quaternions x-y-z-w. :class:`Synced` holds both
 streams' poses (positions + quaternions, no 4×4 matrices) at common stamps in a's clock.
 
@@ -32,12 +32,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .. import se3
 from ..errors import ConfigError, DataError
-from ..solvers import dualquat as dq
+from ..geometry import se3
 from ..streams import PoseStream
 
-__all__ = ["Synced", "associate", "bracket", "interpolate", "median_step_ns", "default_max_dt_ns", "rates_text",
+__all__ = ["Synced", "associate", "median_step_ns", "default_max_dt_ns", "rates_text",
            "METHODS"]
 
 METHODS = ("auto", "interpolate", "nearest")
@@ -137,56 +136,6 @@ def rates_text(step_ns: tuple[int, int]) -> str:
     return ", ".join(f"{name} {rate(step)}" for name, step in zip("ab", step_ns, strict=True))
 
 
-def bracket(stamps_ns: Ints, query_ns: Ints) -> tuple[NDArray[np.bool_], Ints, Ints, Floats]:
-    """The samples around each query (int64 ns, the stamps' clock): ``(inside, lo, hi, frac)`` with
-    ``value(query) = (1 - frac) value[lo] + frac value[hi]``, ``hi = lo + 1``, or ``hi = lo`` and
-    ``frac = 0`` at an exact stamp. ``inside`` marks the queries within the stamps' span; the other
-    entries are meaningless for the rest (indices are clipped to the samples)."""
-    n = len(stamps_ns)
-    after = np.searchsorted(stamps_ns, query_ns, side="right")   # first sample strictly after the query
-    lo = np.maximum(after - 1, 0)
-    exact = stamps_ns[lo] == query_ns
-    inside = exact | ((after >= 1) & (after < n))
-    hi = np.where(exact, lo, np.minimum(lo + 1, n - 1))
-    frac = np.where(exact, 0.0, (query_ns - stamps_ns[lo]) / np.maximum(stamps_ns[hi] - stamps_ns[lo], 1))
-    return inside, lo, hi, frac
-
-
-def _lookup(stream: PoseStream, query: Ints, method: str, segment: Ints | None
-            ) -> tuple[NDArray[np.bool_], Ints, Floats, Floats, Ints]:
-    """:func:`interpolate`, also returning the index of a sample used (for its segment).
-
-    With ``segment`` (int64 per stream sample), ``interpolate`` never bridges two segments:
-    such queries count as outside. Returns ``(inside, used, xyz, quat_xyzw, gap_ns)``.
-    """
-    stamps = stream.stamps_ns
-    inside, lo, hi, frac = bracket(stamps, query)
-    if segment is not None and method != "nearest":
-        inside &= segment[lo] == segment[hi]
-    lo, hi, frac, q = lo[inside], hi[inside], frac[inside], query[inside]
-    d_lo, d_hi = q - stamps[lo], stamps[hi] - q
-    if method == "nearest":
-        pick = np.where(d_hi < d_lo, hi, lo)
-        return inside, pick, stream.xyz[pick], stream.quat_xyzw[pick], np.minimum(d_lo, d_hi)
-    xyz = stream.xyz[lo] + frac[:, None] * (stream.xyz[hi] - stream.xyz[lo])
-    return inside, lo, xyz, dq.slerp(stream.quat_xyzw[lo], stream.quat_xyzw[hi], frac), np.maximum(d_lo, d_hi)
-
-
-def interpolate(stream: PoseStream, query_ns: NDArray[np.int64], *, method: str = "interpolate"
-                ) -> tuple[NDArray[np.bool_], Floats, Floats, Ints]:
-    """Sample ``stream`` at the stamps ``query_ns`` (int64 ns, same clock as the stream).
-
-    ``"interpolate"``: linear position and SLERP between the bracketing samples; the gap is the
-    larger distance to the two. ``"nearest"``: the closer sample; the gap is its distance.
-    Queries outside the stream's span are not sampled.
-
-    Returns ``(inside, xyz, quat_xyzw, gap_ns)``: ``inside`` is a bool mask over ``query_ns``; the
-    other arrays hold only the inside queries (positions [m], x-y-z-w quaternions, gaps [ns]).
-    """
-    inside, _, xyz, quat, gap = _lookup(stream, np.asarray(query_ns, dtype=np.int64), method, None)
-    return inside, xyz, quat, gap
-
-
 def _check(a: PoseStream, b: PoseStream, method: str, time_offset_ns: int) -> None:
     if method not in METHODS:
         raise ConfigError(f"unknown association method {method!r}", "--sync", f"use one of {', '.join(METHODS)}")
@@ -237,8 +186,8 @@ def associate(a: PoseStream, b: PoseStream, *, method: str = "auto", max_dt_ns: 
     (ref, seg_ref), (other, seg_other) = ((b, segment_b), (a, segment_a)) if reference == "b" else \
         ((a, segment_a), (b, segment_b))
     gate_ns = default_max_dt_ns(median_step_ns(other)) if max_dt_ns is None else int(max_dt_ns)
-    inside, used, xyz, quat, gap = _lookup(other, ref.stamps_ns, "nearest" if method == "nearest" else "interpolate",
-                                           seg_other)
+    found = other.sample(ref.stamps_ns, "nearest" if method == "nearest" else "interpolate", seg_other)
+    inside, used, xyz, quat, gap = found.inside, found.used, found.xyz, found.quat_xyzw, found.gap_ns
     keep = gap <= gate_ns
     idx = np.flatnonzero(inside)[keep]
     segment = np.zeros(len(idx), dtype=np.int64)

@@ -36,7 +36,7 @@ count) and a refinement on the steps (measured on a 4-minute hand-held rig with 
 1–0.5 Hz, or found no correlation).
 
 Only numpy: the FFTs are numpy's, and the Gaussian, median and minimum filters (below) and Brent's
-minimiser (:mod:`handeye_cli.analysis.minimize`) are those of ``scipy.ndimage`` and
+minimiser (:mod:`handeye_cli.numeric.minimize`) are those of ``scipy.ndimage`` and
 ``scipy.optimize``, which tests keep as their reference; importing scipy would cost a quarter of
 a second of every estimate's start-up.
 """
@@ -47,11 +47,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from ..analysis.minimize import minimize_bounded
 from ..errors import HandEyeError
-from ..solvers import dualquat as dq
+from ..geometry import dualquat as dq
+from ..geometry.lie import nearest_rotation
+from ..numeric.minimize import minimize_bounded
 from ..streams import PoseStream
-from .sync import interpolate
 
 __all__ = ["TimeOffset", "estimate_time_offset", "angular_velocity", "MIN_CORRELATION", "SIGNIFICANT_SIGMA",
            "CONFIRMING_GAIN", "CONFIRMING_MIN_GAIN", "CONFIRMING_COVERAGE"]
@@ -200,7 +200,7 @@ def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float) -> _S
     if len(centres) < 2:
         raise HandEyeError("pose stream too short for its sample rate to estimate a time offset", stream.source,
                            "record more samples while rotating, or give a fixed --time-offset")
-    _, _, q, _ = interpolate(stream, (t0 - half) + np.arange(len(centres) + 2 * steps, dtype=np.int64) * _GRID_NS)
+    q = stream.sample((t0 - half) + np.arange(len(centres) + 2 * steps, dtype=np.int64) * _GRID_NS).quat_xyzw
     omega = dq.to_rotvec(dq.relative(q[:-2 * steps], q[2 * steps:]))     # within [stamps[0], stamps[-1]]: all inside
     omega /= 2 * half / 1e9
     sigma = smooth_ns / _GRID_NS
@@ -326,10 +326,10 @@ class _Refiner:
     def _fit(self, tau_s: float) -> tuple[np.ndarray, np.ndarray, float]:
         """(R, ω_b at the shifted times, J(τ)) with R the best rotation in closed form (Kabsch)."""
         wb = _interp(self.ta + tau_s, self.tb, self.wb)
-        u, s, vt = np.linalg.svd(self.wa.T @ wb)
-        d = 1.0 if np.linalg.det(u @ vt) >= 0 else -1.0
-        total = np.sum(self.wa ** 2) + np.sum(wb ** 2) - 2 * (s[0] + s[1] + d * s[2])
-        return u @ np.diag([1.0, 1.0, d]) @ vt, wb, float(total) / len(self.ta)
+        H = self.wa.T @ wb
+        R = nearest_rotation(H)
+        total = np.sum(self.wa ** 2) + np.sum(wb ** 2) - 2 * np.sum(R * H)      # tr(Rᵀ H) = s₁ + s₂ ± s₃
+        return R, wb, float(total) / len(self.ta)
 
     def cost(self, tau_s: float) -> float:
         """Mean squared residual per evaluation time [rad²/s²] at offset ``base + tau_s``."""
@@ -380,7 +380,8 @@ class _StepRefiner:
         """(kept steps k inside the faster stream's span, residuals ``r_fast − R r_slow``) at ``offset_ns``,
         or None when fewer than a third of the kept steps (or 10) are inside."""
         t = self.stamps + int(round(-offset_ns if self.slow_is_b else offset_ns))    # in the fast stream's clock
-        inside, _, quat, _ = interpolate(self.fast, t)
+        at = self.fast.sample(t)
+        inside, quat = at.inside, at.quat_xyzw
         both = inside[:-1] & inside[1:] & self.keep
         if both.sum() < max(10, self.keep.sum() / 3):
             return None
@@ -388,9 +389,7 @@ class _StepRefiner:
         q[inside] = quat
         k = np.flatnonzero(both)
         r_fast = dq.to_rotvec(dq.relative(q[k], q[k + 1]))
-        u, _, vt = np.linalg.svd(r_fast.T @ self.r_slow[k])
-        d = 1.0 if np.linalg.det(u @ vt) >= 0 else -1.0
-        return k, r_fast - self.r_slow[k] @ (u @ np.diag([1.0, 1.0, d]) @ vt).T
+        return k, r_fast - self.r_slow[k] @ nearest_rotation(r_fast.T @ self.r_slow[k]).T
 
     def cost(self, offset_ns: float) -> float:
         """Mean squared residual [rad²] (``inf`` without enough overlap)."""
@@ -423,7 +422,8 @@ class _StepRefiner:
         third of them lie inside the faster stream's span)."""
         sign = -1 if self.slow_is_b else 1
         t = self.stamps[np.r_[steps, steps + 1]][None, :] + np.round(sign * offsets).astype(np.int64)[:, None]
-        inside, _, quat, _ = interpolate(self.fast, t.ravel())
+        at = self.fast.sample(t.ravel())
+        inside, quat = at.inside, at.quat_xyzw
         q = np.zeros((t.size, 4))
         q[:, 3] = 1.0
         q[inside] = quat
@@ -431,9 +431,7 @@ class _StepRefiner:
         ok = np.asarray(inside.reshape(len(offsets), 2, len(steps)).all(axis=1))
         r_fast = dq.to_rotvec(dq.relative(pairs[:, 0], pairs[:, 1]))            # (offsets, steps, 3)
         r_slow = np.where(ok[..., None], self.r_slow[steps][None], 0.0)
-        u, _, vt = np.linalg.svd(np.einsum("gsi,gsj->gij", r_fast, r_slow))
-        d = np.where(np.linalg.det(u @ vt) >= 0, 1.0, -1.0)
-        R = u @ (np.eye(3)[None] * np.stack([np.ones_like(d), np.ones_like(d), d], axis=1)[:, None, :]) @ vt
+        R = nearest_rotation(np.einsum("gsi,gsj->gij", r_fast, r_slow))
         resid = np.sum((r_fast - np.einsum("gij,gsj->gsi", R, r_slow)) ** 2, axis=2)
         enough = ok.sum(axis=1) >= len(steps) / 3
         cost = np.full(len(offsets), np.inf)

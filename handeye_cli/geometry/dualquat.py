@@ -12,7 +12,7 @@ and :func:`mean` compute what ``scipy.spatial.transform.Rotation``'s ``*``, ``in
 ``as_rotvec``, ``from_rotvec``, ``Slerp``, ``as_matrix``, ``from_matrix`` and ``mean`` do (the
 same results within 1e-12, the tested reference), several times faster on rows of quaternions:
 each is a few elementwise passes over the components, with no per-call object. Rotation angles of
-matrices are :func:`handeye_cli.se3.rotation_angle`'s. They also keep ``scipy`` out of ``handeye
+matrices are :func:`handeye_cli.geometry.se3.rotation_angle`'s. They also keep ``scipy`` out of ``handeye
 calibrate``'s start-up: importing ``scipy.spatial.transform`` (with the ``scipy.linalg`` and
 ``scipy.sparse`` it pulls in) costs 0.3 s of every run, three times numpy's own import.
 """

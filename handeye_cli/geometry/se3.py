@@ -12,7 +12,7 @@ All functions accept a single transform of shape (4, 4) or a stack of shape (N, 
 Examples
 --------
 >>> import numpy as np
->>> from handeye_cli import se3
+>>> from handeye_cli.geometry import se3
 >>> half = np.sqrt(0.5)
 >>> T_a_b = se3.from_xyz_quat(np.array([0.1, 0.0, 0.0]), np.array([0.0, 0.0, half, half]))  # 90° about z
 >>> p_b = np.array([1.0, 0.0, 0.0, 1.0])      # 1 m along b's x axis (homogeneous)
@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._typing import BoolArray, FloatArray
-from .solvers.dualquat import from_matrix, to_matrix
+from .._typing import BoolArray, FloatArray
+from .dualquat import from_matrix, to_matrix
 
 __all__ = [
     "from_xyz_quat",
@@ -45,7 +45,7 @@ def from_xyz_quat(xyz: FloatArray, quat_xyzw: FloatArray) -> FloatArray:
     Examples
     --------
     >>> import numpy as np
-    >>> from handeye_cli import se3
+    >>> from handeye_cli.geometry import se3
     >>> se3.from_xyz_quat(np.array([1.0, 2.0, 3.0]), np.array([0.0, 0.0, 0.0, 2.0]))
     array([[1., 0., 0., 1.],
            [0., 1., 0., 2.],
@@ -71,7 +71,7 @@ def to_xyz_quat(T: FloatArray) -> tuple[FloatArray, FloatArray]:
     Examples
     --------
     >>> import numpy as np
-    >>> from handeye_cli import se3
+    >>> from handeye_cli.geometry import se3
     >>> T = se3.from_xyz_quat(np.array([0.5, 0.0, 0.0]), np.array([-0.1, -0.5, -0.5, -0.7]))
     >>> xyz, q = se3.to_xyz_quat(T)
     >>> xyz.tolist(), q.round(9).tolist()      # the sign is fixed so that w ≥ 0
@@ -91,7 +91,7 @@ def inverse(T: FloatArray) -> FloatArray:
     Examples
     --------
     >>> import numpy as np
-    >>> from handeye_cli import se3
+    >>> from handeye_cli.geometry import se3
     >>> T_a_b = se3.from_xyz_quat(np.array([0.1, 0.2, 0.3]), np.array([0.1, 0.2, 0.3, 0.9]))
     >>> T_b_a = se3.inverse(T_a_b)
     >>> bool(np.allclose(T_b_a @ T_a_b, np.eye(4)))
@@ -116,7 +116,7 @@ def relative(T_w_i: FloatArray, T_w_j: FloatArray) -> FloatArray:
     its own frame at ``t_i`` it moved 2 m along its x axis.
 
     >>> import numpy as np
-    >>> from handeye_cli import se3
+    >>> from handeye_cli.geometry import se3
     >>> half = np.sqrt(0.5)
     >>> T_w_i = se3.from_xyz_quat(np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, half, half]))
     >>> T_w_j = se3.from_xyz_quat(np.array([1.0, 2.0, 0.0]), np.array([0.0, 0.0, half, half]))
@@ -134,7 +134,7 @@ def rotation_angle(T_or_R: FloatArray) -> FloatArray | np.float64:
     Examples
     --------
     >>> import numpy as np
-    >>> from handeye_cli import se3
+    >>> from handeye_cli.geometry import se3
     >>> T = se3.from_xyz_quat(np.zeros(3), np.array([0.0, np.sin(0.25), 0.0, np.cos(0.25)]))   # 0.5 rad about y
     >>> round(float(se3.rotation_angle(T)), 12)
     0.5
@@ -186,7 +186,7 @@ def is_rotation(R: FloatArray, tol: float = 1e-6) -> BoolArray | np.bool_:
     Examples
     --------
     >>> import numpy as np
-    >>> from handeye_cli import se3
+    >>> from handeye_cli.geometry import se3
     >>> se3.is_rotation(np.stack([np.eye(3), 2 * np.eye(3), -np.eye(3)])).tolist()   # scaled; reflection
     [True, False, False]
     """

@@ -20,6 +20,9 @@ up to the longest segment), each stride a *level*. Per round:
    mostly the absolute floor (short rotating spans when drift dominates, all long spread spans when
    it does not: pairs of many spans average each absolute pose's noise best); the cap is shared
    between them, and ``X`` is solved again with the weights and α.
+6. after the last round, a drifting model's α is lowered where the cluster-robust sandwich (blocks
+   of time) predicts smaller errors: :func:`~handeye_cli.analysis.alpha.blocked_alpha` (shared
+   drift that tilts the rotation; issue 19's VIO against motion capture).
 
 Rounds repeat until the kept levels stop changing (at most ``rounds``). Everything is linear in
 the number of samples: no candidate pair is enumerated beyond the probes and the kept pairs.
@@ -32,14 +35,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .. import se3
-from ..analysis.covariance import tangent_basis
-from ..analysis.noise_model import NoiseModel, PairFeatures, cost_residuals, fit_noise_model, pair_features
+from ..geometry import dualquat as dq
+from ..geometry import se3
 from ..solvers import Prior, solve
-from ..solvers import dualquat as dq
 from ..solvers.problem import split_forms
-from .pairs import Pairs
-from .sync import Synced
+from ..stages.pairs import Pairs
+from ..stages.sync import Synced
+from .alpha import blocked_alpha, time_blocks
+from .covariance import tangent_basis
+from .noise_model import NoiseModel, PairFeatures, cost_residuals, fit_noise_model, pair_features
 
 __all__ = ["Selection", "select_pairs", "ladder"]
 
@@ -266,5 +270,8 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
         weights, alpha = _ml_weights(model, fk)
         weights = weights / (1.0 + model.drift_share(fk) * np.clip(crowding - 1.0, 0.0, None))
         X = solve(pairs.A, pairs.B, method=method, alpha=alpha, prior=prior, weights=weights).matrix
+    if model.kind == "drifting":       # errors shared across time: the ML α is an upper bound (analysis.alpha)
+        alpha = blocked_alpha(pairs.A, pairs.B, alpha, time_blocks(pairs.t_i_ns, pairs.t_j_ns), prior=prior,
+                              weights=weights).alpha
     return Selection(pairs, weights / weights.mean(), alpha, model, tuple(int(k) for k in pr.strides[kept]), done,
                      int(pr.available[kept].sum()))
