@@ -182,8 +182,8 @@ def test_joint_never_loses_to_a_pairwise_chain(mixed_rigs) -> None:
     over the 20 rigs: exact Wilcoxon signed-rank on the per-rig differences of the errors, p > 0.01
     (a per-rig or RMS threshold would let sampling noise decide: cam1's direct pair holds nearly all
     its information, its RMS ratios are 1.006 / 0.93 here, 0.97 / 0.98 with other gaps). Measured
-    (RMS joint ÷ best chain, p): cam1 1.01 (0.66) / 0.93 (0.59); the scaled lidar 1.12 (0.20) / 1.09
-    (0.032): it is named (test below) and moves nobody, and its scale error is in every chain; the
+    (RMS joint ÷ best chain, p): cam1 1.01 (0.66) / 0.93 (0.59); the scaled lidar 1.07 (0.34) / 1.09
+    (0.035): it is named (test below) and moves nobody, and its scale error is in every chain; the
     drifting wheels 0.69 (1.0) / 0.51 (1.0).
 
     Why it holds: the joint estimate is the generalised least squares of the pairwise estimates, and
