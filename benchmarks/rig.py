@@ -5,20 +5,23 @@
    15–21 s of 30 s); with those gaps and drifting lidar and wheels odometry. Per sensor: RMS error
    of the joint estimate, of the direct pairwise result ``T_ref_k`` and of the best chain of
    pairwise results (chosen in hindsight: the chain with the smallest RMS, separately for rotation
-   and translation), rotation [deg] / translation [mm], the ratios joint / best chain, and the
-   RMS error the joint's noise model predicts (root of the mean predicted variance).
+   and translation), rotation [deg] / translation [mm], the ratios joint / best chain with the
+   p-value of the paired test that the joint is worse than that chain (exact one-sided Wilcoxon
+   signed-rank on the per-seed error differences, as tests/test_rig.py), and the RMS error the
+   joint's noise model predicts (root of the mean predicted variance).
 2. Bad-stream naming: over the same seeds, with gaps (and drift): how often a clean rig names a
    stream, and how often a rig with one bad stream (cam1, lidar or wheels by turn; translations
    × 0.8, its given clock offset 30 ms wrong, or its mount slipping 1° / 5 mm mid-log: see
    ``handeye_cli.rig.simulate.with_fault``) names the right one; the χ² of the pairwise estimates
    (median p-value of the clean rigs).
 3. Time: a 4-stream, ``--minutes``-minute MCAP (PoseStamped ×3 + TF), auto clock offsets:
-   ``handeye rig`` (the log read once, 6 pairs, joint) against 3 separate ``calibrate`` runs of the
-   reference against each sensor (the log read 3 times, 3 pairs) — in one warm process (imports
-   done first; the reads alone too; the rig's stages: clock offsets, pairwise solves, joint), and
-   as command lines (what a user runs: each ``handeye`` process starts, imports and reads once).
+   ``handeye rig`` (the log read once, 6 pairs, joint) against one ``calibrate`` of two of its
+   streams (cam0-cam1; the ratio rig / one calibrate) and 3 separate ``calibrate`` runs of the
+   reference against each sensor — in one warm process (imports done first; the reads alone too;
+   the rig's stages: clock offsets, pairwise solves, joint), and as command lines (what a user
+   runs: each ``handeye`` process starts, imports and reads once).
 
-    python benchmarks/rig.py [--seeds 12] [--minutes 10] [--skip-accuracy] [--skip-detection] [--skip-time]
+    python benchmarks/rig.py [--seeds 20] [--minutes 10] [--skip-accuracy] [--skip-detection] [--skip-time]
 """
 from __future__ import annotations
 
@@ -76,6 +79,8 @@ def _rms(values: list[np.ndarray]) -> np.ndarray:
 
 
 def accuracy(seeds: int, gaps: bool, drift: bool) -> None:
+    from test_rig import signed_rank_p
+
     from handeye_cli.rig import RigOptions, calibrate_rig
     from handeye_cli.rig.simulate import simulate_streams
 
@@ -101,10 +106,11 @@ def accuracy(seeds: int, gaps: bool, drift: bool) -> None:
         pred = np.sqrt(np.mean(predicted[k], axis=0))
         best_rms = np.array([mine[best[0]][0], mine[best[1]][1]])
         ratio = j / best_rms
+        p = [signed_rank_p(np.array(joint[k])[:, c] - np.array(chain[(k, best[c])])[:, c]) for c in (0, 1)]
         print(f"  {name:<7} joint {j[0]:.4f}° / {j[1]:.3f} mm (model {pred[0]:.4f}° / {pred[1]:.3f} mm)   "
               f"direct {mine[(0, k)][0]:.4f}° / {mine[(0, k)][1]:.3f} mm   best chain "
               f"{'→'.join(map(str, best[0]))} {best_rms[0]:.4f}° / {'→'.join(map(str, best[1]))} {best_rms[1]:.3f} mm"
-              f"   joint/best {ratio[0]:.3f} / {ratio[1]:.3f}")
+              f"   joint/best {ratio[0]:.3f} / {ratio[1]:.3f} (p joint worse {p[0]:.2g} / {p[1]:.2g})")
 
 
 def detection(seeds: int) -> None:
@@ -188,20 +194,25 @@ def timing(minutes: float) -> None:
         for spec in specs[1:]:
             calibrate_files(log, topic_a="/cam0/pose", topic_b=spec.topic, frames_b=spec.frames, time_offset="auto")
         t_pairs = time.perf_counter() - t0
-        cli_rig = _cli(["rig", str(log), *[a for s in STREAMS for a in ("--stream", s)], "-q", "-o",
-                        str(Path(d) / "rig.yaml")])
-        cli_pairs = sum(_cli(["calibrate", str(log), "--topic-a", "/cam0/pose",
-                              *(["--topic-b", spec.topic] if spec.topic else ["--frames-b", *spec.frames]),
-                              "--time-offset", "auto", "-q", "-o", str(Path(d) / "pair.yaml")]) for spec in specs[1:])
+        t0 = time.perf_counter()
+        calibrate_files(log, topic_a="/cam0/pose", topic_b="/cam1/pose", time_offset="auto")
+        t_one = time.perf_counter() - t0
+        out = ["-q", "-o", str(Path(d) / "out.yaml")]
+        cli_rig = _cli(["rig", str(log), *[a for s in STREAMS for a in ("--stream", s)], *out])
+        cli_pairs = [_cli(["calibrate", str(log), "--topic-a", "/cam0/pose",
+                           *(["--topic-b", spec.topic] if spec.topic else ["--frames-b", *spec.frames]),
+                           "--time-offset", "auto", *out]) for spec in specs[1:]]
         size = log.stat().st_size / 1e6
     print(f"\ntime, {minutes:g}-minute 4-stream MCAP ({size:.1f} MB, {sum(map(len, streams.values()))} poses), "
           "auto clock offsets, one warm process:")
     print(f"  read:      one pass of all 4 streams {t_read_one:.2f} s   vs 3 passes of 2 streams {t_read_three:.2f} s")
-    print(f"  calibrate: handeye rig (6 pairs, joint) {t_rig:.2f} s   vs 3 pairwise calibrate runs {t_pairs:.2f} s")
+    print(f"  calibrate: handeye rig (6 pairs, joint) {t_rig:.2f} s   vs one calibrate cam0-cam1 {t_one:.2f} s: "
+          f"rig / one calibrate {t_rig / t_one:.2f}   (3 pairwise calibrate runs {t_pairs:.2f} s)")
     print(f"  rig stages: 3 clock offsets {t_offsets:.2f} s, 6 pairwise solves {t_edges:.2f} s, "
           f"read + joint + rest {max(t_rig - t_offsets - t_edges, 0.0):.2f} s")
-    print(f"  command lines: handeye rig {cli_rig:.2f} s   vs 3 × handeye calibrate --time-offset auto "
-          f"{cli_pairs:.2f} s")
+    print(f"  command lines: handeye rig {cli_rig:.2f} s   vs handeye calibrate cam0-cam1 --time-offset auto "
+          f"{cli_pairs[0]:.2f} s: rig / one calibrate {cli_rig / cli_pairs[0]:.2f}   "
+          f"(3 of them {sum(cli_pairs):.2f} s)")
     print("  joint errors:", ", ".join(f"{n} {errors(res.matrices[k], sims[k].T_ref_k)[0]:.3f}° / "
                                        f"{errors(res.matrices[k], sims[k].T_ref_k)[1]:.2f} mm"
                                        for k, n in enumerate(res.names) if k))
@@ -209,7 +220,7 @@ def timing(minutes: float) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--seeds", type=int, default=12)
+    ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--skip-accuracy", action="store_true")
     ap.add_argument("--skip-detection", action="store_true")

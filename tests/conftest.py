@@ -1,6 +1,14 @@
 """Fixtures shared by the tests (helper functions are in ``_util.py``)."""
 from __future__ import annotations
 
+import os
+
+# One BLAS thread, as the command line runs (handeye_cli/cli/__init__.py): on a busy 2-core machine
+# OpenBLAS's threads contend with each other and with the test's own work (the rig tests ran 3-6x slower).
+# Set before numpy is first imported, here, where pytest loads the tests' first module.
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
+
 import numpy as np
 import pytest
 from _util import write_tum

@@ -1,12 +1,14 @@
 """Whole-rig calibration: every sensor's ``T_ref_k`` from one log, jointly consistent.
 
 Pipeline: read all streams (one pass per log, :mod:`.read`) → per-stream clock offsets and
-inversion → one optimal calibration per pair of streams (:mod:`.pairwise`) → graph
-streams' noise, each pair's relative drift (its bias removed where significant) and the pairwise
-estimates' joint covariance (:mod:`.noise`) → graph synchronisation (chordal rotation averaging,
+inversion → one optimal calibration per pair of streams (:mod:`.pairwise`: ``calibrate``'s
+stages and default pair selection) → the streams' noise, each pair's relative drift (its bias
+removed where significant, and bounded: :func:`.noise.bias_bound`) and the pairwise estimates'
+joint covariance (:mod:`.noise`) → graph synchronisation (chordal rotation averaging,
 translation least squares, :mod:`.graph`) → the χ² test of the pairwise estimates against each
 other, naming the stream that spoils it (:func:`.joint.consistency`) → the generalised least
-squares of all pairwise estimates (:mod:`.joint`; a named stream informs no other sensor) → the
+squares of all pairwise estimates under that covariance plus the bias bound (:mod:`.joint`; a
+named stream informs no other sensor) → the
 block bootstrap → :class:`RigResult`.
 
 Frames: stream k holds ``T_wk_k(t)``; ``T_ref_k`` is the pose of sensor k in the reference
@@ -26,7 +28,7 @@ from ..options import Options
 from ..streams import PoseStream
 from .graph import loop_closures, synchronise
 from .joint import CONSISTENCY_P_VALUE, Consistency, JointProblem, Motions, bootstrap_rig, consistency, refine
-from .noise import drift_corrections, edge_covariance, edge_noise, stream_variances
+from .noise import bias_bound, drift_corrections, edge_covariance, edge_noise, stream_variances
 from .pairwise import ClockOffset, Edge, clock_offsets, solve_edges
 from .read import StreamSpec, parse_stream, read_rig
 from .result import RigResult, transform_entry
@@ -134,7 +136,7 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
     steps = np.stack([c.step for c in corrections])
     X = steps @ np.stack([e.matrix for e in edges])
     problem = JointProblem(n, ref, pairs, X, edge_covariance(pairs, noise, variances, corrections),
-                           np.stack([e.forms for e in edges]), steps)
+                           np.stack([e.forms for e in edges]), steps, bias_bound(corrections))
     rot_std = problem.edge_std()[:, 0]
     T0 = synchronise(n, pairs, X, np.square(rot_std.min() / np.maximum(rot_std, 1e-300)), ref)
     cons = consistency(problem, T0)

@@ -25,8 +25,8 @@ Gaussian least squares). When the whole rig's J is improbable (p < :data:`CONSIS
 the sensor whose removal lowers it most improbably — and itself improbably — is the suspect.
 
 The unknowns are perturbations ``T_ref_k Exp(δ_k)`` (rotation vector [rad], right; translation
-[m], added in the reference frame) of every non-reference sensor, solved by Levenberg–Marquardt
-from the graph synchronisation's estimate. :func:`bootstrap_rig` resamples time blocks shared by
+[m], added in the reference frame) of every non-reference sensor, solved by Gauss–Newton
+(first-order Jacobian) from the graph synchronisation's estimate. :func:`bootstrap_rig` resamples time blocks shared by
 all pairs (a block's count multiplies every motion pair that starts in it), re-solves each pair on
 its re-weighted cost (8) and the rig from those estimates.
 """
@@ -37,14 +37,13 @@ from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 from scipy.special import chdtrc, gammaln  # the χ² survival function: scipy.stats costs 1 s to import
 
 from ..analysis.covariance import constrained_hessian
 from ..geometry import dualquat as dq
 from ..geometry import se3
 from ..geometry.lie import log_errors
+from ..solvers.classical import _skew
 from ..solvers.problem import split_forms
 from .graph import connected
 
@@ -55,9 +54,10 @@ Array = NDArray[np.float64]
 Motions = tuple[Array, Array, Array, Array, float]   # A, B (N, 4, 4); start stamps [ns] (N,); pair weights (N,); α
 _EIGEN_FLOOR = 1e-12      # the smallest eigenvalue of C kept, relative to the largest
 # The rig is called inconsistent, and a stream named, when the χ² is this improbable under the noise
-# model. Measured on 20 clean simulated rigs of each kind (seeds 0–19; tests/test_rig.py checks the
-# gappy ones): with tracking gaps and drift 1 is called inconsistent (2 at 0.01), with gaps 0, with
-# neither 0, with drift 0; the noise model's residual errors make the tail heavier than a χ²'s.
+# model. Measured on 20 clean simulated rigs of each kind (seeds 0–19): with tracking gaps and drift
+# 1 is called inconsistent (2 at 0.01), with gaps 0, with neither 0, with drift 0; the noise model's
+# residual errors make the tail heavier than a χ²'s. tests/test_rig.py checks the rest of its rigs
+# (gaps, drifting wheels) without their bad stream: 2 of 20 below it.
 CONSISTENCY_P_VALUE = 1e-3
 
 
@@ -84,8 +84,10 @@ class JointProblem:
     perturbations, rotation [rad] and translation [m] per edge), each pair's cost (8) as
     ``forms`` (E, 2, 8, 8) (rotational, dual; ``[q'; q]`` order), the ``reference`` and ``n`` sensors.
     ``steps`` (E, 4, 4): the drift corrections applied, ``estimates = steps · pairwise-only``
-    (identity where none). ``excluded``: a sensor whose pairs do not inform the others'
-    extrinsics (a named bad stream)."""
+    (identity where none). ``bias`` (6E, 6E): the bound of the bias left in the corrected estimates
+    (:func:`~handeye_cli.rig.noise.bias_bound`), added to the covariance where the pairs are combined
+    (:func:`refine`), not where they are tested against each other (:func:`consistency`, :meth:`cost`).
+    ``excluded``: a sensor whose pairs do not inform the others' extrinsics (a named bad stream)."""
 
     n: int
     reference: int
@@ -94,12 +96,18 @@ class JointProblem:
     covariance: Array
     forms: Array
     steps: Array
+    bias: Array
     excluded: int | None = None
 
     @cached_property
     def whitening(self) -> Array:
         """``W`` with ``WᵀW = C⁻¹`` (see :func:`whitening`)."""
         return whitening(self.covariance)
+
+    @cached_property
+    def combining(self) -> Array:
+        """``W`` with ``WᵀW = (C + bias)⁻¹``: how the pairs are weighed in the combination."""
+        return whitening(self.covariance + self.bias)
 
     def edge_std(self) -> Array:
         """(E, 2) predicted RMS error of each pairwise-only estimate: rotation [rad], translation [m]."""
@@ -132,25 +140,72 @@ class JointProblem:
 def _perturbed(T0: Array, free: NDArray[np.bool_], p: Array) -> Array:
     T = T0.copy()
     d = p.reshape(-1, 6)
-    T[free, :3, :3] = T0[free, :3, :3] @ Rotation.from_rotvec(d[:, :3]).as_matrix()
+    T[free, :3, :3] = T0[free, :3, :3] @ dq.to_matrix(dq.from_rotvec(d[:, :3]))
     T[free, :3, 3] = T0[free, :3, 3] + d[:, 3:]
     return np.asarray(T, dtype=np.float64)
 
 
+def _jacobian(problem: JointProblem, T: Array, free: NDArray[np.bool_], edges: NDArray[np.bool_],
+              X: Array) -> Array:
+    """``∂z/∂p`` (6E', 6F) of the kept edges' errors at the rig ``T`` for the free sensors' perturbations
+    ``p`` (:func:`_perturbed`), to first order in z: with ``G = R_jᵀ R_k``, ``s = R̂ᵀ t̂`` and ``u`` the
+    translation of ``T_j⁻¹ T_k X̂⁻¹``, the rotation moves by ``-ω_j + R̂ ω_k`` and the translation by
+    ``[u]× ω_j - R_jᵀ v_j + G [s]× ω_k + R_jᵀ v_k``."""
+    column = np.cumsum(free) - 1
+    kept = [(p, Xe) for p, Xe, e in zip(problem.pairs, X, edges, strict=True) if e]
+    out = np.zeros((len(kept), 6, 6 * int(free.sum())))
+    eye = np.eye(3)
+    for r, ((j, k), Xe) in enumerate(kept):
+        Rj_t, G = T[j, :3, :3].T, T[j, :3, :3].T @ T[k, :3, :3]
+        s = Xe[:3, :3].T @ Xe[:3, 3]
+        u = Rj_t @ (T[k, :3, 3] - T[j, :3, 3]) - G @ s
+        if free[j]:
+            c = 6 * column[j]
+            out[r, :3, c:c + 3], out[r, 3:, c:c + 3], out[r, 3:, c + 3:c + 6] = -eye, _skew(u), -Rj_t
+        if free[k]:
+            c = 6 * column[k]
+            out[r, :3, c:c + 3], out[r, 3:, c:c + 3], out[r, 3:, c + 3:c + 6] = Xe[:3, :3], G @ _skew(s), Rj_t
+    return out.reshape(6 * len(kept), -1)
+
+
+_ITERATIONS = 30        # Gauss–Newton steps at most (from the graph synchronisation: 2–4 suffice)
+
+
 def _solve(problem: JointProblem, T0: Array, free: NDArray[np.bool_], edges: NDArray[np.bool_],
-           estimates: Array | None) -> tuple[Array, Array]:
-    """Minimise J over the ``free`` sensors using the ``edges`` kept; returns the rig and the
-    covariance (6F, 6F) of the free sensors' perturbations."""
+           estimates: Array | None, combine: bool = False) -> tuple[Array, Array]:
+    """Minimise J over the ``free`` sensors using the ``edges`` kept — weighed by the noise only, or
+    with ``combine`` by the noise and the bias bound — and return the rig and the covariance (6F, 6F)
+    of the free sensors' perturbations. Gauss–Newton on the whitened errors with the first-order
+    Jacobian (:func:`_jacobian`), a step halved while it raises the cost."""
     keep = np.repeat(edges, 6)
-    W = problem.whitening if edges.all() else whitening(problem.covariance[np.ix_(keep, keep)])
+    if edges.all():
+        W = problem.combining if combine else problem.whitening
+    else:
+        C = problem.covariance + problem.bias if combine else problem.covariance
+        W = whitening(C[np.ix_(keep, keep)])
     X = problem.estimates if estimates is None else estimates
 
-    def residuals(p: Array) -> Array:
-        return np.asarray(W @ problem.errors(_perturbed(T0, free, p), X)[edges].ravel(), dtype=np.float64)
+    def residuals(T: Array) -> Array:
+        return np.asarray(W @ problem.errors(T, X)[edges].ravel(), dtype=np.float64)
 
-    r = least_squares(residuals, np.zeros(6 * int(free.sum())), method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
-    J = np.asarray(r.jac, dtype=np.float64)
-    return _perturbed(T0, free, r.x), np.asarray(np.linalg.pinv(J.T @ J, hermitian=True), dtype=np.float64)
+    T, r = T0, residuals(T0)
+    J = W @ _jacobian(problem, T, free, edges, X)
+    for _ in range(_ITERATIONS):
+        step = np.asarray(np.linalg.lstsq(J, -r, rcond=None)[0], dtype=np.float64)
+        cost = float(r @ r)
+        for _ in range(30):
+            T_new = _perturbed(T, free, step)
+            r_new = residuals(T_new)
+            if float(r_new @ r_new) <= cost or not step.any():
+                break
+            step = 0.5 * step
+        else:
+            break
+        T, r = T_new, r_new
+        J = W @ _jacobian(problem, T, free, edges, X)
+        if np.abs(step).max() < 1e-13:
+            break
+    return T, np.asarray(np.linalg.pinv(J.T @ J, hermitian=True), dtype=np.float64)
 
 
 def refine(problem: JointProblem, T0: Array, estimates: Array | None = None) -> tuple[Array, Array]:
@@ -172,10 +227,10 @@ def refine(problem: JointProblem, T0: Array, estimates: Array | None = None) -> 
         others = free & (np.arange(n) != bad)
         kept = [p for p, e in zip(problem.pairs, edges, strict=True) if e]
         if edges.any() and connected(n, kept, ref)[others].all():
-            T0, c = _solve(problem, T0, others, edges, estimates)
+            T0, c = _solve(problem, T0, others, edges, estimates, combine=True)
             cov[others] = _blocks(c)
             free, edges = np.arange(n) == bad, ~edges
-    T, c = _solve(problem, T0, free, edges, estimates)
+    T, c = _solve(problem, T0, free, edges, estimates, combine=True)
     cov[free] = _blocks(c)
     return T, cov
 
@@ -267,7 +322,7 @@ def resolve_pairs(forms: Array, X: Array) -> Array:
         D, H, Qx = constrained_hessian(Qe[np.ix_(order, order)], q[e], qd[e])
         delta = -np.linalg.lstsq(H, D.T @ Qx, rcond=None)[0]
         step = np.eye(4)
-        step[:3, :3] = Rotation.from_rotvec(delta[:3]).as_matrix()
+        step[:3, :3] = dq.to_matrix(dq.from_rotvec(delta[:3]))
         step[:3, 3] = delta[3:]
         out[e] = step @ X[e]
     return out
@@ -311,7 +366,7 @@ def bootstrap_rig(problem: JointProblem, T_hat: Array, motions: list[Motions], r
     for r in range(replicates):
         X = problem.steps @ resolve_pairs(np.stack([f[r] for f in forms]), start)
         T, _ = refine(problem, T_hat, X)
-        rot[r] = Rotation.from_matrix(T[:, :3, :3] @ np.swapaxes(T_hat[:, :3, :3], 1, 2)).as_rotvec(degrees=True)
+        rot[r] = np.rad2deg(dq.to_rotvec(dq.from_matrix(T[:, :3, :3] @ np.swapaxes(T_hat[:, :3, :3], 1, 2))))
         trans[r] = T[:, :3, 3] - T_hat[:, :3, 3]
     pct = [2.5, 97.5]
     return RigUncertainty(rot.std(axis=0, ddof=1), trans.std(axis=0, ddof=1),

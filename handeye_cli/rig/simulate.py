@@ -16,8 +16,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
+from ..geometry import dualquat as dq
 from ..simulation import _smooth_trajectory, perturb, random_transform
 from ..streams import PoseStream
 
@@ -56,7 +56,7 @@ def _stamps(rate: float, duration_s: float, rng: np.random.Generator) -> NDArray
 def _drift(t: NDArray[np.float64], twist: tuple[float, ...]) -> NDArray[np.float64]:
     """``Exp(t ξ)`` for a constant twist (first-order: rotation and translation grow linearly)."""
     D = np.tile(np.eye(4), (len(t), 1, 1))
-    D[:, :3, :3] = Rotation.from_rotvec(t[:, None] * np.asarray(twist[:3])).as_matrix()
+    D[:, :3, :3] = dq.to_matrix(dq.from_rotvec(t[:, None] * np.asarray(twist[:3])))
     D[:, :3, 3] = t[:, None] * np.asarray(twist[3:])
     return D
 
@@ -66,10 +66,10 @@ def _mount(sensor: SimSensor, t: NDArray[np.float64]) -> NDArray[np.float64]:
     M = np.tile(sensor.T_ref_k, (len(t), 1, 1))
     if sensor.wobble_deg:
         angle = np.deg2rad(sensor.wobble_deg) * np.sin(2 * np.pi * t / 7.0)
-        M[:, :3, :3] = M[:, :3, :3] @ Rotation.from_rotvec(angle[:, None] * np.array([0.6, 0.0, 0.8])).as_matrix()
+        M[:, :3, :3] = M[:, :3, :3] @ dq.to_matrix(dq.from_rotvec(angle[:, None] * np.array([0.6, 0.0, 0.8])))
     if any(sensor.slip):
         slip = np.eye(4)
-        slip[:3, :3] = Rotation.from_rotvec(sensor.slip[:3]).as_matrix()
+        slip[:3, :3] = dq.to_matrix(dq.from_rotvec(np.asarray(sensor.slip[:3])))
         slip[:3, 3] = sensor.slip[3:]
         M[t >= sensor.slip_s] = M[t >= sensor.slip_s] @ slip
     return M
@@ -98,18 +98,19 @@ def simulate_streams(sensors: list[SimSensor], *, duration_s: float = 60.0, seed
     return out
 
 
-def with_fault(sensors: list[SimSensor], k: int, fault: str, rng: np.random.Generator
+def with_fault(sensors: list[SimSensor], k: int, fault: str, rng: np.random.Generator, *, slip_s: float = 15.0
                ) -> tuple[list[SimSensor], float]:
     """Sensor k made bad, as the rig tests and benchmark make it: ``scale`` (translations × 0.8),
     ``offset`` (the clock offset the user gives is 30 ms wrong: returned as the error [s] to add to
     it; the sensor is unchanged) or ``slip`` (the mount turns 1° about a random axis and moves 5 mm
-    in a random direction at 15 s). Returns the sensors and that clock-offset error (0 but for ``offset``)."""
+    in a random direction at ``slip_s`` seconds). Returns the sensors and that clock-offset error (0
+    but for ``offset``)."""
     out = list(sensors)
     if fault == "scale":
         out[k] = replace(out[k], scale=0.8)
     elif fault == "slip":
         axis, shift = (v / np.linalg.norm(v) for v in rng.normal(size=(2, 3)))
-        out[k] = replace(out[k], slip=(*(axis * np.deg2rad(1.0)), *(shift * 0.005)), slip_s=15.0)
+        out[k] = replace(out[k], slip=(*(axis * np.deg2rad(1.0)), *(shift * 0.005)), slip_s=slip_s)
     elif fault != "offset":
         raise ValueError(f"unknown fault {fault!r}; expected one of {FAULTS}")
     return out, 0.03 if fault == "offset" else 0.0
