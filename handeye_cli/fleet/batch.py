@@ -113,7 +113,7 @@ class BatchSummary:
             lines.append(f"  {'DRIFT' if v['drift'] else 'worst'}: {r['input']}: {v['rotation_deg']:.3f}° "
                          f"(max {v['max_rotation_deg']:g}°), {v['translation_m'] * 1000:.2f} mm "
                          f"(max {v['max_translation_m'] * 1000:g} mm)")
-        lines += [f"  error: {name}: {message}" for name, message in self.errors]
+        lines += [f"  error: {message if name in message else f'{name}: {message}'}" for name, message in self.errors]
         if self.count("error") > len(self.errors):
             lines.append(f"  … and {self.count('error') - len(self.errors)} more error(s)")
         return "\n".join(lines)
