@@ -249,6 +249,8 @@ def _local(jobs: Sequence[Job], workers: int, on_done: OnDone) -> None:
         return
     context: Any = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods()
                                                else "spawn")
+    if context.get_start_method() == "fork":       # import once here, shared by every forked worker, rather
+        from .. import pipeline  # noqa: F401     # than in each (0.3 s of CPU a worker, benchmarks/batch.py)
     waiting = list(range(len(jobs)))[::-1]
     pool: list[_Worker] = []
     try:

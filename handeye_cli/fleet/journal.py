@@ -11,6 +11,7 @@ write one. Without ``--skip-done`` the file is started afresh.
 from __future__ import annotations
 
 import os
+import stat
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -29,12 +30,14 @@ class Journal:
     def __init__(self, path: str | Path, resume: bool, warn: Callable[[str], None], flag: str = "--output") -> None:
         self.path, self.flag = Path(path), flag
         self.done: dict[str, Record] = {}
+        self.regular = True
         try:
             self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_APPEND | (0 if resume else os.O_TRUNC), 0o666)
         except OSError as e:
             raise WriteError(f"cannot open the records file ({e.strerror})", str(self.path),
                              f"choose another {flag} path") from None
-        if resume:
+        self.regular = stat.S_ISREG(os.fstat(self.fd).st_mode)      # a FIFO or /dev/null: no fsync, no resume
+        if resume and self.regular:
             with open(self.fd, "rb", closefd=False) as f:
                 records, end = intact_records(f.read(), str(self.path), warn)
             self.done = {r["input"]: r for r in records}
@@ -52,7 +55,8 @@ class Journal:
         data = (line + "\n").encode("utf-8")
         while data:
             data = data[self._call(os.write, data):]
-        self._call(os.fsync)
+        if self.regular:
+            self._call(os.fsync)
 
     def close(self) -> None:
         os.close(self.fd)
