@@ -24,15 +24,14 @@ def intact_records(data: bytes, where: str, warn: Warn, *, tail_if_whole: bool =
     end = 0
     for n, raw in enumerate(lines, 1):
         record = _parse(raw) if raw.strip() else {}
-        if record is None:
-            raise ReadError("not a batch record (JSON with input and status)", f"{where}:{n}",
-                            "pass the JSON Lines output of handeye batch")
+        if isinstance(record, str):
+            raise ReadError(record, f"{where}:{n}", "pass the JSON Lines output of handeye batch")
         if record:
             records.append(record)
         end += len(raw) + 1
     if tail.strip():
         record = _parse(tail)
-        if record is not None and tail_if_whole:
+        if isinstance(record, dict) and tail_if_whole:
             records.append(record)
             end += len(tail)
         else:
@@ -40,10 +39,14 @@ def intact_records(data: bytes, where: str, warn: Warn, *, tail_if_whole: bool =
     return records, end
 
 
-def _parse(raw: bytes) -> Record | None:
-    """A batch record (a JSON object with input and status), else None."""
+def _parse(raw: bytes) -> Record | str:
+    """A batch record (a JSON object with input and status), else what is wrong with the line."""
     try:
         record = json.loads(raw)
-    except (ValueError, RecursionError):
-        return None
-    return record if isinstance(record, dict) and "input" in record and "status" in record else None
+    except ValueError as e:
+        return f"not JSON: {getattr(e, 'msg', e)}"
+    except RecursionError:
+        return "JSON nested too deeply"
+    if isinstance(record, dict) and "input" in record and "status" in record:
+        return record
+    return "not a batch record (no input/status)"
