@@ -16,9 +16,11 @@ import click
 from ..errors import ConfigError
 from ..fleet import BatchSettings, Job, Streams, discover, run_batch
 from ..fleet.engine import DEFAULT_TIMEOUT_S
-from ..fleet.overrides import options_for, read_overrides
+from ..fleet.journal import Journal
+from ..fleet.overrides import read_overrides, settings_for, unmatched
 from ..options import number
-from ..output.writers import write_stdout
+from ..output.formats import ALL_FORMATS
+from ..output.writers import check_writable, write_stdout
 from .check import verdict_options
 from .common import CONTEXT, warn
 from .params import calibrate_options, options_from_cli, stream_options
@@ -39,20 +41,24 @@ def _timeout(ctx: click.Context, param: click.Parameter, value: str) -> float | 
 @calibrate_options
 @verdict_options
 @click.option("--per-input", "per_input", type=click.Path(dir_okay=False), help="YAML mapping glob patterns of "
-              "input paths to the options that differ for them (flat names as in --config), applied over the "
-              "shared options in file order.")
+              "input paths (or, without '/', of a path component: robot07*) to the options and streams that differ "
+              "for them (flat names as in --config; topic_a/topic_b, frames_a/frames_b), applied over the shared "
+              "options in file order.")
 @click.option("--timeout", default=f"{DEFAULT_TIMEOUT_S:g}", callback=_timeout, metavar="SECONDS|off",
               show_default=True, help="Time limit of each input [s]: an input still running then (a FIFO no one "
               "writes, a hung file system) is an error record; off: no limit.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), help="Local worker processes [default: one per core].")
 @click.option("--scheduler", metavar="ADDRESS", help="Run on this Dask distributed scheduler (e.g. tcp://host:8786) "
               "instead of local processes; needs pip install 'handeye-cli[dask]'.")
+@click.option("-o", "--output", "records_file", type=click.Path(dir_okay=False), help="Append the JSON Lines "
+              "records to this file instead of stdout, each made durable (fsync) as it is written; with --skip-done "
+              "a resumed batch keeps the records there and runs only the inputs they lack.")
 @click.option("--output-dir", type=click.Path(file_okay=False), help="Write each input's full result file here, "
               "named after the input.")
-@click.option("--format", "fmt", type=click.Choice(["yaml", "json"]), default="yaml", show_default=True,
-              help="Format of the result files in --output-dir (stdout is always JSON Lines).")
-@click.option("--skip-done", is_flag=True, help="With --output-dir: reuse results computed from the same file "
-              "content, options and handeye version.")
+@click.option("--format", "fmt", type=click.Choice(ALL_FORMATS), default="yaml", show_default=True,
+              help="Format of the result files in --output-dir (the records are always JSON Lines).")
+@click.option("--skip-done", is_flag=True, help="Resume: with -o, keep the records already in that file; with "
+              "--output-dir, reuse results computed from the same file content, options and handeye version.")
 @click.option("--report", "report_file", type=click.Path(dir_okay=False), help="Also write the fleet-trend HTML "
               "report of the records.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
@@ -75,9 +81,11 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
           --against nominal/robot42.urdf --max-rotation-deg 0.5 --max-translation-m 0.005 \\
           --jobs 8 --output-dir results/ > verdicts.jsonl
       find logs -name '*.mcap' | handeye batch - --topic-a /cam0/pose --topic-b /cam1/pose
+      handeye batch logs/ --topic-a /cam0/pose --topic-b /cam1/pose -o records.jsonl --skip-done
     """
-    if o["skip_done"] and not o["output_dir"]:
-        raise ConfigError("--skip-done needs --output-dir", "--skip-done", "add --output-dir DIR")
+    if o["skip_done"] and not (o["output_dir"] or o["records_file"]):
+        raise ConfigError("--skip-done needs --output-dir or -o", "--skip-done",
+                          "add -o records.jsonl (resume from its records) or --output-dir DIR")
     nominal = None
     if o["against"]:
         from ..io.nominal import read_nominal
@@ -87,15 +95,31 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
     options = options_from_cli(o)
     overrides = read_overrides(o["per_input"]) if o["per_input"] else ()
     found = discover(inputs, sys.stdin, warn)
-    jobs = [Job(i, streams, options_for(i, options, overrides), timeout=o["timeout"]) for i in found]
+    unmatched(overrides, found, warn)
+    jobs = [Job(i, *settings_for(i, streams, options, overrides), timeout=o["timeout"]) for i in found]
     settings = BatchSettings(nominal, o["max_rotation_deg"], o["max_translation_m"], o["output_dir"], o["fmt"],
                              o["skip_done"], options.analysis.strict, o["jobs"], o["scheduler"],
                              progress=not o["quiet"])
-    summary = run_batch(jobs, settings, lambda line: write_stdout(line + "\n"))
+    shown: list[dict[str, Any]] = []          # what the fleet report needs of each record, no more
+
+    def observe(record: dict[str, Any]) -> None:
+        shown.append(report_fields(record))
+
+    if o["report_file"]:
+        from ..output.fleet_report import report_fields
+
+        check_writable(o["report_file"], "--report")
+    journal = Journal(o["records_file"], o["skip_done"], warn, "-o") if o["records_file"] else None
+    try:
+        summary = run_batch(jobs, settings, journal.append if journal else lambda line: write_stdout(line + "\n"),
+                            done=journal.done if journal else None, observe=observe if o["report_file"] else None)
+    finally:
+        if journal:
+            journal.close()
     if o["report_file"]:
         from ..output.fleet_report import write_fleet_report
 
-        write_fleet_report(o["report_file"], summary.records, "--report")
+        write_fleet_report(o["report_file"], shown, "--report")
     if not o["quiet"]:
         click.echo(summary.text(), err=True)
     ctx.exit(summary.exit_code)
@@ -115,4 +139,4 @@ def report(records_file: str, output: str) -> None:
     """
     from ..output.fleet_report import read_records, write_fleet_report
 
-    write_fleet_report(output, read_records(records_file))
+    write_fleet_report(output, read_records(records_file, warn))

@@ -10,6 +10,7 @@ else 3 when ``strict`` and a result has warnings, else 0.
 """
 from __future__ import annotations
 
+import heapq
 import json
 import math
 import time
@@ -22,7 +23,7 @@ from ..analysis.verdict import verdict_for
 from ..errors import HandEyeError, WriteError
 from ..io.nominal import Nominal
 from ..io.progress import Progress, progress
-from .cache import job_key, load_done, result_path, store
+from .cache import job_key, load_done, store
 from .engine import Job, run_jobs
 
 __all__ = ["BatchSettings", "BatchSummary", "run_batch", "record_line"]
@@ -46,43 +47,75 @@ class BatchSettings:
     progress: bool = False
 
 
+_SHOWN = 3                 # slowest inputs and worst verdicts the summary shows
+_SHOWN_ERRORS = 5          # error lines the summary shows ("and N more" after them)
+
+
 @dataclass
 class BatchSummary:
-    """What a batch produced: the records in input order, the wall time [s], and whether warnings
-    fail the batch (``--strict``)."""
+    """What a batch produced, gathered record by record (:meth:`add`) without keeping the records:
+    counts, the slowest inputs, the worst verdicts, the first error lines, how many records
+    ``--skip-done`` reused, the wall time [s], and whether warnings fail the batch (``--strict``)."""
 
-    records: list[Record] = field(default_factory=list)
-    seconds: float = 0.0
     strict: bool = False
+    seconds: float = 0.0
+    counts: dict[str, int] = field(default_factory=lambda: {"ok": 0, "drift": 0, "error": 0})
+    reused: int = 0
+    drifted: bool = False
+    warned: bool = False
+    slowest: list[tuple[float, str]] = field(default_factory=list)
+    worst: list[tuple[float, int, Record]] = field(default_factory=list)
+    errors: list[tuple[str, str]] = field(default_factory=list)
+
+    def add(self, record: Record, reused: bool = False) -> None:
+        """Count one record (``reused``: taken from a result file or the records file, not run)."""
+        self.counts[record["status"]] = self.counts.get(record["status"], 0) + 1
+        self.reused += reused
+        self.warned = self.warned or bool(record.get("warnings"))
+        self.drifted = self.drifted or bool(record.get("verdict", {}).get("drift"))
+        if not reused:
+            self.slowest = heapq.nlargest(_SHOWN, [*self.slowest, (float(record["seconds"]), record["input"])])
+        if "verdict" in record:
+            verdict = {k: record["verdict"][k] for k in ("drift", "rotation_deg", "max_rotation_deg",
+                                                          "translation_m", "max_translation_m")}
+            entry = (_excess(verdict), -self.total, {"input": record["input"], "verdict": verdict})
+            self.worst = heapq.nlargest(_SHOWN, [*self.worst, entry], key=lambda e: e[:2])
+        if record["status"] == "error" and len(self.errors) < _SHOWN_ERRORS:
+            self.errors.append((record["input"], record.get("error", "")))
+
+    @property
+    def total(self) -> int:
+        return sum(self.counts.values())
 
     def count(self, status: str) -> int:
-        return sum(r["status"] == status for r in self.records)
+        return self.counts.get(status, 0)
 
     @property
     def exit_code(self) -> int:
         """1 drift (also of an error record whose result file could not be written), else 2 error,
         else 3 warnings under ``strict``, else 0."""
-        if any(r.get("verdict", {}).get("drift") for r in self.records):
+        if self.drifted:
             return 1
         if self.count("error"):
             return 2
-        return 3 if self.strict and any(r.get("warnings") for r in self.records) else 0
+        return 3 if self.strict and self.warned else 0
 
     def text(self) -> str:
-        """The stderr summary: counts, the slowest inputs, the worst drifts."""
-        lines = [f"batch: {len(self.records)} input(s) in {self.seconds:.1f} s: {self.count('ok')} ok, "
+        """The stderr summary: counts, reused results, the slowest inputs, the worst drifts, the
+        first error lines (each naming its input) and how many more there are."""
+        reused = f" ({self.reused} reused by --skip-done)" if self.reused else ""
+        lines = [f"batch: {self.total} input(s){reused} in {self.seconds:.1f} s: {self.count('ok')} ok, "
                  f"{self.count('drift')} drift, {self.count('error')} error"]
-        slow = sorted(self.records, key=lambda r: -r["seconds"])[:3]
-        if slow and slow[0]["seconds"] > 0:
-            lines.append("  slowest: " + ", ".join(f"{r['input']} {r['seconds']:.2f} s" for r in slow))
-        judged = [r for r in self.records if "verdict" in r]
-        worst = sorted(judged, key=lambda r: -_excess(r["verdict"]))[:3]
-        for r in worst:
+        if self.slowest and self.slowest[0][0] > 0:
+            lines.append("  slowest: " + ", ".join(f"{name} {s:.2f} s" for s, name in self.slowest))
+        for _, _, r in self.worst:
             v = r["verdict"]
             lines.append(f"  {'DRIFT' if v['drift'] else 'worst'}: {r['input']}: {v['rotation_deg']:.3f}° "
                          f"(max {v['max_rotation_deg']:g}°), {v['translation_m'] * 1000:.2f} mm "
                          f"(max {v['max_translation_m'] * 1000:g} mm)")
-        lines += [f"  error: {r['error']}" for r in self.records if r["status"] == "error"][:5]
+        lines += [f"  error: {message if name in message else f'{name}: {message}'}" for name, message in self.errors]
+        if self.count("error") > len(self.errors):
+            lines.append(f"  … and {self.count('error') - len(self.errors)} more error(s)")
         return "\n".join(lines)
 
 
@@ -127,17 +160,26 @@ def _judge(record: Record, s: BatchSettings) -> Record:
 
 
 class _Ordered:
-    """Buffers records that finish early and emits them in input order."""
+    """Emits records in input order: a record that finishes before an earlier input's waits here
+    (only those: the memory is the records finished ahead of the slowest running input, not the
+    batch's); each record, in order, also goes to the summary and to ``observe``."""
 
-    def __init__(self, n: int, emit: Callable[[str], None], bar: Progress) -> None:
-        self.records: list[Record | None] = [None] * n
-        self.next, self.emit, self.bar = 0, emit, bar
+    def __init__(self, emit: Callable[[str], None], observe: Callable[[Record], None] | None,
+                 summary: BatchSummary, bar: Progress) -> None:
+        self.waiting: dict[int, tuple[Record, bool, bool]] = {}
+        self.next, self.emit, self.observe, self.summary, self.bar = 0, emit, observe, summary, bar
 
-    def done(self, i: int, record: Record) -> None:
-        self.records[i] = record
+    def done(self, i: int, record: Record, *, reused: bool = False, written: bool = False) -> None:
+        """Input ``i``'s record (``reused``: not run; ``written``: already in the records file)."""
+        self.waiting[i] = (record, reused, written)
         self.bar.update(1)
-        while self.next < len(self.records) and self.records[self.next] is not None:
-            self.emit(record_line(self.records[self.next]))  # type: ignore[arg-type]
+        while self.next in self.waiting:
+            record, reused, written = self.waiting.pop(self.next)
+            if not written:
+                self.emit(record_line(record))
+            self.summary.add(record, reused)
+            if self.observe is not None:
+                self.observe(record)
             self.next += 1
 
 
@@ -152,9 +194,14 @@ def _key(job: Job) -> str:
         return ""
 
 
-def run_batch(jobs: Sequence[Job], settings: BatchSettings, emit: Callable[[str], None]) -> BatchSummary:
-    """Run ``jobs``, emitting each record line (in input order) through ``emit``."""
+def run_batch(jobs: Sequence[Job], settings: BatchSettings, emit: Callable[[str], None], *,
+              done: dict[str, Record] | None = None, observe: Callable[[Record], None] | None = None
+              ) -> BatchSummary:
+    """Run ``jobs``, emitting each record line (in input order) through ``emit``. ``done`` holds
+    records already in the records file (by input; ``--skip-done``): those inputs are not run and
+    their records not emitted again. ``observe`` sees every record in input order (the fleet report)."""
     start = time.perf_counter()
+    done = done or {}
     out_dir = Path(settings.output_dir) if settings.output_dir else None
     if out_dir is not None and not out_dir.is_dir():
         try:
@@ -162,15 +209,16 @@ def run_batch(jobs: Sequence[Job], settings: BatchSettings, emit: Callable[[str]
         except OSError as e:
             raise WriteError(f"cannot create the output folder: {e.strerror}", str(out_dir),
                              "choose another --output-dir") from None
-    keys = [_key(j) if out_dir is not None else "" for j in jobs]
+    summary = BatchSummary(settings.strict)
     with progress(len(jobs), "batch", quiet=not settings.progress) as bar:
-        ordered = _Ordered(len(jobs), emit, bar)
+        ordered = _Ordered(emit, observe, summary, bar)
+        keys: dict[int, str] = {}
 
         def finish(i: int, record: Record) -> None:
             record = _judge(record, settings)
             if out_dir is not None and "matrix" in record:
                 try:
-                    store(result_path(out_dir, jobs[i], settings.fmt), record, keys[i], settings.fmt)
+                    store(out_dir, jobs[i], record, keys.get(i, ""), settings.fmt)
                 except HandEyeError as e:            # e.g. a full disk: this input's error, not the batch's
                     status = record.pop("status")
                     record = {"input": record.pop("input"), "status": "error",
@@ -179,12 +227,18 @@ def run_batch(jobs: Sequence[Job], settings: BatchSettings, emit: Callable[[str]
 
         todo = []
         for i, job in enumerate(jobs):
-            stored = (load_done(result_path(out_dir, job, settings.fmt), keys[i])
+            if job.input.label in done:
+                ordered.done(i, done[job.input.label], reused=True, written=True)
+                continue
+            if out_dir is not None:
+                keys[i] = _key(job)
+            stored = (load_done(out_dir, job, keys[i], settings.fmt)
                       if out_dir is not None and settings.skip_done and keys[i] else None)
             if stored is None:
                 todo.append(i)
             else:
-                ordered.done(i, _judge(stored, settings))
+                ordered.done(i, _judge(stored, settings), reused=True)
         run_jobs([jobs[i] for i in todo], lambda k, r: finish(todo[k], r), workers=settings.workers,
                  scheduler=settings.scheduler)
-    return BatchSummary([r for r in ordered.records if r is not None], time.perf_counter() - start, settings.strict)
+    summary.seconds = time.perf_counter() - start
+    return summary

@@ -1,14 +1,17 @@
 """Per-input result files in ``--output-dir`` and the key that lets ``--skip-done`` reuse them.
 
 A result file is named after its input: the normalised path with ``/`` → ``__`` (an absolute path
-starts with ``__``), two-file inputs joined by ``+``, then ``.yaml`` or ``.json``. That name is
+starts with ``__``), two-file inputs joined by ``+``, then the format's suffix (``.yaml``, ``.json``,
+``.urdf``, ``.launch``, ``.launch.py``, ``.sh``, ``.kalibr.yaml``). That name is
 kept only when it cannot be another input's: when a component of the path is ``..``, holds
 ``__``, ``+``, ``%`` or ``~``, starts or ends with ``_``, or the name would be long, the name gets
 ``~`` and 16 hex digits of the SHA-256 of the path(s) as given — the same on every run, so that
-``--skip-done`` finds it. The file holds the result document, the verdict when there is
-one, and ``batch: {input, key, log_span_ns, seconds}``. The key is the SHA-256 of the handeye
-version, the options, the stream selection and the content of every input file (a ROS 2 bag
-directory: every file in it, by relative name), so a changed log, option or version recomputes.
+``--skip-done`` finds it. A YAML or JSON file holds the result document, the verdict when there
+is one, and ``batch: {input, key, log_span_ns, seconds}``; the other formats cannot carry those,
+so the result document and its ``batch`` entry go beside the file, in ``<file>.handeye.json``.
+The key is the SHA-256 of the handeye version, the options, the stream selection and the content
+of every input file (a ROS 2 bag directory: every file in it, by relative name), so a changed log,
+option or version recomputes.
 """
 from __future__ import annotations
 
@@ -21,14 +24,17 @@ from typing import Any
 
 import yaml
 
-from ..output.document import render
-from ..output.writers import write_output
+from ..output.formats import render_format
+from ..output.writers import SUFFIXES, write_output
+from ..untrusted import load_yaml
 from ..version import __version__
 from .engine import Job
 
 __all__ = ["job_key", "result_path", "load_done", "store"]
 
 _CHUNK = 1 << 20
+_SUFFIX = {fmt: suffix for suffix, fmt in reversed(SUFFIXES.items())} | {"kalibr": ".kalibr.yaml"}
+_SIDECAR = ".handeye.json"      # the result document and its batch key, beside a file of another format
 
 
 def _hash_file(h: Any, path: Path) -> None:
@@ -85,20 +91,36 @@ def result_path(output_dir: str | Path, job: Job, fmt: str) -> Path:
     if not plain or long:
         digest = hashlib.sha256("\0".join(job.input.paths).encode("utf-8", "surrogateescape")).hexdigest()
         name = f"{name[-40:] if long else name}~{digest[:16]}"
-    return Path(output_dir) / f"{name}.{fmt}"
+    return Path(output_dir) / f"{name}{_SUFFIX[fmt]}"
 
 
-def store(path: Path, record: dict[str, Any], key: str, fmt: str) -> None:
-    """Write a calibrated record as its result file (atomically)."""
+def _cache_path(path: Path, fmt: str) -> Path:
+    """The file that holds the result document with its batch key: the result file itself (YAML,
+    JSON), else the one beside it."""
+    return path if fmt in ("yaml", "json") else path.with_name(path.name + _SIDECAR)
+
+
+def store(output_dir: Path, job: Job, record: dict[str, Any], key: str, fmt: str) -> None:
+    """Write a calibrated record as its result file in ``fmt`` (atomically), and its cache file
+    beside it when ``fmt`` cannot carry the batch key."""
+    path = result_path(output_dir, job, fmt)
     meta = {k: record[k] for k in ("input", "log_span_ns", "seconds") if k in record}
     doc = {k: v for k, v in record.items() if k not in ("input", "status", "error", "log_span_ns", "seconds")}
-    write_output(path, render({**doc, "batch": {**meta, "key": key}}, fmt), "--output-dir")
+    cached: dict[str, Any] = {**doc, "batch": {**meta, "key": key}}
+    if fmt not in ("yaml", "json"):
+        write_output(path, render_format(doc, fmt), "--output-dir")
+    write_output(_cache_path(path, fmt), render_format(cached, fmt if fmt in ("yaml", "json") else "json"),
+                 "--output-dir")
 
 
-def load_done(path: Path, key: str) -> dict[str, Any] | None:
-    """The record stored at ``path`` when it was computed with ``key`` (without its verdict), else None."""
+def load_done(output_dir: Path, job: Job, key: str, fmt: str) -> dict[str, Any] | None:
+    """The record stored for ``job`` when it was computed with ``key`` (without its verdict), else None."""
+    path = result_path(output_dir, job, fmt)
+    if not path.is_file():
+        return None
+    path = _cache_path(path, fmt)
     try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+        doc = load_yaml(path.read_text(encoding="utf-8"))      # a shared folder: no aliases, bounded depth
     except (OSError, UnicodeDecodeError, yaml.YAMLError):
         return None
     meta = doc.get("batch") if isinstance(doc, dict) else None

@@ -242,16 +242,20 @@ class _Worker:
 def _local(jobs: Sequence[Job], workers: int, on_done: OnDone) -> None:
     """Run the jobs in this process (one worker), else in up to ``workers`` worker processes. A
     worker that dies is its job's error record; one that overruns its job's time limit (and a
-    grace) is killed; both are replaced. Every worker is killed and reaped when this returns or
-    raises (an error, SIGINT, SIGTERM, SIGHUP)."""
+    grace) is killed; both are replaced. A finished job's worker gets its next job before
+    ``on_done`` runs for the record, so the parent's work overlaps the workers'. Every worker is
+    killed and reaped when this returns or raises (an error, SIGINT, SIGTERM, SIGHUP)."""
     if workers <= 1 or len(jobs) <= 1:
         for i, job in enumerate(jobs):
             on_done(i, run_job(job))
         return
     context: Any = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods()
                                                else "spawn")
+    if context.get_start_method() == "fork":       # import once here, shared by every forked worker, rather
+        from .. import pipeline  # noqa: F401     # than in each (0.3 s of CPU a worker, benchmarks/batch.py)
     waiting = list(range(len(jobs)))[::-1]
     pool: list[_Worker] = []
+    finished: list[tuple[int, Record]] = []     # handed to on_done once the idle workers have new jobs
     try:
         while True:
             pool = [w for w in pool if w.alive]
@@ -264,6 +268,9 @@ def _local(jobs: Sequence[Job], workers: int, on_done: OnDone) -> None:
                     pool.remove(worker)              # it died while idle: the job goes to another
                     continue
                 waiting.pop()
+            for done_index, done_record in finished:  # the parent's work per record (verdict, result
+                on_done(done_index, done_record)      # file, fsync) while the workers run the next jobs
+            finished.clear()
             busy = [w for w in pool if w.index is not None]
             if not busy:
                 return
@@ -274,7 +281,7 @@ def _local(jobs: Sequence[Job], workers: int, on_done: OnDone) -> None:
                 assert index is not None
                 record = worker.result(jobs[index])
                 if record is not None:
-                    on_done(index, record)
+                    finished.append((index, record))
     finally:
         for worker in pool:
             worker.stop()

@@ -1,69 +1,72 @@
 """The fleet-trend report (``handeye report verdicts.jsonl -o fleet.html``, ``handeye batch --report``).
 
-One self-contained HTML file, built like :mod:`handeye_cli.output.report` (inline CSS, the same
-load script that counts decoded images) with matplotlib figures as base64 PNG: per sensor pair
-(``frames.a``/``frames.b``), the extrinsic ``T_a_b`` of every log over log time (the first synced
-stamp, UTC) as its deviation from the nominal — rotation vector of ``R_X R_Nᵀ`` [deg] (frame a)
-and ``t_X − t_N`` [mm] — with the nominal at zero and the tolerance drawn as a band; without a
-verdict the pair's median result is the reference and there is no band. Then the table of
-drifted logs and the table of failed ones.
+One self-contained HTML file, built like :mod:`handeye_cli.output.report` and with its SVG charts
+(:mod:`handeye_cli.output.svgplot`: no optional dependency): per sensor pair (``frames.a``/``frames.b``)
+a chart of six panels, the extrinsic ``T_a_b`` of every log over log time (its first synced stamp,
+days since the earliest log, UTC) as its deviation from the nominal — rotation vector of
+``R_X R_Nᵀ`` [deg] (frame a) and ``t_X − t_N`` [mm], one panel per axis — with the nominal at zero
+and the tolerance as dashed lines; without a verdict the pair's median result is the reference and
+there is no tolerance. One line per robot: a robot is an input's path with its dates and times (runs
+of 6 or more digits and separators, such as ``2026-11-03`` or ``20261103_120000``) taken out, so that
+``logs/2026-11-03/robot42.mcap`` and ``logs/2026-11-04/robot42.mcap`` are one line and
+``logs/robot01/rig.bag`` and ``logs/robot02/rig.bag`` two. Drifted logs are red crosses. The legend
+(robot colours) is HTML below the chart, never over the data. Then the table of drifted logs and the
+table of failed ones.
 """
 from __future__ import annotations
 
-import base64
-import io
-import json
+import re
+from collections.abc import Callable, Iterable
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from ..errors import HandEyeError, ReadError
+from ..errors import ReadError
 from ..version import __version__
-from .report import _CSS, _SCRIPT, _esc
-from .svgplot import DPI
+from .records import intact_records
+from .report import _CSS, _SCRIPT, _esc, _figure
+from .svgplot import Chart
 from .writers import check_writable, write_output
 
-if TYPE_CHECKING:
-    from matplotlib.figure import Figure
-
-__all__ = ["read_records", "render_fleet_report", "write_fleet_report"]
+__all__ = ["read_records", "render_fleet_report", "report_fields", "write_fleet_report"]
 
 _AXES = ("x", "y", "z")
-_COLORS = ("#1f77b4", "#2ca02c", "#9467bd")
+_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf")
 _DRIFT = "#d62728"
+_TOLERANCE = "#2ca02c"
+_FIELDS = ("input", "status", "error", "matrix", "frames", "log_span_ns", "verdict")
+_VERDICT = ("drift", "nominal", "rotation_deg", "translation_m", "max_rotation_deg", "max_translation_m",
+            "rotation_significant", "translation_significant")
+_STAMP = re.compile(r"\d[\d_:.T-]{4,}\d")              # dates and times in a path: 6+ digits and separators
+_DAY_NS = 86_400e9
 
 
-def read_records(path: str | Path) -> list[dict[str, Any]]:
-    """The records of a ``handeye batch`` JSON Lines file (blank lines skipped)."""
+def report_fields(record: dict[str, Any]) -> dict[str, Any]:
+    """What the report reads of a batch record (the batch keeps only this of each record)."""
+    out = {k: record[k] for k in _FIELDS if k in record}
+    if isinstance(out.get("verdict"), dict):
+        out["verdict"] = {k: out["verdict"][k] for k in _VERDICT if k in out["verdict"]}
+    return out
+
+
+def read_records(path: str | Path, warn: Callable[[str], None]) -> list[dict[str, Any]]:
+    """The records of a ``handeye batch`` JSON Lines file (blank lines skipped): a last line cut by
+    a batch killed mid-write is left out with a warning; a bad line before it is a ReadError."""
     p = Path(path)
     try:
-        lines = p.read_text(encoding="utf-8").splitlines()
-    except (OSError, UnicodeDecodeError) as e:
-        raise ReadError(f"cannot read the records: {e}", str(p), "pass the output of handeye batch") from None
-    records = []
-    for n, line in enumerate(lines, 1):
-        if not line.strip():
-            continue
-        try:
-            record = json.loads(line)
-        except json.JSONDecodeError as e:
-            raise ReadError(f"not JSON: {e.msg}", f"{p}:{n}", "pass the JSON Lines output of handeye batch") from None
-        except RecursionError:
-            raise ReadError("JSON nested too deeply", f"{p}:{n}",
-                            "pass the JSON Lines output of handeye batch") from None
-        if not (isinstance(record, dict) and "status" in record and "input" in record):
-            raise ReadError("not a batch record (no input/status)", f"{p}:{n}", "pass the output of handeye batch")
-        records.append(record)
-    return records
+        data = p.read_bytes()
+    except OSError as e:
+        raise ReadError(f"cannot read the records: {e.strerror}", str(p), "pass the output of handeye batch") from None
+    return [report_fields(r) for r in intact_records(data, str(p), warn, tail_if_whole=True)[0]]
 
 
-def _when(record: dict[str, Any]) -> datetime | None:
-    span = record.get("log_span_ns")
-    return datetime.fromtimestamp(span[0] / 1e9, timezone.utc) if span else None
+def _robot(label: str) -> str:
+    """The robot of an input (see the module docstring)."""
+    return _STAMP.sub("", label)
 
 
 def _deviations(records: list[dict[str, Any]]) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
@@ -80,63 +83,49 @@ def _deviations(records: list[dict[str, Any]]) -> tuple[NDArray[np.float64], NDA
     return rot, (X[:, :3, 3] - N_t) * 1000.0, bool(nominals)
 
 
-def _figure(fig: Figure, alt: str, caption: str) -> str:
-    """Render a matplotlib figure to a base64 PNG ``<figure>`` (zlib level 3: smaller than the
-    default 6 on these plots, and faster)."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI, pil_kwargs={"compress_level": 3})
-    data = base64.b64encode(buf.getvalue()).decode("ascii")
-    return (f"<figure><img alt='{_esc(alt)}' src='data:image/png;base64,{data}'>"
-            f"<figcaption>{caption}</figcaption></figure>")
-
-
-def _subplots(width: float, height: float, nrows: int, ncols: int, *, margins: tuple[float, float, float, float],
-              gaps: tuple[float, float] = (0.0, 0.0), **kwargs: Any) -> tuple[Figure, Any]:
-    """A ``width`` x ``height`` [in] figure and its ``nrows`` x ``ncols`` axes (``Figure.subplots``,
-    which takes ``kwargs``), placed by fixed ``margins`` (left, right, bottom, top) and ``gaps``
-    (between columns, between rows) [in] that leave room for tick labels, axis labels and titles.
-
-    No layout engine: constrained layout measures every text of a figure on each draw."""
-    try:
-        from matplotlib.figure import Figure
-    except ImportError:  # pragma: no cover - depends on the environment
-        raise HandEyeError("matplotlib is not installed", "--report",
-                           "install it: pip install 'handeye-cli[report]'") from None
-    left, right, bottom, top = margins
-    axes_w = (width - left - right - (ncols - 1) * gaps[0]) / ncols         # mean axes size [in]
-    axes_h = (height - bottom - top - (nrows - 1) * gaps[1]) / nrows
-    fig = Figure(figsize=(width, height))
-    grid = {"left": left / width, "right": 1.0 - right / width, "bottom": bottom / height, "top": 1.0 - top / height,
-            "wspace": gaps[0] / axes_w, "hspace": gaps[1] / axes_h}
-    return fig, fig.subplots(nrows, ncols, gridspec_kw=grid, **kwargs)
+def _when(record: dict[str, Any]) -> datetime | None:
+    span = record.get("log_span_ns")
+    return datetime.fromtimestamp(span[0] / 1e9, timezone.utc) if span else None
 
 
 def _pair_figure(name: str, records: list[dict[str, Any]]) -> str:
-    """Rotation and translation deviations over log time for one sensor pair."""
-    records = sorted(records, key=lambda r: r["log_span_ns"][0])
-    times = [_when(r) for r in records]
+    """Rotation and translation deviations over log time for one sensor pair, one line per robot."""
+    records = sorted(records, key=lambda r: (_robot(r["input"]), r["log_span_ns"][0]))
+    t0 = min(r["log_span_ns"][0] for r in records)
+    days = np.array([(r["log_span_ns"][0] - t0) / _DAY_NS for r in records])
     rot, trans, has_nominal = _deviations(records)
     drift = np.array([r["status"] == "drift" for r in records])
-    fig, axes = _subplots(10, 5.6, 2, 1, margins=(0.8, 0.15, 1.1, 0.15), gaps=(0.0, 0.15), sharex=True)
+    robots = list(dict.fromkeys(_robot(r["input"]) for r in records))
+    which = np.array([robots.index(_robot(r["input"])) for r in records])
     verdict = next((r["verdict"] for r in records if "verdict" in r), None)
     limits = (verdict["max_rotation_deg"], verdict["max_translation_m"] * 1000) if verdict else (None, None)
-    for ax, values, unit, limit in zip(axes, (rot, trans), ("rotation deviation [deg]", "translation deviation [mm]"),
-                                       limits, strict=True):
-        if limit is not None:
-            ax.axhspan(-limit, limit, color="#8cc79a", alpha=0.3, label="tolerance")
-        ax.axhline(0.0, color="#333333", lw=1, label="nominal" if has_nominal else "median")
+    chart = Chart(10, 5.6)
+    panels = chart.grid(2, 3, margins=(0.8, 0.15, 0.6, 0.35), gaps=(0.55, 0.45))
+    start = datetime.fromtimestamp(t0 / 1e9, timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    for row, (values, unit, limit) in enumerate(zip((rot, trans), ("rotation [deg]", "translation [mm]"), limits,
+                                                    strict=True)):
         for k, axis in enumerate(_AXES):
-            ax.plot(times, values[:, k], "o-", ms=4, lw=1, color=_COLORS[k], label=axis)
-        for n, t in enumerate(t for t, d in zip(times, drift, strict=True) if d):
-            ax.axvline(t, color=_DRIFT, lw=2, alpha=0.5, label=None if n else "drift")
-        ax.set_ylabel(unit)
-        ax.grid(alpha=0.3)
-        ax.legend(loc="upper left", fontsize=8, ncol=6)
-    axes[1].set_xlabel("log start (UTC)")
-    fig.autofmt_xdate(bottom=fig.subplotpars.bottom)          # rotate the dates, keep the margin
-    return _figure(fig, f"extrinsic of {name} over time", f"{_esc(name)}: {len(records)} log(s); deviation from the "
-                   f"{'nominal, tolerance band in green' if has_nominal else 'median result (no nominal given)'}; "
-                   "drifted logs marked by red lines.")
+            panel = panels[3 * row + k]
+            panel.title, panel.title_size = f"{axis} {unit}", 10.0
+            panel.hline(0.0, "#333333", 1.0)
+            if limit is not None:
+                panel.hline(limit, _TOLERANCE, 1.0, "--")
+                panel.hline(-limit, _TOLERANCE, 1.0, "--")
+            for n in range(len(robots)):
+                mine = which == n
+                color = _COLORS[n % len(_COLORS)]
+                panel.line(days[mine], values[mine, k], color, 1.0)
+                panel.points(days[mine], values[mine, k], color, 4.0)
+            if drift.any():
+                panel.points(days[drift], values[drift, k], _DRIFT, 6.0, marker="x")
+            if row == 1:
+                panel.xlabel = f"days since {start}"
+    keys = "".join(f"<span class='key'><span style='color:{_COLORS[n % len(_COLORS)]}'>&#9679;</span> "
+                   f"{_esc(robot)}</span> " for n, robot in enumerate(robots))
+    reference = "nominal, tolerance dashed in green" if has_nominal else "median result (no nominal given)"
+    caption = (f"{_esc(name)}: {len(records)} log(s) of {len(robots)} robot(s); deviation from the {reference}; "
+               f"drifted logs are red crosses.<br>{keys}")
+    return _figure(chart, f"extrinsic of {name} over time", caption)
 
 
 def _row(cells: list[Any]) -> str:
@@ -164,8 +153,9 @@ def _error_table(records: list[dict[str, Any]]) -> str:
     return f"<div class='card' id='failed'><table><tr><th>input</th><th>error</th></tr>{rows}</table></div>"
 
 
-def render_fleet_report(records: list[dict[str, Any]]) -> str:
+def render_fleet_report(records: Iterable[dict[str, Any]]) -> str:
     """The report as one HTML string (see the module docstring)."""
+    records = list(records)
     pairs: dict[str, list[dict[str, Any]]] = {}
     for r in records:
         if "matrix" in r and r.get("log_span_ns"):
@@ -187,6 +177,6 @@ def render_fleet_report(records: list[dict[str, Any]]) -> str:
 
 def write_fleet_report(path: str | Path, records: list[dict[str, Any]], flag: str = "-o") -> None:
     """Write the fleet report of batch ``records`` to ``path`` (atomically); a HandEyeError naming
-    ``flag`` when it cannot be written or matplotlib is missing (no file is created)."""
+    ``flag`` when it cannot be written (no file is created)."""
     check_writable(path, flag)
     write_output(path, render_fleet_report(records), flag)
