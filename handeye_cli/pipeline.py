@@ -536,9 +536,14 @@ def calibrate_files(a: Source, b: Source | None = None, *, topic_a: str | None =
     opts = load_options(config_file, preset, base=options, **overrides)
     spec_a, spec_b = _spec(a, topic_a, frames_a), _spec(a if b is None else b, topic_b, frames_b)
     refuse_unread(opts.read, (isinstance(spec_a, PoseStream), isinstance(spec_b, PoseStream)))
-    stream_a, stream_b = read_streams(spec_a, spec_b, opts, quiet=quiet)
+    from .io.remote import session_of
+
+    with session_of(opts.read) as remote:
+        stream_a, stream_b = read_streams(spec_a, spec_b, opts, quiet=quiet)
     inputs: dict[str, Any] = {"a": _describe(spec_a), "b": _describe(spec_b), "time_source": opts.read.time_source,
                               **_inversion_inputs(opts.read)}
+    if remote.urls:
+        inputs["bytes_fetched"] = remote.bytes_fetched      # [B] read from object storage (URL inputs)
     return calibrate_read(stream_a, stream_b, opts, inputs=inputs).with_origin(config_file, preset)
 
 

@@ -86,7 +86,10 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
     streams = Streams(o["topic_a"], o["topic_b"], o["frames_a"] or None, o["frames_b"] or None)
     options = options_from_cli(o)
     overrides = read_overrides(o["per_input"]) if o["per_input"] else ()
-    found = discover(inputs, sys.stdin, warn)
+    from ..io.remote import session_of
+
+    with session_of(options.read):         # URLs are listed with the options' credentials and time limits
+        found = discover(inputs, sys.stdin, warn)
     jobs = [Job(i, streams, options_for(i, options, overrides), timeout=o["timeout"]) for i in found]
     settings = BatchSettings(nominal, o["max_rotation_deg"], o["max_translation_m"], o["output_dir"], o["fmt"],
                              o["skip_done"], options.analysis.strict, o["jobs"], o["scheduler"],

@@ -158,6 +158,12 @@ def calibrate_rig_files(log: str | None, specs: list[StreamSpec], options: RigOp
     """Read the streams (:func:`read_rig`) and :func:`calibrate_rig`."""
     opts = options or RigOptions()
     read = opts.options.read
-    streams = read_rig(log, specs, time_source=read.time_source, columns=read.csv_columns, quiet=quiet)
-    inputs = {"log": log, "streams": {s.name: s.describe() for s in specs}, "time_source": read.time_source}
+    from ..io.remote import session_of
+
+    with session_of(read) as remote:
+        streams = read_rig(log, specs, time_source=read.time_source, columns=read.csv_columns, quiet=quiet)
+    inputs: dict[str, Any] = {"log": log, "streams": {s.name: s.describe() for s in specs},
+                              "time_source": read.time_source}
+    if remote.urls:
+        inputs["bytes_fetched"] = remote.bytes_fetched      # [B] read from object storage (URL inputs)
     return calibrate_rig(streams, opts, inputs=inputs)

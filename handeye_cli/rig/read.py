@@ -17,6 +17,7 @@ from typing import Any
 
 from ..errors import ConfigError
 from ..io import read_log_streams, read_stream
+from ..io.remote import is_url
 from ..options import frame_name
 from ..streams import PoseStream
 
@@ -50,7 +51,7 @@ def parse_stream(text: str) -> StreamSpec:
         if len(frames) != 2 or not all(frames):
             raise ConfigError(f"bad TF chain {source!r}", f"--stream {text}", "write NAME=tf:PARENT,CHILD")
         return StreamSpec(name, frames=(frames[0], frames[1]))
-    if Path(source).is_file():
+    if Path(source).is_file() or is_url(source):
         return StreamSpec(name, path=source)
     if source.startswith("/"):
         return StreamSpec(name, topic=source)
