@@ -46,6 +46,7 @@ _READAHEAD = 4 << 10        # [B] the least a request asks for (small reads: hea
 _SPAN = 16 << 20            # [B] the most one request of adjacent chunks asks for
 _HELD = 64 << 20            # [B] the most fetched bytes kept for re-reading (footer, summary, head)
 _PIECE = 16 << 20           # [B] a download's request size
+_CLIENTS = ("botocore", "aiobotocore", "aiohttp", "urllib3", "asyncio", "gcsfs", "google", "fsspec", "s3fs")
 _URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.\-]*://")
 _FOOTER = 37                # Footer record (opcode 1 + length 8 + 8 + 8 + 4) + magic 8
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -99,7 +100,6 @@ class Session:
         if protocol in ("s3", "s3a"):
             options.setdefault("config_kwargs", {"connect_timeout": self.timeout, "read_timeout": self.timeout,
                                                  "retries": {"max_attempts": 1}})
-            options.setdefault("retries", 1)
         elif protocol in ("http", "https"):
             import aiohttp  # the http(s) file system's client
 
@@ -131,6 +131,8 @@ class Session:
             except Exception as exc:    # the file systems' own errors (botocore, aiohttp) beside OSError
                 if type(exc).__name__ in ("NoCredentialsError", "PartialCredentialsError"):
                     raise ReadError("no credentials found", url, _FIX_CREDENTIALS) from exc
+                if not type(exc).__module__.startswith(_CLIENTS):
+                    raise
                 error = exc
             if attempt < self.retries:
                 time.sleep(min(2.0, 0.1 * 2 ** attempt))
@@ -295,8 +297,8 @@ class RemoteObject:
         stop = min(stop, self.size)
         if stop <= start:
             return b""
-        data: bytes = self.session.call(self.url, f"reading bytes {start}-{stop}", self._fs.cat_file, self._path,
-                                        start, stop)
+        data: bytes = self.session.call(self.url, f"reading bytes {start}-{stop}",
+                                        lambda: self._fs.cat_file(self._path, start=start, end=stop))
         self.session.bytes_fetched += len(data)
         return data
 
