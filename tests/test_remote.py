@@ -278,3 +278,33 @@ def test_dask_workers_open_the_urls_themselves(s3, capsys, tmp_path):
             p.terminate()
         for p in procs:
             p.wait(10)
+
+
+def test_the_readme_nightly_job_reads_s3_directly(s3, capsys, tmp_path, monkeypatch):
+    """The README's "CI and fleets" workflow: its install step has the remote extra, and its batch
+    command runs against the local server (bucket and nominal swapped for the test's)."""
+    import re
+    import shlex
+
+    import yaml
+
+    section = (ROOT / "README.md").read_text(encoding="utf-8").split("## CI and fleets", 1)[1]
+    workflow = yaml.safe_load(re.search(r"```yaml\n(.*?)```", section, re.S).group(1))
+    steps = workflow["jobs"]["recalibrate"]["steps"]
+    assert any("remote" in step.get("run", "") and "pip install" in step["run"] for step in steps)
+    (step,) = [s for s in steps if s.get("run", "").startswith("handeye batch")]
+    assert set(step["env"]) == {"AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY"}
+    command, redirect = step["run"].strip().split(" > ")
+    argv = shlex.split(command)
+    assert argv[2].startswith("s3://")
+    code, nominal, _ = run(capsys, "calibrate", SAMPLES / "rig.mcap", *TOPICS, "-q")
+    (tmp_path / "nominal").mkdir()
+    (tmp_path / "nominal" / "robot42.yaml").write_text(nominal)
+    argv = [f"s3://{BUCKET}/logs/" if a == argv[2] else "nominal/robot42.yaml" if a.startswith("nominal/") else a
+            for a in argv]
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(capsys, *argv[1:])
+    assert code == 0, err
+    records = [json.loads(line) for line in out.splitlines()]
+    assert len(records) == 3 and all(r["status"] == "ok" and r["inputs"]["bytes_fetched"] > 0 for r in records)
+    assert (tmp_path / "fleet.html").is_file() and redirect.strip() == "verdicts.jsonl"
