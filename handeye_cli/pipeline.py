@@ -187,6 +187,8 @@ _FILE_ONLY: dict[str, tuple[tuple[int, ...], str]] = {
     "csv_columns": ((0, 1), "a PoseStream has no columns: leave csv_columns unset"),
     "time_source": ((0, 1), "a PoseStream's stamps are the ones it was built with: leave time_source unset, or "
                             "read the log with calibrate_files"),
+    **{name: ((0, 1), f"in-memory PoseStreams are read from no URL: leave {name} unset")
+       for name in ("storage_option", "remote_timeout", "remote_retries")},
 }
 
 
@@ -198,7 +200,8 @@ def refuse_unread(read: ReadOptions, in_memory: tuple[bool, bool]) -> None:
         if value != FIELDS[name][2] and all(in_memory[k] for k in sides):
             which = f"stream {'ab'[sides[0]]} is an in-memory PoseStream" if len(sides) == 1 else \
                 "both streams are in-memory PoseStreams"
-            raise ConfigError(f"{name}={value!r} applies to reading a file, but {which}", name, fix)
+            shown = "***" if FIELDS[name][1].secret else repr(value)       # a credential is not repeated
+            raise ConfigError(f"{name}={shown} applies to reading a file, but {which}", name, fix)
 
 
 def _read_one(spec: StreamSpec | PoseStream, read: ReadOptions, quiet: bool, wxyz: bool | None) -> PoseStream:
