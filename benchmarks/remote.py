@@ -95,7 +95,7 @@ def write_image_log(path: Path, *, seconds: float, image_bytes: int, own_chunks:
     return path
 
 
-def _lower_bound(path: Path) -> int:
+def lower_bound(path: Path) -> int:
     """Footer + summary + the pose chunks with their message indexes [B]."""
     from mcap.reader import make_reader
 
@@ -119,9 +119,10 @@ def _free_port() -> int:
 
 def _run(args: list[str], env: dict[str, str]) -> tuple[float, dict[str, object], int]:
     """(wall time [s], the result document, peak RSS [kB] of the process) of ``handeye ARGS``."""
-    probe = ("import resource, sys\nfrom handeye_cli.cli import main\ncode = 0\ntry:\n    main(sys.argv[1:])\n"
+    probe = ("import sys\nfrom handeye_cli.cli import main\ncode = 0\ntry:\n    main(sys.argv[1:])\n"
              "except SystemExit as e:\n    code = e.code or 0\n"
-             "sys.stderr.write('\\nRSS %d\\n' % resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n"
+             "hwm = [l for l in open('/proc/self/status') if l.startswith('VmHWM')][0].split()[1]\n"
+             "sys.stderr.write('\\nRSS %s\\n' % hwm)\n"
              "sys.exit(code)\n")
     start = time.perf_counter()
     out = subprocess.run([sys.executable, "-c", probe, *args], env=env, capture_output=True, text=True, check=True)
@@ -160,9 +161,13 @@ def main() -> None:
             path = write_image_log(tmp / f"img_{int(own)}.mcap", seconds=seconds, image_bytes=image_bytes,
                                    own_chunks=own, image_hz=image_hz)
             size = path.stat().st_size
-            bound = _lower_bound(path)
+            bound = lower_bound(path)
             s3.upload_file(str(path), "bench", path.name)
             url = f"s3://bench/{path.name}"
+            start = time.perf_counter()
+            for k in range(3):
+                s3.get_object(Bucket="bench", Key=path.name, Range=f"bytes={k}-{k}")["Body"].read()
+            t_byte = (time.perf_counter() - start) / 3
             t_remote, doc, rss = _run(["calibrate", url, *TOPICS, "-q"], env)
             fetched = int(doc["inputs"]["bytes_fetched"])                 # type: ignore[index]
             start = time.perf_counter()
@@ -175,7 +180,8 @@ def main() -> None:
             print(f"{layout}: {size / 1e6:.0f} MB; fetched/size {fetched / size:.4f}; bound/size {bound / size:.4f}; "
                   f"fetched/bound {fetched / bound:.3f}; by range {t_remote:.2f} s vs download-then-read "
                   f"{t_get + t_local:.2f} s ({t_get:.2f} + {t_local:.2f}): ratio {t_remote / (t_get + t_local):.2f}; "
-                  f"peak RSS {rss / 1e3:.0f} MB (local read {rss_local / 1e3:.0f} MB)")
+                  f"peak RSS {rss / 1e3:.0f} MB (local read {rss_local / 1e3:.0f} MB); "
+                  f"the server answers a 1-byte range of this object in {t_byte:.3f} s")
             path.unlink()
         # batch over many small remote logs against the same logs on disk
         logs = tmp / "logs"
