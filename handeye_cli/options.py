@@ -29,7 +29,7 @@ from typing import Any
 
 from .errors import ConfigError
 from .solvers import METHODS
-from .untrusted import frame_id_problem
+from .untrusted import REMOTE_RETRIES, REMOTE_TIMEOUT_S, frame_id_problem
 
 __all__ = ["Options", "ReadOptions", "SyncOptions", "GateOptions", "PairOptions", "SolverOptions",
            "AnalysisOptions", "OutputOptions", "SECTIONS", "FIELDS", "OptionInfo"]
@@ -187,19 +187,40 @@ def columns(value: Any, where: str) -> Mapping[str, str] | None:
     return {str(k).strip(): str(v).strip() for k, v in value.items()}
 
 
+def storage_options(value: Any, where: str) -> tuple[tuple[str, str], ...]:
+    """fsspec storage options: ``KEY=VALUE`` texts (one, or a list: the flag is repeatable) or a mapping,
+    as (key, value) pairs. The values may be credentials: no message repeats them."""
+    if value is None or value == ():
+        return ()
+    if isinstance(value, Mapping):
+        items = [(str(k), str(v)) for k, v in value.items()]
+    else:
+        texts = [value] if isinstance(value, str) else list(value)
+        items = []
+        for text in texts:
+            key, eq, val = str(text).partition("=")
+            if not eq or not key.strip():
+                raise ConfigError("bad storage option (its value is not shown: it may be a credential)", where,
+                                  "write KEY=VALUE, e.g. --storage-option endpoint_url=http://127.0.0.1:9000")
+            items.append((key.strip(), val))
+    return tuple(items)
+
+
 @dataclass(frozen=True)
 class OptionInfo:
-    """How an option is parsed and shown: its parser, help text and command-line metavar."""
+    """How an option is parsed and shown: its parser, help text and command-line metavar; a
+    ``secret`` option's values are shown as ``***`` in settings (:meth:`Options.flat`), and its flag repeats."""
 
     parse: Parser
     help: str
     metavar: str | None = None
     choices: tuple[str, ...] = ()
+    secret: bool = False
 
 
-def option(default: Any, parse: Parser, help: str, metavar: str | None = None) -> Any:
+def option(default: Any, parse: Parser, help: str, metavar: str | None = None, secret: bool = False) -> Any:
     """A dataclass field carrying its :class:`OptionInfo` (a :func:`choice` parser gives the choices)."""
-    info = OptionInfo(parse, help, metavar, tuple(getattr(parse, "names", ())))
+    info = OptionInfo(parse, help, metavar, tuple(getattr(parse, "names", ())), secret)
     return field(default=default, metadata={"info": info})
 
 
@@ -222,6 +243,15 @@ class ReadOptions:
                             "format defines) and read by the median step in a CSV, with a warning.")
     csv_columns: Mapping[str, str] | None = option(None, columns, "Generic CSV columns: t=COL,x=COL,…,qw=COL "
                                                    "(keys t, t_unit, x, y, z, qx, qy, qz, qw).", "KEY=COL,…")
+    storage_option: tuple[tuple[str, str], ...] = option(
+        (), storage_options, "For inputs given as URLs (s3://, gs://, https://): a keyword of the fsspec file "
+        "system, KEY=VALUE, repeatable (e.g. endpoint_url=…, profile=…, anon=true). Credentials otherwise come "
+        "from the environment (AWS_ENDPOINT_URL, AWS_ACCESS_KEY_ID, AWS_PROFILE …); none is ever printed.",
+        "KEY=VALUE", secret=True)
+    remote_timeout: float = option(REMOTE_TIMEOUT_S, number(unit="seconds"), "For URL inputs: how long one "
+                                   "request may take [s] before it is tried again.", "SECONDS")
+    remote_retries: int = option(REMOTE_RETRIES, integer(low=1), "For URL inputs: how many times a request is "
+                                 "tried before the input fails.", "N")
 
 
 @dataclass(frozen=True)
@@ -375,6 +405,8 @@ class Options:
         for section in SECTIONS:
             for f in fields(getattr(self, section)):
                 value = getattr(getattr(self, section), f.name)
+                if f.metadata["info"].secret:
+                    value = {k: "***" for k, _ in value}
                 out[f.name] = list(value) if isinstance(value, tuple) else (
                     dict(value) if isinstance(value, Mapping) else value)
         return out

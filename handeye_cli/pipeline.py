@@ -229,6 +229,8 @@ _FILE_ONLY: dict[str, tuple[tuple[int, ...], str]] = {
     "csv_columns": ((0, 1), "a PoseStream has no columns: leave csv_columns unset"),
     "time_source": ((0, 1), "a PoseStream's stamps are the ones it was built with: leave time_source unset, or "
                             "read the log with calibrate_files"),
+    **{name: ((0, 1), f"in-memory PoseStreams are read from no URL: leave {name} unset")
+       for name in ("storage_option", "remote_timeout", "remote_retries")},
 }
 
 
@@ -240,7 +242,8 @@ def refuse_unread(read: ReadOptions, in_memory: tuple[bool, bool]) -> None:
         if value != FIELDS[name][2] and all(in_memory[k] for k in sides):
             which = f"stream {'ab'[sides[0]]} is an in-memory PoseStream" if len(sides) == 1 else \
                 "both streams are in-memory PoseStreams"
-            raise ConfigError(f"{name}={value!r} applies to reading a file, but {which}", name, fix)
+            shown = "***" if FIELDS[name][1].secret else repr(value)       # a credential is not repeated
+            raise ConfigError(f"{name}={shown} applies to reading a file, but {which}", name, fix)
 
 
 def _quaternion_order(a: PoseStream, b: PoseStream, options: Options) -> tuple[PoseStream, PoseStream,
@@ -630,9 +633,14 @@ def calibrate_files(a: Source, b: Source | None = None, *, topic_a: str | None =
     opts = load_options(config_file, preset, base=options, **overrides)
     spec_a, spec_b = _spec(a, topic_a, frames_a), _spec(a if b is None else b, topic_b, frames_b)
     refuse_unread(opts.read, (isinstance(spec_a, PoseStream), isinstance(spec_b, PoseStream)))
-    stream_a, stream_b = read_streams([spec_a, spec_b], opts, quiet=quiet)
+    from .io.remote import session_of
+
+    with session_of(opts.read) as remote:
+        stream_a, stream_b = read_streams([spec_a, spec_b], opts, quiet=quiet)
     inputs: dict[str, Any] = {"a": _describe(spec_a), "b": _describe(spec_b), "time_source": opts.read.time_source,
                               **_inversion_inputs(opts.read)}
+    if remote.urls:
+        inputs["bytes_fetched"] = remote.bytes_fetched      # [B] read from object storage (URL inputs)
     return calibrate_read(stream_a, stream_b, opts, inputs=inputs).with_origin(config_file, preset)
 
 

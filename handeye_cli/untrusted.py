@@ -71,3 +71,10 @@ def frame_id_problem(name: str) -> str | None:
         if c in _QUOTES:
             return f"it holds the quote {c!r}"
     return None
+
+
+REMOTE_TIMEOUT_S = 30.0
+"""How long [s] one request to object storage may take before it is tried again (a store that stalls must not
+hang a batch): the default of the ``remote_timeout`` option."""
+REMOTE_RETRIES = 3
+"""How many times a request to object storage is tried before the input fails: the default of ``remote_retries``."""

@@ -94,7 +94,10 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
     streams = Streams(o["topic_a"], o["topic_b"], o["frames_a"] or None, o["frames_b"] or None)
     options = options_from_cli(o)
     overrides = read_overrides(o["per_input"]) if o["per_input"] else ()
-    found = discover(inputs, sys.stdin, warn)
+    from ..io.remote import session_of
+
+    with session_of(options.read):         # URLs are listed with the options' credentials and time limits
+        found = discover(inputs, sys.stdin, warn)
     unmatched(overrides, found, warn)
     jobs = [Job(i, *settings_for(i, streams, options, overrides), timeout=o["timeout"]) for i in found]
     settings = BatchSettings(nominal, o["max_rotation_deg"], o["max_translation_m"], o["output_dir"], o["fmt"],

@@ -8,6 +8,7 @@ import click
 from ..output.document import plain, render
 from ..output.writers import write_stdout
 from .common import CONTEXT
+from .params import flags, options_from_cli
 
 
 def _inspect_text(info: dict[str, Any]) -> str:
@@ -36,7 +37,8 @@ def _inspect_text(info: dict[str, Any]) -> str:
               help="Human-readable text, or machine-readable YAML/JSON.")
 @click.option("--all-tf", is_flag=True, help="Read every TF message for the TF edges [default: the first 2000].")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
-def inspect(input_file: str, fmt: str, all_tf: bool, quiet: bool) -> None:
+@flags("storage_option", "remote_timeout", "remote_retries")
+def inspect(input_file: str, fmt: str, all_tf: bool, quiet: bool, **remote: Any) -> None:
     """List the topics, message types, counts, rates and time span of a log, which topics carry
     poses, and its TF frame tree.
 
@@ -44,8 +46,11 @@ def inspect(input_file: str, fmt: str, all_tf: bool, quiet: bool) -> None:
     Examples:
       handeye inspect sample_data/rig.mcap
       handeye inspect sample_data/rig_ros2 --format json
+      handeye inspect s3://fleet-logs/robot42/2026-11-30.mcap
     """
     from ..io import inspect_log
+    from ..io.remote import session_of
 
-    info = plain(inspect_log(input_file, quiet=quiet, all_tf=all_tf))
+    with session_of(options_from_cli(remote).read):
+        info = plain(inspect_log(input_file, quiet=quiet, all_tf=all_tf))
     write_stdout(_inspect_text(info) if fmt == "text" else render(info, fmt))

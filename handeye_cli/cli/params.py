@@ -39,6 +39,8 @@ def _flag(name: str) -> Callable[[F], F]:
     if isinstance(default, bool) or info.parse is optional_flag:
         return click.option(f"{dashed}/--no-{dashed[2:]}", name, default=None, help=help_text)
     kind = click.Choice(info.choices, case_sensitive=False) if info.choices else click.STRING
+    if info.secret:     # repeatable; never shown back (its default is "none")
+        return click.option(dashed, name, type=kind, multiple=True, metavar=info.metavar, help=info.help)
     return click.option(dashed, name, type=kind, default=None, metavar=info.metavar, help=help_text)
 
 
@@ -72,6 +74,7 @@ def options_from_cli(params: dict[str, Any]) -> Options:
     """The options a command line gives: defaults < --preset < --config < flags.
     Removes the option keys from ``params``, leaving the command's own."""
     given = {name: params.pop(name) for name in OPTION_NAMES if name in params}
+    given = {name: value for name, value in given.items() if value != ()}     # a repeatable flag not given
     return load_options(params.pop("config_file", None), params.pop("preset", None), **given)
 
 

@@ -29,7 +29,8 @@ __all__ = ["rig"]
 RIG_OPTIONS = ("time_source", "time_unit", "csv_columns", "sync", "max_dt", "max_time_offset", "gate", "max_jump",
                "max_jump_deg", "stations",
                "pairs", "min_rotation", "keyframe_rotation", "keyframe_translation", "max_pairs", "seed",
-               "method", "alpha", "min_pairs", "robust", "bootstrap", "strict", "accept_poor_fit")
+               "method", "alpha", "min_pairs", "robust", "bootstrap", "strict", "accept_poor_fit",
+               "storage_option", "remote_timeout", "remote_retries")
 
 
 def _named(values: tuple[str, ...], flag: str) -> dict[str, str]:

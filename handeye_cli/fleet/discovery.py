@@ -1,5 +1,5 @@
 """Which inputs a batch runs: files, directories searched recursively by content, globs,
-``@list.txt`` and ``-`` (a list on stdin).
+``@list.txt`` and ``-`` (a list on stdin), and URLs (objects, prefixes and globs: see :func:`_remote`).
 
 An input is one log (MCAP, ROS 1 bag, ROS 2 bag directory or bare ``.db3``) or two text pose files
 (TUM/EuRoC) of streams a and b. In a list (``@file`` or stdin) a line holds one path or two
@@ -32,6 +32,7 @@ from typing import TextIO
 
 from ..errors import HandEyeError
 from ..io.detect import LOG_FORMATS, detect_format
+from ..io.remote import current, is_url
 
 __all__ = ["BatchInput", "discover"]
 
@@ -112,6 +113,8 @@ def _search(root: Path, warn: Warn) -> list[BatchInput]:
 def _expand(arg: str, warn: Warn, matched: bool = False) -> list[BatchInput]:
     """One argument (or, ``matched``, a path a glob pattern matched): a file, a directory, or a
     glob pattern. A special file given is an error input; one a pattern matched is skipped."""
+    if is_url(arg):
+        return _remote(arg)
     path = Path(arg)
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         inputs = _search(path, warn)
@@ -130,6 +133,32 @@ def _expand(arg: str, warn: Warn, matched: bool = False) -> list[BatchInput]:
             return [i for m in matches for i in _expand(m, warn, matched=True)]
         return [BatchInput((arg,), f"the pattern {arg} matches no file")]
     return [BatchInput((arg,), f"file not found: {arg}")]
+
+
+def _remote(url: str) -> list[BatchInput]:
+    """The inputs a URL names: an object; a folder (a prefix: ``s3://bucket/logs/``) or a glob
+    (``s3://bucket/*/2026-11-*.mcap``), whose objects named like logs (``.mcap``, ``.bag``, ``.db3``)
+    are the inputs, a folder holding ``metadata.yaml`` one ROS 2 bag. Listing costs a request, not
+    reading every object (text pose pairs are listed in an @list file)."""
+    session = current()
+    try:
+        if glob.has_magic(url.split("://", 1)[1]):
+            found = session.listing(url, pattern=True)
+            if not found:
+                return [BatchInput((url,), f"the pattern {url} matches no object")]
+        elif url.endswith("/") or session.is_folder(url):
+            found = session.listing(url)
+        else:
+            return [BatchInput((url,))]
+        for name in [n for n, folder in found if folder]:
+            found += session.listing(name)
+    except HandEyeError as e:
+        return [BatchInput((url,), str(e))]
+    bags = sorted({name.rsplit("/", 1)[0] for name, _ in found if name.endswith("/metadata.yaml")})
+    logs = {name for name, folder in found if not folder and name.lower().endswith(_LOG_SUFFIXES)
+            and not any(name.startswith(bag + "/") for bag in bags)}
+    inputs = [BatchInput((name,)) for name in sorted(logs | set(bags))]
+    return inputs or [BatchInput((url,), f"no logs found under {url}")]
 
 
 def _glob(pattern: str) -> list[str]:
@@ -182,11 +211,11 @@ def _identity(path: str | Path) -> tuple[int, int]:
 
 def _unique(inputs: list[BatchInput], warn: Warn) -> list[BatchInput]:
     """``inputs`` without those whose files are the same as an earlier input's (by identity)."""
-    first: dict[tuple[tuple[int, int], ...], BatchInput] = {}
+    first: dict[tuple[tuple[int, int] | str, ...], BatchInput] = {}
     out = []
     for item in inputs:
         try:
-            identity = tuple(_identity(p) for p in item.paths) if item.error is None else None
+            identity = tuple(p if is_url(p) else _identity(p) for p in item.paths) if item.error is None else None
         except OSError:
             identity = None
         if identity is not None and identity in first:
@@ -210,7 +239,7 @@ def _lines(lines: Iterable[str], where: str, warn: Warn) -> list[BatchInput]:
             out.extend(_expand(words[0], warn))
         elif len(words) == 2:
             special = [(w, what) for w in words if (what := _special(w)) is not None]
-            missing = [w for w in words if not Path(w).is_file()]
+            missing = [w for w in words if not is_url(w) and not Path(w).is_file()]
             error = (_not_a_file(*special[0]) if special else f"file not found: {missing[0]}" if missing else None)
             out.append(BatchInput(tuple(words), error))
         elif words:

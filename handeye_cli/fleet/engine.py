@@ -77,9 +77,11 @@ def _calibrate(job: Job) -> Record:
     """The result document of one input, plus the span of its synced samples. Relative paths are
     read from the client's working directory (``job.cwd``) wherever the job runs, so that a Dask
     worker on a shared file system finds them and every executor records the same ``inputs``."""
+    from ..io.remote import is_url
     from ..pipeline import calibrate_files
 
-    paths, s = tuple(os.path.join(job.cwd, p) for p in job.input.paths), job.streams
+    paths = tuple(p if is_url(p) else os.path.join(job.cwd, p) for p in job.input.paths)     # a URL: opened here
+    s = job.streams
     if len(paths) == 2:            # two text pose files: no topics
         result = calibrate_files(paths[0], paths[1], options=job.options)
     else:

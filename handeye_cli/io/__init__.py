@@ -8,6 +8,7 @@ stamps sorted ascending, positions [m], unit quaternions x-y-z-w.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +18,7 @@ from .detect import LOG_FORMATS, detect_format
 from .inputs import existing, spooled, valid_frame_id
 from .logs import Request, inspect_source, read_requests
 from .opening import open_log
+from .remote import RemoteObject, current, is_url
 from .spec import StreamSpec
 from .text import read_text
 
@@ -27,11 +29,29 @@ _TIME_SOURCES = ("header", "log")
 _SUFFIX = {"mcap": ".mcap", "rosbag1": ".bag", "rosbag2": ".db3"}
 
 
-def _inputs(paths: str | Path | Sequence[str | Path]) -> tuple[list[Path], list[str]]:
-    """Existing paths (``-`` = stdin; logs arriving on a pipe spooled to a file) and their formats."""
-    plist = [existing(p) for p in ([paths] if isinstance(paths, (str, Path)) else list(paths))]
-    fmts = [detect_format(p) for p in plist]
-    return [spooled(p, _SUFFIX[f]) if f in LOG_FORMATS else p for p, f in zip(plist, fmts, strict=True)], fmts
+def _inputs(paths: str | Path | Sequence[str | Path]) -> tuple[list[Path | RemoteObject], list[str]]:
+    """What the readers open for each input and its format: an existing path (``-`` = stdin; logs
+    arriving on a pipe spooled to a file), or for a URL a remote object read by range or its local
+    copy (see :meth:`.remote.Session.opened`)."""
+    given = [paths] if isinstance(paths, (str, Path)) else list(paths)
+    fmts = [detect_format(p) for p in given]
+    opened: list[Path | RemoteObject] = []
+    for p, f in zip(given, fmts, strict=True):
+        if is_url(p):
+            opened.append(current().opened(str(p), f))
+        else:
+            opened.append(spooled(existing(p), _SUFFIX[f]) if f in LOG_FORMATS else existing(p))
+    return opened, fmts
+
+
+def _named(given: str | Path | Sequence[str | Path]) -> list[str]:
+    return [str(p) for p in ([given] if isinstance(given, (str, Path)) else given)]
+
+
+def _noted(stream: PoseStream, names: Sequence[str]) -> PoseStream:
+    """``stream`` with the remote session's notes on these inputs (a download to the cache) first in its warnings."""
+    notes = tuple(n for n in current().notes if any(n.startswith(f"{name}: ") for name in names))
+    return replace(stream, warnings=(*notes, *stream.warnings)) if notes else stream
 
 
 def read_stream(paths: str | Path | Sequence[str | Path], *, topic: str | None = None,
@@ -61,18 +81,13 @@ def read_stream(paths: str | Path | Sequence[str | Path], *, topic: str | None =
     is read up to its last intact message: each with a line in ``warnings`` (``recovered_truncated``
     counts recovered messages). Raises HandEyeError (one line: what, where, how to fix) on any bad input.
     """
-    if not ([paths] if isinstance(paths, (str, Path)) else list(paths)):
+    given = _named(paths)
+    if not given:
         raise ConfigError("no input file given", "read_stream", "pass a path")
-    if time_source not in _TIME_SOURCES:
-        raise ConfigError(f"unknown time source {time_source!r}", "time_source", "use 'header' or 'log'")
-    plist, fmts = _inputs(paths)
-    if fmts[0] not in LOG_FORMATS:
-        if len(plist) > 1 or topic is not None or frames is not None:
-            raise ConfigError(f"a {fmts[0].upper()} text file holds one stream: no topic/frames and one "
-                               "file per stream", ", ".join(map(str, plist)),
-                               "drop --topic/--frames and pass one text file per stream")
-        return read_text(plist[0], fmts[0], columns, quaternion_order=quaternion_order, time_unit=time_unit)
-    return _read_log(plist, fmts, [(topic, frames)], time_source, quiet)[0]
+    if len(given) > 1:                          # split ROS 1 bags, read as one
+        return read_log_streams(given, [(topic, frames)], time_source=time_source, quiet=quiet)[0]
+    return read_specs([StreamSpec(given[0], topic, frames)], time_source=time_source, columns=columns,
+                      quaternion_orders=[quaternion_order], time_unit=time_unit, quiet=quiet)[0]
 
 
 def read_specs(specs: Sequence[StreamSpec], *, time_source: str = "header", columns: Mapping[str, str] | None = None,
@@ -85,7 +100,7 @@ def read_specs(specs: Sequence[StreamSpec], *, time_source: str = "header", colu
     if time_source not in _TIME_SOURCES:
         raise ConfigError(f"unknown time source {time_source!r}", "time_source", "use 'header' or 'log'")
     orders = list(quaternion_orders or ["auto"] * len(specs))
-    found: dict[str, tuple[Path, str]] = {}
+    found: dict[str, tuple[Path | RemoteObject, str]] = {}
     in_log: dict[str, list[int]] = {}
     streams: dict[int, PoseStream] = {}
     for k, spec in enumerate(specs):
@@ -101,10 +116,11 @@ def read_specs(specs: Sequence[StreamSpec], *, time_source: str = "header", colu
             raise ConfigError(f"a {fmt.upper()} text file holds one stream: no topic/frames and one file per stream",
                               str(p), "drop --topic/--frames and pass one text file per stream")
         else:
-            streams[k] = read_text(p, fmt, columns, quaternion_order=orders[k], time_unit=time_unit)
+            stream = read_text(_local(p), fmt, columns, quaternion_order=orders[k], time_unit=time_unit)
+            streams[k] = _noted(stream, [spec.path])
     for path, ks in in_log.items():
         p, fmt = found[path]
-        read = _read_log([p], [fmt], [(specs[k].topic, specs[k].frames) for k in ks], time_source, quiet)
+        read = _read_log([p], [fmt], [(specs[k].topic, specs[k].frames) for k in ks], time_source, quiet, [path])
         streams.update(zip(ks, read, strict=True))
     return [streams[k] for k in range(len(specs))]
 
@@ -119,18 +135,26 @@ def read_log_streams(paths: str | Path | Sequence[str | Path], requests: Sequenc
         raise ConfigError(f"unknown time source {time_source!r}", "time_source", "use 'header' or 'log'")
     if not plist or fmts[0] not in LOG_FORMATS:
         raise ConfigError("not a log (MCAP, ROS 1 or ROS 2 bag)", ", ".join(map(str, plist)) or "read_log_streams",
-                           "read text files one stream at a time with read_stream")
-    return _read_log(plist, fmts, requests, time_source, quiet)
+                           "a text file holds one stream: read one file per stream with read_stream")
+    return _read_log(plist, fmts, requests, time_source, quiet, _named(paths))
 
 
-def _read_log(plist: list[Path], fmts: list[str], requests: Sequence[Request], time_source: str,
-              quiet: bool) -> list[PoseStream]:
+def _local(p: Path | RemoteObject) -> Path:
+    """A text input's local file (a URL's text is always its cached copy)."""
+    assert isinstance(p, Path), "text objects are downloaded, never read by range"
+    return p
+
+
+def _read_log(plist: list[Path | RemoteObject], fmts: list[str], requests: Sequence[Request], time_source: str,
+              quiet: bool, names: list[str]) -> list[PoseStream]:
     for topic, frames in requests:
         if (topic is None) == (frames is None):
             raise ConfigError("give exactly one of a topic or a (parent, child) frame pair",
                                ", ".join(map(str, plist)), "use --topic-a/--topic-b or --frames-a/--frames-b")
     with open_log(plist, fmts) as src:
-        return read_requests(src, requests, time_source=time_source, quiet=quiet)
+        if any(map(is_url, names)):
+            src.name = ", ".join(names)
+        return [_noted(s, names) for s in read_requests(src, requests, time_source=time_source, quiet=quiet)]
 
 
 def inspect_log(path: str | Path, *, quiet: bool = True, all_tf: bool = False) -> dict[str, Any]:
@@ -143,11 +167,13 @@ def inspect_log(path: str | Path, *, quiet: bool = True, all_tf: bool = False) -
     Text files: ``format``, ``path``, ``rows``, ``start_ns``, ``end_ns``, ``duration_ns``, ``rate_hz``.
     """
     (p,), (fmt,) = _inputs(path)
+    shown = str(path) if is_url(path) else str(p)
     if fmt not in LOG_FORMATS:
-        s = read_text(p, fmt)
+        s = read_text(_local(p), fmt)
         span = int(s.stamps_ns[-1] - s.stamps_ns[0])
-        return {"format": fmt, "path": str(p), "rows": len(s) + s.duplicates_dropped,
+        return {"format": fmt, "path": shown, "rows": len(s) + s.duplicates_dropped,
                 "start_ns": int(s.stamps_ns[0]), "end_ns": int(s.stamps_ns[-1]), "duration_ns": span,
                 "rate_hz": round((len(s) - 1) / span * 1e9, 3) if span else 0.0}
     with open_log([p], [fmt]) as src:
-        return {"format": fmt, "path": str(p), **inspect_source(src, quiet, all_tf=all_tf)}
+        src.name = shown
+        return {"format": fmt, "path": shown, **inspect_source(src, quiet, all_tf=all_tf)}

@@ -6,6 +6,7 @@ from pathlib import Path
 
 from ..errors import ReadError
 from .inputs import existing, is_stream, read_head
+from .remote import current, is_url
 
 __all__ = ["FORMATS", "LOG_FORMATS", "detect_format", "existing"]
 
@@ -71,6 +72,30 @@ def text_format(name: str, suffix: str, head: bytes) -> str:
     raise ReadError("empty file: no data lines", name, "check the file")
 
 
+def _remote_format(url: str) -> str:
+    """The format of the object (or folder) at ``url``: a log by its first bytes (one small range
+    request); a folder holding a ROS 2 bag; text from its local copy (text is read whole anyway)."""
+    session = current()
+    if session.is_folder(url):
+        names = [name for name, _ in session.listing(url)]
+        if any(n.endswith(("/metadata.yaml", ".db3", ".mcap")) for n in names):
+            return "rosbag2"
+        raise ReadError("folder is not a ROS 2 bag (no metadata.yaml)", url,
+                        "pass a bag folder, an MCAP, a .bag or a text trajectory object")
+    head = session.open(url).read_at(0, max(len(m) for m, _ in _MAGIC))
+    for magic, fmt in _MAGIC:
+        if head.startswith(magic):
+            return fmt
+    if not head:
+        raise ReadError("empty object (0 bytes)", url, "the recording or its upload failed; check the object")
+    suffix = Path(url.split("?", 1)[0]).suffix.lower()
+    if suffix in _LOG_SUFFIXES:
+        raise ReadError(f"not a valid {_LOG_SUFFIXES[suffix]} file: wrong magic bytes {head[:8]!r}", url,
+                        "the object is damaged or misnamed")
+    local = session.cached(url, "a text file is read whole")
+    return text_format(url, suffix, read_head(local, _HEAD_BYTES))
+
+
 def detect_format(path: str | Path) -> str:
     """One of ``mcap``, ``rosbag1``, ``rosbag2``, ``tum``, ``euroc``, ``csv``.
 
@@ -79,9 +104,12 @@ def detect_format(path: str | Path) -> str:
     ``.db3``; a ``.mcap``/``.bag``/``.db3`` without its magic is an error, not text); anything else
     is text: EuRoC (``p_RS_R_x``/``q_RS_w`` header, or comma-separated rows starting with an
     integer nanosecond stamp), generic CSV (a header row with 8+ columns) or TUM. ``-`` (stdin)
-    and pipes are read once (see :mod:`.inputs`). A YAML, motion-pairs or prose file is a
+    and pipes are read once (see :mod:`.inputs`); a URL is asked for its first bytes (see
+    :mod:`.remote`). A YAML, motion-pairs or prose file is a
     ReadError that says what it is.
     """
+    if is_url(path):
+        return _remote_format(str(path))
     p = existing(path)
     if p.is_dir():
         if (p / "metadata.yaml").is_file() or any(p.glob("*.db3")) or any(p.glob("*.mcap")):

@@ -22,7 +22,7 @@ import contextlib
 import mmap
 import struct
 import zlib
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 
 from .common import ChunkError, check_declared, inflate
 from .messages import LISTS, SPECS
+from .remote import RemoteObject
 
 __all__ = ["FastPoses", "FastTopics", "read_fast", "FAST_TYPES"]
 
@@ -187,6 +188,28 @@ def _message_index(blob: memoryview, wanted: set[int]) -> list[tuple[int, NDArra
     return out
 
 
+class _Mapped:
+    """A local file mapped, not read: a chunk is decompressed straight from the page cache, without
+    first copying it (1.6 GB of images cost 0.15 s to copy, more than decompressing them); the
+    pages of a chunk leave the process once the next is asked for, so its resident memory holds
+    one chunk, not the file; the map dies with this object."""
+
+    def __init__(self, f: Any) -> None:
+        self._mm = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+        self._map = memoryview(self._mm)
+        self._used = (0, 0)             # the bytes [start, stop) of the last view
+
+    def view(self, start: int, n: int) -> memoryview:
+        """The ``n`` bytes [B] from ``start`` (fewer at the end of the file); the last view's pages released."""
+        first, stop = self._used
+        if stop > first and hasattr(mmap, "MADV_DONTNEED"):
+            first -= first % mmap.PAGESIZE
+            self._mm.madvise(mmap.MADV_DONTNEED, first, stop - first)
+        view = self._map[start:start + n]
+        self._used = (start, start + len(view))
+        return view
+
+
 class _Chunks:
     """Chunk records of one open file, read into buffers reused from chunk to chunk: memory holds
     one compressed chunk and its decompressed records through the last wanted message, whatever
@@ -204,22 +227,9 @@ class _Chunks:
     which leaves the file to the generic reader.
     """
 
-    def __init__(self, f: Any) -> None:
-        # the file mapped, not read: a chunk is decompressed straight from the page cache, without
-        # first copying it (1.6 GB of images cost 0.15 s to copy, more than decompressing them);
-        # the pages of a chunk leave the process once it is used (:meth:`_release`), so its resident
-        # memory holds one chunk, not the file; the map dies with this reader
-        self._mm = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
-        self._map = memoryview(self._mm)
-        self._used = (0, 0)             # the bytes [start, stop) of the last chunk read
+    def __init__(self, source: Any) -> None:
+        self._source = source           # :class:`_Mapped` (a local file) or :class:`.remote.Ranges`
         self._raw = bytearray()         # decompressed zstd records
-
-    def _release(self) -> None:
-        """Unmap the pages of the last chunk read from this process (they stay in the page cache)."""
-        start, stop = self._used
-        if stop > start and hasattr(mmap, "MADV_DONTNEED"):
-            first = start - start % mmap.PAGESIZE
-            self._mm.madvise(mmap.MADV_DONTNEED, first, stop - first)
 
     @staticmethod
     def _grown(buf: bytearray, size: int, keep: int = 0) -> bytearray:
@@ -234,12 +244,10 @@ class _Chunks:
         """(MessageIndex entries of the ``wanted`` channels, the chunk's uncompressed records through
         its last wanted message) of the chunk at ``index``; ``[]`` and no records if none is wanted.
         The records are a view of the file's map or of a reused buffer, valid until the next call."""
-        self._release()     # the records returned by the last call are used by now
-        start = index.chunk_start_offset
-        view = self._map[start:start + index.chunk_length + index.message_index_length]
-        if len(view) != index.chunk_length + index.message_index_length:
+        size = index.chunk_length + index.message_index_length
+        view = self._source.view(index.chunk_start_offset, size)   # the last call's records are used by now
+        if len(view) != size:
             raise _Decline("chunk cut off")
-        self._used = (start, start + len(view))
         entries = _message_index(view[index.chunk_length:], wanted)
         if not entries:
             return [], np.zeros(0, np.uint8)
@@ -376,10 +384,22 @@ class _Collect:
                          [names[k] for k in used])
 
 
-def read_fast(path: Path, chunks: Sequence[Any], channels: dict[int, tuple[str, str]], *,
+@contextlib.contextmanager
+def _views(path: Path | RemoteObject, planned: list[tuple[int, int]]) -> Iterator[Any]:
+    """The chunk views of a local file (mapped) or of a remote object (:meth:`.remote.RemoteObject.ranges`:
+    the ``planned`` [(start, length)] ranges fetched in file order, adjacent ones together)."""
+    if not isinstance(path, Path):
+        yield path.ranges(planned)
+        return
+    with open(path, "rb") as f:
+        yield _Mapped(f)
+
+
+def read_fast(path: Path | RemoteObject, chunks: Sequence[Any], channels: dict[int, tuple[str, str]], *,
               log_time: bool = False, skipped: list[tuple[int, str]] | None = None) -> FastTopics:
     """Pose records of the channels ``{id: (topic, type)}`` whose type is in :data:`FAST_TYPES`
-    (header stamps, or log times with ``log_time``); topics it cannot decode exactly are left out.
+    (header stamps, or log times with ``log_time``) from the local file ``path`` or a remote object
+    (only the chunks holding them are fetched); topics it cannot decode exactly are left out.
     A chunk declaring more than :data:`.common.CHUNK_LIMIT` uncompressed, or an lz4 chunk inflating
     past its declared size, is skipped: (its offset [B], why) is appended to ``skipped``."""
     wanted = {cid: tt for cid, tt in channels.items() if tt[1] in FAST_TYPES}
@@ -388,15 +408,15 @@ def read_fast(path: Path, chunks: Sequence[Any], channels: dict[int, tuple[str, 
     msgtypes = dict(wanted.values())
     collect: dict[str, _Collect] = {}
     declined: set[str] = set()
-    with open(path, "rb") as f:
+    chunks = [ix for ix in chunks if set(ix.message_index_offsets) & set(wanted)]
+    planned = [(ix.chunk_start_offset, ix.chunk_length + ix.message_index_length) for ix in chunks]
+    with contextlib.ExitStack() as stack:
         try:
-            chunk_reader = _Chunks(f)
+            chunk_reader = _Chunks(stack.enter_context(_views(path, planned)))
         except (OSError, ValueError):     # a file that cannot be mapped: the generic reader's
             return {}
         for index in chunks:
             cids = set(index.message_index_offsets) & set(wanted)
-            if not cids:
-                continue
             try:
                 entries, u = chunk_reader.read(index, cids)
             except ChunkError as exc:

@@ -32,6 +32,7 @@ from ..errors import ReadError
 from .common import CHUNK_LIMIT, ChunkError, decode_errors, inflate, open_clamped, unreadable
 from .mcap_fast import FastTopics, read_fast
 from .messages import normalize_type, pose_decoder
+from .remote import RemoteObject
 from .source import Decoder, TopicInfo
 
 if TYPE_CHECKING:
@@ -45,7 +46,9 @@ _ROS2_SCHEMAS = ("ros2msg", "ros2idl", "omgidl")
 
 
 class McapSource:
-    """An open MCAP file (use as a context manager). Message types are normalised to ``pkg/msg/T``.
+    """An open MCAP file (use as a context manager), local or a remote object read by byte range
+    (:class:`.remote.RemoteObject`: the footer, the summary, then only the chunks holding the topics
+    read; rosbags, which needs a path, is not used for it). Message types are normalised to ``pkg/msg/T``.
 
     ``truncated``: the file ends before its footer (a crashed recording); ``fast=False`` disables
     the numpy fast path (tests compare both paths). Chunks are decompressed by
@@ -58,8 +61,8 @@ class McapSource:
     _counts: dict[int, int]
     _span: tuple[int, int] | None
 
-    def __init__(self, path: Path, *, fast: bool = True) -> None:
-        self.name = str(path)
+    def __init__(self, path: Path | RemoteObject, *, fast: bool = True) -> None:
+        self.name = path.url if isinstance(path, RemoteObject) else str(path)
         self._path = path
         self._fast = fast
         self.truncated = False
@@ -68,7 +71,7 @@ class McapSource:
         self._bag: BagSource | None = None      # AnyReader on this file, opened by the first read()
         summary, profile = None, ""
         try:
-            with open_clamped(path) as f:
+            with self._open() as f:
                 reader = make_reader(f)
                 profile = reader.get_header().profile
                 summary = reader.get_summary()
@@ -83,14 +86,20 @@ class McapSource:
             self._indexed = True
         else:
             self._scan_index()
-        self._ros2 = (self._indexed and profile == "ros2"
+        self._ros2 = (self._indexed and profile == "ros2" and isinstance(path, Path)
                       and all(ch.message_encoding == "cdr" for ch in self._channels.values())
                       and all(sc.encoding in _ROS2_SCHEMAS for sc in self._schemas.values()))
+
+    def _open(self) -> BinaryIO:
+        """The file, opened for reading: local reads clamped to its size, a remote object read by range."""
+        if isinstance(self._path, RemoteObject):
+            return self._path.file()     # type: ignore[return-value]
+        return open_clamped(self._path)
 
     def _records(self) -> Iterator[Any]:
         """Every record of a linear scan; at the first damaged or cut-off one, the intact records of
         a chunk cut in the middle are salvaged and the scan stops (``truncated`` set)."""
-        with open_clamped(self._path) as f:
+        with self._open() as f:
             end_of_last = f.tell()
             try:
                 for record in StreamReader(f, emit_chunks=True, record_size_limit=None).records:
@@ -216,6 +225,7 @@ class McapSource:
         if self._ros2 and self._bag is None:
             from .rosbag_reader import BagSource
 
+            assert isinstance(self._path, Path), "rosbags reads local files only (see __init__)"
             try:
                 self._bag = BagSource([self._path], "mcap")
             except ReadError:        # e.g. a schema rosbags cannot parse: use mcap below
@@ -233,7 +243,7 @@ class McapSource:
 
     def _indexed_records(self, channels: set[int]) -> Iterator[Any]:
         """The records of the chunks that may hold messages of ``channels``, in file order."""
-        with open_clamped(self._path) as f:
+        with self._open() as f:
             for index in self._chunks:
                 if index.message_index_offsets and not channels & set(index.message_index_offsets):
                     continue

@@ -21,6 +21,7 @@ import yaml
 from ..errors import ReadError
 from ..untrusted import load_yaml, yaml_problem
 from .mcap_reader import McapSource
+from .remote import RemoteObject
 from .source import LogSource
 
 if TYPE_CHECKING:
@@ -83,12 +84,17 @@ def _open_bag1(paths: list[Path]) -> BagSource | Bag1Scan:
 
 
 @contextmanager
-def open_log(paths: list[Path], fmts: list[str]) -> Iterator[LogSource]:
-    """The open log of ``paths`` (several only for split ROS 1 bags)."""
+def open_log(paths: list[Path | RemoteObject], fmts: list[str]) -> Iterator[LogSource]:
+    """The open log of ``paths`` (several only for split ROS 1 bags; a remote object is an MCAP)."""
     if len(paths) > 1 and (len(set(fmts)) > 1 or fmts[0] != "rosbag1"):
         raise ReadError("several files are read as one log only when all are ROS 1 .bag files",
                         ", ".join(map(str, paths)), "pass one file, or the split .bag files of one recording")
-    path, fmt, note = paths[0], fmts[0], ""
+    if isinstance(paths[0], RemoteObject):
+        with McapSource(paths[0]) as remote:
+            yield remote
+        return
+    local = [p for p in paths if isinstance(p, Path)]
+    path, fmt, note = local[0], fmts[0], ""
     if fmt == "rosbag2" and path.is_dir():
         storage, note = _bag2_storage(path)
         if storage is not None:
@@ -96,7 +102,7 @@ def open_log(paths: list[Path], fmts: list[str]) -> Iterator[LogSource]:
     if fmt == "mcap":
         src: McapSource | BagSource | Bag1Scan = McapSource(path)
     elif fmt == "rosbag1":
-        src = _open_bag1(paths)
+        src = _open_bag1(local)
     else:
         from .rosbag_reader import BagSource
 

@@ -163,6 +163,12 @@ def calibrate_rig_files(log: str | None, specs: Sequence[str | StreamSpec], opti
     opts = options or RigOptions()
     read = opts.options.read
     named = [parse_stream(s) if isinstance(s, str) else s for s in specs]
-    streams = read_rig(log, named, opts.options, quiet=quiet)
-    inputs = {"log": log, "streams": {s.name: s.describe() for s in named}, "time_source": read.time_source}
+    from ..io.remote import session_of
+
+    with session_of(read) as remote:
+        streams = read_rig(log, named, opts.options, quiet=quiet)
+    inputs: dict[str, Any] = {"log": log, "streams": {s.name: s.describe() for s in named},
+                              "time_source": read.time_source}
+    if remote.urls:
+        inputs["bytes_fetched"] = remote.bytes_fetched      # [B] read from object storage (URL inputs)
     return calibrate_rig(streams, opts, inputs=inputs)

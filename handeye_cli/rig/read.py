@@ -14,6 +14,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..io.remote import is_url
 from ..io.spec import StreamSpec
 from ..options import Options, frame_name
 from ..pipeline import read_streams
@@ -35,7 +36,7 @@ def parse_stream(text: str) -> StreamSpec:
         if len(frames) != 2 or not all(frames):
             raise ConfigError(f"bad TF chain {source!r}", f"--stream {text}", "write NAME=tf:PARENT,CHILD")
         return StreamSpec(frames=(frames[0], frames[1]), name=name)
-    if Path(source).is_file():
+    if Path(source).is_file() or is_url(source):
         return StreamSpec(source, name=name)
     if source.startswith("/"):
         return StreamSpec(topic=source, name=name)

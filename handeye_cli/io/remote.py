@@ -1,0 +1,418 @@
+"""Inputs named by URL (``s3://bucket/key.mcap``, ``gs://…``, ``https://…``, ``memory://…``): the one
+home of remote reading — opening through fsspec, bounded retries, byte counting, the download cache.
+
+fsspec (and s3fs for S3: ``pip install 'handeye-cli[remote]'``) is imported only when a URL is
+read. Credentials and the endpoint come the standard way (``AWS_ENDPOINT_URL``,
+``AWS_ACCESS_KEY_ID``/``AWS_SECRET_ACCESS_KEY``, ``AWS_PROFILE`` …) or from the storage options
+(``--storage-option KEY=VALUE``: fsspec's keyword arguments of the file system); neither is ever
+written to a message, record or result: errors are handeye's own sentences, and a URL holding
+credentials (``https://user:pass@host/…``) is refused.
+
+An object is read by byte range (:class:`RemoteObject`): every request asks for exactly the bytes
+its reader needs (at least :data:`_READAHEAD` for small reads), gets at most
+``remote_retries`` tries of ``remote_timeout`` seconds each, and adds what it got to the
+session's :attr:`Session.bytes_fetched`. The MCAP reader reads the footer, the summary and then
+only the chunks it needs (:meth:`RemoteObject.ranges`, which joins adjacent chunks into one
+request of at most :data:`_SPAN`, so memory holds a few chunks, never the object). What cannot be
+read by range — text files, ROS bags, an MCAP without a summary (cut short, or written without
+one) — is downloaded once to the session's cache (:meth:`Session.cached`): at most
+:data:`CACHE_LIMIT` bytes, removed when the session ends and at exit, with a one-line note.
+"""
+from __future__ import annotations
+
+import atexit
+import contextlib
+import os
+import re
+import shutil
+import struct
+import tempfile
+import time
+from collections import OrderedDict
+from collections.abc import Iterator, Sequence
+from contextvars import ContextVar
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit
+
+from ..errors import ConfigError, ReadError
+from ..untrusted import REMOTE_RETRIES, REMOTE_TIMEOUT_S
+
+__all__ = ["is_url", "Session", "session", "session_of", "current", "RemoteObject", "CACHE_LIMIT", "scrub"]
+
+CACHE_LIMIT = 8 << 30
+"""The most bytes [B] one session downloads to its cache (objects that cannot be read by range)."""
+_READAHEAD = 4 << 10        # [B] the least a request asks for (small reads: headers, records of a summary)
+_SPAN = 16 << 20            # [B] the most one request of adjacent chunks asks for
+_HELD = 64 << 20            # [B] the most fetched bytes kept for re-reading (footer, summary, head)
+_PIECE = 16 << 20           # [B] a download's request size
+_CLIENTS = ("botocore", "aiobotocore", "aiohttp", "urllib3", "asyncio", "gcsfs", "google", "fsspec", "s3fs")
+_URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.\-]*://")
+_FOOTER = 37                # Footer record (opcode 1 + length 8 + 8 + 8 + 4) + magic 8
+_MCAP_MAGIC = b"\x89MCAP0\r\n"
+_CREDENTIAL_ENV = ("AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY", "AWS_SESSION_TOKEN", "GOOGLE_APPLICATION_CREDENTIALS")
+_FIX_CREDENTIALS = ("set AWS_ACCESS_KEY_ID / AWS_SECRET_ACCESS_KEY or AWS_PROFILE, or pass "
+                    "--storage-option key=… --storage-option secret=…")
+
+
+def is_url(path: object) -> bool:
+    """Whether ``path`` is a URL (``scheme://…``) rather than a local path."""
+    return isinstance(path, str) and bool(_URL.match(path))
+
+
+def scrub(text: str, storage_options: Sequence[tuple[str, str]] = ()) -> str:
+    """``text`` with every credential the environment or ``storage_options`` holds replaced by ``***``."""
+    secrets = [os.environ.get(k, "") for k in _CREDENTIAL_ENV] + [v for _, v in storage_options]
+    for secret in sorted({s for s in secrets if len(s) >= 4}, key=len, reverse=True):
+        text = text.replace(secret, "***")
+    return text
+
+
+@dataclass
+class Session:
+    """The remote reading of one calibration (or one ``inspect``, one batch discovery): its settings,
+    the objects opened (by URL, so detecting a format and reading it share their fetched bytes), the
+    bytes fetched [B] and the downloads cached."""
+
+    storage_options: tuple[tuple[str, str], ...]
+    timeout: float              # [s] per request (``remote_timeout``)
+    retries: int                # tries per request (``remote_retries``)
+    bytes_fetched: int = 0
+    urls: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    _objects: dict[str, RemoteObject] = field(default_factory=dict)
+    _cache: Path | None = None
+    _cached: dict[str, Path] = field(default_factory=dict)
+    _cached_bytes: int = 0
+
+    def fs(self, url: str) -> tuple[Any, str]:
+        """(the fsspec file system of ``url``, its path there), with the timeouts and retries of this session."""
+        if urlsplit(url).password is not None or "@" in urlsplit(url).netloc:
+            raise ConfigError("a URL holding credentials is refused", scrub(url.split("@", 1)[-1]),
+                              "pass credentials through the environment or --storage-option")
+        try:
+            import fsspec  # type: ignore[import-untyped]
+            from fsspec.core import split_protocol  # type: ignore[import-untyped]
+        except ImportError as exc:
+            raise ConfigError("reading URLs needs fsspec", url, "pip install 'handeye-cli[remote]'") from exc
+        protocol, _ = split_protocol(url)
+        options: dict[str, Any] = dict(self.storage_options)
+        if protocol in ("s3", "s3a"):
+            options.setdefault("config_kwargs", {"connect_timeout": self.timeout, "read_timeout": self.timeout,
+                                                 "retries": {"max_attempts": 1}})
+        elif protocol in ("http", "https"):
+            import aiohttp  # the http(s) file system's client
+
+            options.setdefault("client_kwargs", {"timeout": aiohttp.ClientTimeout(total=self.timeout)})
+        try:
+            fs = fsspec.filesystem(protocol, **options)
+        except ImportError as exc:
+            raise ConfigError(f"no file system for {protocol}:// installed: {exc.name or exc}", url,
+                              "pip install 'handeye-cli[remote]' (S3), gcsfs (gs://) or aiohttp (https://)") from exc
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"bad storage options for {protocol}://: {type(exc).__name__}",
+                              "--storage-option", "pass the keyword arguments of the fsspec file system") from exc
+        return fs, fs._strip_protocol(url)
+
+    def call(self, url: str, what: str, fn: Any, *args: Any) -> Any:
+        """``fn(*args)`` tried up to :attr:`retries` times; a one-line ReadError naming ``url`` when
+        the object is missing, access is denied, or every try failed or overran :attr:`timeout`."""
+        for attempt in range(1, self.retries + 1):
+            try:
+                return _within(self.timeout * 2 + 1, fn, *args)
+            except FileNotFoundError as exc:
+                raise ReadError("no such object", url, "check the bucket, the key and the endpoint "
+                                "(AWS_ENDPOINT_URL)") from exc
+            except PermissionError as exc:
+                raise ReadError("access denied: the credentials are wrong or lack permission", url,
+                                _FIX_CREDENTIALS) from exc
+            except (OSError, TimeoutError, _Overran) as exc:
+                error: BaseException = exc
+            except Exception as exc:    # the file systems' own errors (botocore, aiohttp) beside OSError
+                if type(exc).__name__ in ("NoCredentialsError", "PartialCredentialsError"):
+                    raise ReadError("no credentials found", url, _FIX_CREDENTIALS) from exc
+                if not type(exc).__module__.startswith(_CLIENTS):
+                    raise
+                error = exc
+            if attempt < self.retries:
+                time.sleep(min(2.0, 0.1 * 2 ** attempt))
+        raise ReadError(f"{what} failed {self.retries} times ({_kind(error)}; {self.timeout:g} s each)", url,
+                        "check the endpoint (AWS_ENDPOINT_URL) and the network, or raise --remote-timeout / "
+                        "--remote-retries") from error
+
+    def open(self, url: str) -> RemoteObject:
+        """The object at ``url`` (its size asked once; opened once per session)."""
+        if url not in self._objects:
+            fs, path = self.fs(url)
+            info = self.call(url, "asking its size", fs.info, path)
+            if info.get("type") == "directory":
+                raise ReadError("a folder, not an object", url, "name an object, or give the folder to "
+                                "handeye batch")
+            self._objects[url] = RemoteObject(self, url, fs, path, int(info["size"]))
+            self.urls.append(url)
+        return self._objects[url]
+
+    def is_folder(self, url: str) -> bool:
+        """Whether ``url`` names a folder (a prefix holding objects) rather than an object."""
+        fs, path = self.fs(url)
+        return bool(self.call(url, "listing", fs.isdir, path))
+
+    def listing(self, url: str, pattern: bool = False) -> list[tuple[str, bool]]:
+        """(URL, whether a folder) of the objects under the folder ``url`` (recursively), or of what
+        the glob ``url`` matches (``pattern``), sorted."""
+        fs, path = self.fs(url)
+        found = self.call(url, "listing", lambda: (fs.glob if pattern else fs.find)(path, detail=True))
+        protocol = url.split("://", 1)[0]
+        return sorted((name if is_url(name) else f"{protocol}://{name}" if protocol != "memory" else f"memory://{name}",
+                       info.get("type") == "directory") for name, info in found.items())
+
+    def cached(self, url: str, why: str) -> Path:
+        """A local copy of the object (or folder) at ``url``, keeping its name, downloaded once to this
+        session's cache, with a note saying so and ``why``; ReadError past :data:`CACHE_LIMIT`."""
+        if url in self._cached:
+            return self._cached[url]
+        if self._cache is None:
+            self._cache = Path(tempfile.mkdtemp(prefix="handeye-remote-"))
+            atexit.register(shutil.rmtree, self._cache, True)
+        folder = self._cache / str(len(self._cached))
+        folder.mkdir()
+        target = folder / (urlsplit(url).path.rstrip("/").rsplit("/", 1)[-1] or "object")
+        if self.is_folder(url):
+            base = url.rstrip("/")
+            target.mkdir()
+            for name, _ in self.listing(url):
+                rel = name[len(base):].lstrip("/")
+                if not rel or ".." in rel.split("/"):
+                    continue
+                (target / rel).parent.mkdir(parents=True, exist_ok=True)
+                self._download(self.open(name), target / rel)
+        else:
+            self._download(self.open(url), target)
+        self._cached[url] = target
+        self.notes.append(f"{url}: {why}; downloaded it whole to a temporary cache (removed at exit)")
+        return target
+
+    def opened(self, url: str, fmt: str) -> Path | RemoteObject:
+        """What the reader of format ``fmt`` opens for ``url``: an MCAP with a summary is read by range,
+        anything else from its local copy (:meth:`cached`)."""
+        if fmt == "mcap" and not self.is_folder(url):
+            obj = self.open(url)
+            if obj.prefetch_summary():
+                return obj
+            return self.cached(url, "an MCAP without a summary (cut short, or written without one) cannot be "
+                                    "read by range")
+        why = {"rosbag1": "a ROS 1 bag is read from a file", "rosbag2": "a ROS 2 bag is read from a file"}
+        return self.cached(url, why.get(fmt, "a text file is read whole"))
+
+    def _download(self, obj: RemoteObject, target: Path) -> None:
+        if self._cached_bytes + obj.size > CACHE_LIMIT:
+            raise ReadError(f"the download cache would exceed {CACHE_LIMIT >> 20} MiB "
+                            "(handeye_cli.io.remote.CACHE_LIMIT)", obj.url,
+                            "download the object and pass its local path")
+        self._cached_bytes += obj.size
+        with open(target, "wb") as f:
+            for start in range(0, obj.size, _PIECE):
+                f.write(obj.fetch(start, min(obj.size, start + _PIECE)))
+
+    def close(self) -> None:
+        """Remove this session's downloads."""
+        if self._cache is not None:
+            shutil.rmtree(self._cache, True)
+            self._cache = None
+        self._cached.clear()
+
+
+class _Overran(Exception):
+    """A request still running past its time limit."""
+
+
+def _within(seconds: float, fn: Any, *args: Any) -> Any:
+    """``fn(*args)``, or :class:`_Overran` after ``seconds`` (the file systems' own timeouts come
+    first; this is the bound when one of them does not apply, e.g. a server that accepts and is silent)."""
+    import concurrent.futures
+
+    pool = concurrent.futures.ThreadPoolExecutor(1)
+    try:
+        return pool.submit(fn, *args).result(seconds)
+    except concurrent.futures.TimeoutError as exc:
+        raise _Overran from exc
+    finally:
+        pool.shutdown(wait=False)
+
+
+def _kind(error: BaseException) -> str:
+    if isinstance(error, (_Overran, TimeoutError)) or "timeout" in type(error).__name__.lower():
+        return "no answer in time"
+    return type(error).__name__
+
+
+_SESSION: ContextVar[Session | None] = ContextVar("handeye_remote_session", default=None)
+
+
+
+@contextlib.contextmanager
+def session(storage_options: Sequence[tuple[str, str]], timeout: float, retries: int) -> Iterator[Session]:
+    """A :class:`Session` that the readers in this context use (the read options ``storage_option``,
+    ``remote_timeout``, ``remote_retries``); its downloads are removed at its end."""
+    s = Session(tuple(storage_options), timeout, retries)
+    token = _SESSION.set(s)
+    try:
+        yield s
+    finally:
+        _SESSION.reset(token)
+        s.close()
+
+
+def session_of(read: Any) -> contextlib.AbstractContextManager[Session]:
+    """:func:`session` with the settings of the read options ``read`` (a :class:`handeye_cli.options.ReadOptions`)."""
+    return session(read.storage_option, read.remote_timeout, read.remote_retries)
+
+
+def current() -> Session:
+    """The session of this context, or one with the default read options lasting for the context
+    (a reader called outside :func:`handeye_cli.calibrate_files` and the commands)."""
+    s = _SESSION.get()
+    if s is None:
+        s = Session((), REMOTE_TIMEOUT_S, REMOTE_RETRIES)
+        _SESSION.set(s)
+    return s
+
+
+class RemoteObject:
+    """One object read by byte range: ``size`` [B]; what :meth:`read_at` fetched is kept (at most
+    :data:`_HELD` bytes, oldest dropped first) so that re-reading a header or the summary costs nothing."""
+
+    def __init__(self, owner: Session, url: str, fs: Any, path: str, size: int) -> None:
+        self.session, self.url, self._fs, self._path, self.size = owner, url, fs, path, size
+        self.name = url
+        self._held: OrderedDict[int, bytes] = OrderedDict()
+
+    def __str__(self) -> str:
+        return self.url
+
+    def fetch(self, start: int, stop: int) -> bytes:
+        """The bytes ``[start, stop)`` in one request (fewer only if the object ends first), counted."""
+        stop = min(stop, self.size)
+        if stop <= start:
+            return b""
+        data: bytes = self.session.call(self.url, f"reading bytes {start}-{stop}",
+                                        lambda: self._fs.cat_file(self._path, start=start, end=stop))
+        self.session.bytes_fetched += len(data)
+        return data
+
+    def _hold(self, start: int, data: bytes) -> None:
+        self._held[start] = data
+        while sum(map(len, self._held.values())) > _HELD and len(self._held) > 1:
+            self._held.popitem(last=False)
+
+    def read_at(self, pos: int, n: int) -> bytes:
+        """``n`` bytes from ``pos`` (fewer at the end): from what is held, else one request of at least
+        :data:`_READAHEAD` bytes."""
+        out = bytearray()
+        while n > 0 and pos < self.size:
+            block = next(((s, d) for s, d in self._held.items() if s <= pos < s + len(d)), None)
+            if block is None:
+                nxt = min((s for s in self._held if s > pos), default=self.size)
+                want = min(max(n, _READAHEAD), nxt - pos) if nxt - pos >= n else nxt - pos
+                data = self.fetch(pos, pos + want)
+                if not data:
+                    break
+                self._hold(pos, data)
+                block = (pos, data)
+            s, d = block
+            piece = d[pos - s:pos - s + n]
+            out += piece
+            pos, n = pos + len(piece), n - len(piece)
+        return bytes(out)
+
+    def prefetch_summary(self) -> bool:
+        """Fetch the MCAP footer and the summary it points at (two requests of exactly their bytes);
+        whether there is a summary (False: no footer — cut short — or written without one)."""
+        if self.size < len(_MCAP_MAGIC) + _FOOTER:
+            return False
+        tail = self.fetch(self.size - _FOOTER, self.size)
+        self._hold(self.size - _FOOTER, tail)
+        if tail[-8:] != _MCAP_MAGIC or tail[0] != 0x02:
+            return False
+        (summary_start,) = struct.unpack_from("<Q", tail, 9)
+        if not 0 < summary_start < self.size - _FOOTER:
+            return False
+        self._hold(summary_start, self.fetch(summary_start, self.size - _FOOTER))
+        return True
+
+    def file(self) -> RangeFile:
+        """A seekable binary file object reading this object by range."""
+        return RangeFile(self)
+
+    def ranges(self, planned: Sequence[tuple[int, int]]) -> Ranges:
+        """Views of the byte ranges ``planned`` [(start, length)], to be asked for in that order."""
+        return Ranges(self, planned)
+
+
+class RangeFile:
+    """A read-only, seekable binary file on a :class:`RemoteObject` (reads never past its end)."""
+
+    def __init__(self, obj: RemoteObject) -> None:
+        self._obj, self._pos = obj, 0
+        self.name = obj.url
+
+    def read(self, n: int | None = -1) -> bytes:
+        if n is None or n < 0:
+            n = self._obj.size - self._pos
+        data = self._obj.read_at(self._pos, n)
+        self._pos += len(data)
+        return data
+
+    def readinto(self, buf: Any) -> int:
+        data = self.read(len(buf))
+        memoryview(buf).cast("B")[:len(data)] = data
+        return len(data)
+
+    def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
+        base = {os.SEEK_SET: 0, os.SEEK_CUR: self._pos, os.SEEK_END: self._obj.size}[whence]
+        self._pos = max(0, base + offset)
+        return self._pos
+
+    def tell(self) -> int:
+        return self._pos
+
+    def seekable(self) -> bool:
+        return True
+
+    def readable(self) -> bool:
+        return True
+
+    def close(self) -> None:
+        """Nothing to release: the object's held bytes belong to its session."""
+
+    def __enter__(self) -> RangeFile:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class Ranges:
+    """Byte ranges of an object asked for in a planned order: adjacent ones are fetched together, up
+    to :data:`_SPAN` bytes a request, and a span is dropped once the reader moves past it (memory
+    holds one span: a few chunks)."""
+
+    def __init__(self, obj: RemoteObject, planned: Sequence[tuple[int, int]]) -> None:
+        self._obj = obj
+        self._spans: list[tuple[int, int]] = []
+        for start, n in sorted(planned):
+            if self._spans and self._spans[-1][1] == start and start + n - self._spans[-1][0] <= _SPAN:
+                self._spans[-1] = (self._spans[-1][0], start + n)
+            else:
+                self._spans.append((start, start + n))
+        self._span = (0, b"")
+
+    def view(self, start: int, n: int) -> memoryview:
+        """The ``n`` bytes from ``start`` (fewer where the object ends)."""
+        s, data = self._span
+        if not (s <= start and start + n <= s + len(data)):
+            lo, hi = next(((a, b) for a, b in self._spans if a <= start < b), (start, start + n))
+            self._span = (0, b"")           # the previous span goes before the next arrives
+            self._span = s, data = lo, self._obj.fetch(lo, max(hi, start + n))
+        return memoryview(data)[start - s:start - s + n]

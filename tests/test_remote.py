@@ -1,0 +1,300 @@
+"""Inputs by URL against a real S3 protocol server (moto's, on 127.0.0.1): byte-range reads, the cache,
+retries and timeouts, credentials never shown, batch over prefixes and globs, Dask workers that open URLs."""
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+from _util import ROOT, run
+
+moto_server = pytest.importorskip("moto.server", reason="pip install '.[test]' (moto[server], s3fs)")
+boto3 = pytest.importorskip("boto3")
+
+SAMPLES = ROOT / "sample_data"
+BUCKET = "fleet"
+TOPICS = ("--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose")
+SECRET = "s3cr3t-Do-Not-Print-9f2e"       # the secret key: must appear in no output
+KEY_ID = "AKIAHANDEYETEST0001"
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.fixture(scope="module")
+def s3():
+    """A moto S3 server with the sample logs (and a cut one) in the bucket ``fleet``; the environment
+    points boto at it with the test's credentials."""
+    port = _free_port()
+    server = moto_server.ThreadedMotoServer(ip_address="127.0.0.1", port=port)
+    server.start()
+    endpoint = f"http://127.0.0.1:{port}"
+    env = {"AWS_ENDPOINT_URL": endpoint, "AWS_ACCESS_KEY_ID": KEY_ID, "AWS_SECRET_ACCESS_KEY": SECRET,
+           "AWS_DEFAULT_REGION": "us-east-1"}
+    old = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    client = boto3.client("s3", endpoint_url=endpoint)
+    client.create_bucket(Bucket=BUCKET)
+    for name in ("rig.mcap", "rig_json.mcap", "rig_a.tum", "rig_b.tum"):
+        client.upload_file(str(SAMPLES / name), BUCKET, f"logs/{name}")
+    client.upload_file(str(SAMPLES / "rig.mcap"), BUCKET, "logs/day2/rig.mcap")
+    client.upload_file(str(SAMPLES / "rig_ros1.bag"), BUCKET, "bags/rig_ros1.bag")
+    for f in sorted((SAMPLES / "rig_ros2").iterdir()):
+        client.upload_file(str(f), BUCKET, f"bags/rig_ros2/{f.name}")
+    data = (SAMPLES / "rig.mcap").read_bytes()
+    client.put_object(Bucket=BUCKET, Key="cut/rig_cut.mcap", Body=data[: len(data) * 6 // 10])
+    yield endpoint
+    server.stop()
+    for k, v in old.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
+
+
+def _doc(out: str) -> dict:
+    import yaml
+
+    return yaml.safe_load(out)
+
+
+def _same_result(a: dict, b: dict) -> None:
+    assert a["matrix"] == b["matrix"] and a["pairs_used"] == b["pairs_used"] and a["frames"] == b["frames"]
+    assert a["samples"] == b["samples"]
+
+
+def test_calibrate_from_s3_equals_the_local_result_and_reports_bytes(s3, capsys):
+    code, local, _ = run(capsys, "calibrate", SAMPLES / "rig.mcap", *TOPICS, "-q")
+    code_r, remote, err = run(capsys, "calibrate", f"s3://{BUCKET}/logs/rig.mcap", *TOPICS, "-q")
+    assert code == code_r == 0, err
+    a, b = _doc(local), _doc(remote)
+    _same_result(a, b)
+    size = (SAMPLES / "rig.mcap").stat().st_size
+    assert 0 < b["inputs"]["bytes_fetched"] <= size + 8192 and "bytes_fetched" not in a["inputs"]
+    assert b["inputs"]["a"]["file"] == f"s3://{BUCKET}/logs/rig.mcap"
+
+
+@pytest.mark.parametrize(("name", "topics"), [("rig_ros1.bag", ("/cam0/odom", "/cam1/pose")),
+                                              ("rig_ros2", ("/cam0/transform", "/cam1/odom"))])
+def test_logs_read_from_the_cache_say_so_and_equal_local(s3, capsys, name, topics):
+    flags = ("--topic-a", topics[0], "--topic-b", topics[1], "-q")
+    code, local, _ = run(capsys, "calibrate", SAMPLES / name, *flags)
+    code_r, remote, err = run(capsys, "calibrate", f"s3://{BUCKET}/bags/{name}", *flags)
+    assert code == code_r == 0, err
+    _same_result(_doc(local), _doc(remote))
+    assert any("downloaded it whole to a temporary cache" in w for w in _doc(remote)["warnings"])
+
+
+def test_text_pair_and_inspect(s3, capsys):
+    code, local, _ = run(capsys, "calibrate", SAMPLES / "rig_a.tum", SAMPLES / "rig_b.tum", "-q")
+    code_r, remote, err = run(capsys, "calibrate", f"s3://{BUCKET}/logs/rig_a.tum", f"s3://{BUCKET}/logs/rig_b.tum",
+                              "-q")
+    assert code == code_r == 0, err
+    _same_result(_doc(local), _doc(remote))
+    code, out, err = run(capsys, "inspect", f"s3://{BUCKET}/logs/rig.mcap", "--format", "json")
+    info = json.loads(out)
+    assert code == 0 and info["path"] == f"s3://{BUCKET}/logs/rig.mcap"
+    assert {t["topic"] for t in info["topics"]} >= {"/cam0/pose", "/cam1/pose"}
+
+
+def test_remote_and_local_mcap_streams_are_identical(s3):
+    import numpy as np
+
+    from handeye_cli.io import read_log_streams
+    from handeye_cli.io.remote import session
+
+    requests = [("/cam0/pose", None), ("/cam1/pose", None)]
+    for name in ("rig.mcap", "rig_json.mcap"):      # the fast path, and the generic reader on a range file
+        local = read_log_streams(SAMPLES / name, requests)
+        with session((), 10.0, 2) as s:
+            remote = read_log_streams(f"s3://{BUCKET}/logs/{name}", requests)
+        assert s.bytes_fetched > 0 and not s.notes              # read by range: nothing downloaded
+        for x, y in zip(local, remote, strict=True):
+            assert np.array_equal(x.stamps_ns, y.stamps_ns) and np.array_equal(x.xyz, y.xyz)
+            assert np.array_equal(x.quat_xyzw, y.quat_xyzw)
+
+
+def test_only_the_wanted_chunks_are_fetched(tmp_path):
+    """Poses in their own chunks, images beside: fetched ≤ 1.2 × (footer + summary + pose chunks with
+    their message indexes), by the file's own chunk index (served from memory://)."""
+    import fsspec
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from remote import lower_bound, write_image_log
+
+    path = write_image_log(tmp_path / "img.mcap", seconds=4, image_bytes=200_000, own_chunks=True)
+    with fsspec.open("memory://img/img.mcap", "wb") as f:
+        f.write(path.read_bytes())
+    from handeye_cli.io import read_log_streams
+    from handeye_cli.io.remote import session
+
+    with session((), 10.0, 2) as s:
+        read_log_streams("memory://img/img.mcap", [("/cam0/pose", None), ("/cam1/pose", None)])
+    bound = lower_bound(path)
+    assert bound < 0.05 * path.stat().st_size
+    assert bound <= s.bytes_fetched <= 1.2 * bound
+
+
+def test_batch_over_a_prefix_and_a_glob(s3, capsys):
+    code, out, err = run(capsys, "batch", f"s3://{BUCKET}/logs/", *TOPICS, "-q", "--jobs", "1")
+    records = [json.loads(line) for line in out.splitlines()]
+    assert [r["input"] for r in records] == [f"s3://{BUCKET}/logs/{n}" for n in
+                                             ("day2/rig.mcap", "rig.mcap", "rig_json.mcap")]
+    assert code == 0 and all(r["status"] == "ok" and r["inputs"]["bytes_fetched"] > 0 for r in records), err
+    code, out, _ = run(capsys, "batch", f"s3://{BUCKET}/logs/rig*.mcap", f"s3://{BUCKET}/logs/missing.mcap",
+                       f"s3://{BUCKET}/logs/rig_a.tum", *TOPICS, "-q", "--jobs", "1")
+    records = [json.loads(line) for line in out.splitlines()]
+    assert [r["status"] for r in records] == ["ok", "ok", "error", "error"] and code == 2
+    assert records[0]["input"] == f"s3://{BUCKET}/logs/rig.mcap"
+    assert records[2]["error"].startswith("no such object") and "\n" not in records[2]["error"]
+
+
+def test_an_object_cut_short_is_salvaged_like_a_local_file(s3, capsys, tmp_path):
+    data = (SAMPLES / "rig.mcap").read_bytes()
+    (tmp_path / "rig_cut.mcap").write_bytes(data[: len(data) * 6 // 10])
+    code, local, _ = run(capsys, "calibrate", tmp_path / "rig_cut.mcap", *TOPICS, "-q")
+    code_r, remote, _ = run(capsys, "calibrate", f"s3://{BUCKET}/cut/rig_cut.mcap", *TOPICS, "-q")
+    assert code == code_r
+    a, b = _doc(local), _doc(remote)
+    _same_result(a, b)
+    assert any("recovered" in w for w in b["warnings"]) and any("cache" in w for w in b["warnings"])
+
+
+def _silent_server() -> tuple[socket.socket, int]:
+    """A server that accepts connections and never answers."""
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(16)
+    held: list[socket.socket] = []
+    threading.Thread(target=lambda: [held.append(srv.accept()[0]) for _ in range(16)], daemon=True).start()
+    return srv, srv.getsockname()[1]
+
+
+def test_a_stalled_server_is_a_timeout_not_a_hang(s3, capsys):
+    srv, port = _silent_server()
+    start = time.monotonic()
+    code, out, err = run(capsys, "calibrate", f"s3://{BUCKET}/logs/rig.mcap", *TOPICS, "-q",
+                         "--storage-option", f"endpoint_url=http://127.0.0.1:{port}",
+                         "--remote-timeout", "0.5", "--remote-retries", "2")
+    srv.close()
+    assert time.monotonic() - start < 8
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+    assert "failed 2 times (no answer in time" in err
+
+
+def test_wrong_credentials_are_one_clear_line_and_no_secret_is_shown(s3, capsys, tmp_path):
+    import moto.settings
+
+    iam = boto3.client("iam", endpoint_url=s3)
+    iam.create_user(UserName="ci")
+    policy = iam.create_policy(PolicyName="all", PolicyDocument=json.dumps(
+        {"Version": "2012-10-17", "Statement": [{"Effect": "Allow", "Action": "*", "Resource": "*"}]}))
+    iam.attach_user_policy(UserName="ci", PolicyArn=policy["Policy"]["Arn"])
+    key = iam.create_access_key(UserName="ci")["AccessKey"]
+    old = moto.settings.INITIAL_NO_AUTH_ACTION_COUNT
+    moto.settings.INITIAL_NO_AUTH_ACTION_COUNT = 0          # from now on the server checks signatures
+    try:
+        code, out, err = run(capsys, "calibrate", f"s3://{BUCKET}/logs/rig.mcap", *TOPICS, "-q")
+        assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+        assert "access denied" in err and SECRET not in err and KEY_ID not in err
+        good = key["SecretAccessKey"]
+        texts = []
+        for fmt in ("yaml", "json"):
+            code, out, err = run(capsys, "calibrate", f"s3://{BUCKET}/logs/rig.mcap", *TOPICS, "--format", fmt,
+                                 "--storage-option", f"key={key['AccessKeyId']}", "--storage-option",
+                                 f"secret={good}", "--report", tmp_path / "r.html", "-o", tmp_path / f"r.{fmt}")
+            assert code == 0, err
+            texts += [out, err, (tmp_path / f"r.{fmt}").read_text(), (tmp_path / "r.html").read_text()]
+        code, out, err = run(capsys, "batch", f"s3://{BUCKET}/logs/", *TOPICS, "--jobs", "1", "--storage-option",
+                             f"key={key['AccessKeyId']}", "--storage-option", f"secret={good}",
+                             "--output-dir", tmp_path / "res")
+        texts += [out, err, *(p.read_text() for p in (tmp_path / "res").iterdir())]
+        code, out, err = run(capsys, "calibrate", f"s3://{BUCKET}/logs/rig.mcap", *TOPICS,
+                             "--storage-option", f"secret{good}")
+        texts += [out, err]
+        assert code == 2 and "bad storage option" in err
+        for text in texts:
+            assert good not in text and SECRET not in text
+    finally:
+        moto.settings.INITIAL_NO_AUTH_ACTION_COUNT = old
+
+
+def test_a_local_run_does_not_import_fsspec():
+    probe = ("import sys\nfrom handeye_cli.cli import main\ntry:\n"
+             f"    main(['calibrate', {str(SAMPLES / 'rig.mcap')!r}, '--topic-a', '/cam0/pose',"
+             " '--topic-b', '/cam1/pose', '-q'])\n"
+             "except SystemExit as e:\n    assert e.code == 0, e.code\n"
+             "sys.stderr.write(repr(('fsspec' in sys.modules, 's3fs' in sys.modules)))\n")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, cwd=ROOT,
+                         env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert out.returncode == 0 and out.stderr.strip().endswith("(False, False)"), out.stderr[-300:]
+
+
+def test_dask_workers_open_the_urls_themselves(s3, capsys, tmp_path):
+    pytest.importorskip("distributed")
+    port = _free_port()
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                               "--port", str(port), "--no-dashboard"], env=env, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)]
+    try:
+        for _ in range(2):
+            procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker",
+                                           f"tcp://127.0.0.1:{port}", "--nthreads", "1", "--no-dashboard"],
+                                          env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        args = ("batch", f"s3://{BUCKET}/logs/", *TOPICS, "-q")
+        from distributed import Client
+
+        with Client(f"tcp://127.0.0.1:{port}", timeout=30) as client:
+            client.wait_for_workers(2, timeout=30)
+        code, local, _ = run(capsys, *args, "--jobs", "1")
+        code_d, remote, err = run(capsys, *args, "--scheduler", f"tcp://127.0.0.1:{port}")
+        assert code == code_d == 0, err
+
+        def strip(out: str) -> list[dict]:
+            return [{k: v for k, v in json.loads(line).items() if k != "seconds"} for line in out.splitlines()]
+
+        assert strip(local) == strip(remote) and len(strip(local)) == 3
+    finally:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            p.wait(10)
+
+
+def test_the_readme_nightly_job_reads_s3_directly(s3, capsys, tmp_path, monkeypatch):
+    """The README's "CI and fleets" workflow: its install step has the remote extra, and its batch
+    command runs against the local server (bucket and nominal swapped for the test's)."""
+    import re
+    import shlex
+
+    import yaml
+
+    section = (ROOT / "README.md").read_text(encoding="utf-8").split("## CI and fleets", 1)[1]
+    workflow = yaml.safe_load(re.search(r"```yaml\n(.*?)```", section, re.S).group(1))
+    steps = workflow["jobs"]["recalibrate"]["steps"]
+    assert any("remote" in step.get("run", "") and "pip install" in step["run"] for step in steps)
+    (step,) = [s for s in steps if s.get("run", "").startswith("handeye batch")]
+    assert set(step["env"]) == {"AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY"}
+    command, redirect = step["run"].strip().split(" > ")
+    argv = shlex.split(command)
+    assert argv[2].startswith("s3://")
+    code, nominal, _ = run(capsys, "calibrate", SAMPLES / "rig.mcap", *TOPICS, "-q")
+    (tmp_path / "nominal").mkdir()
+    (tmp_path / "nominal" / "robot42.yaml").write_text(nominal)
+    argv = [f"s3://{BUCKET}/logs/" if a == argv[2] else "nominal/robot42.yaml" if a.startswith("nominal/") else a
+            for a in argv]
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(capsys, *argv[1:])
+    assert code == 0, err
+    records = [json.loads(line) for line in out.splitlines()]
+    assert len(records) == 3 and all(r["status"] == "ok" and r["inputs"]["bytes_fetched"] > 0 for r in records)
+    assert (tmp_path / "fleet.html").is_file() and redirect.strip() == "verdicts.jsonl"
