@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from ..errors import HandEyeError, ReadError
+from ..errors import ConfigError, ReadError
 from ..version import __version__
 from .report import _CSS, _SCRIPT, _esc
 from .svgplot import DPI
@@ -100,7 +100,7 @@ def _subplots(width: float, height: float, nrows: int, ncols: int, *, margins: t
     try:
         from matplotlib.figure import Figure
     except ImportError:  # pragma: no cover - depends on the environment
-        raise HandEyeError("matplotlib is not installed", "--report",
+        raise ConfigError("matplotlib is not installed", "--report",
                            "install it: pip install 'handeye-cli[report]'") from None
     left, right, bottom, top = margins
     axes_w = (width - left - right - (ncols - 1) * gaps[0]) / ncols         # mean axes size [in]
@@ -186,7 +186,7 @@ def render_fleet_report(records: list[dict[str, Any]]) -> str:
 
 
 def write_fleet_report(path: str | Path, records: list[dict[str, Any]], flag: str = "-o") -> None:
-    """Write the fleet report of batch ``records`` to ``path`` (atomically); a HandEyeError naming
+    """Write the fleet report of batch ``records`` to ``path`` (atomically); a ReadError or WriteError naming
     ``flag`` when it cannot be written or matplotlib is missing (no file is created)."""
     check_writable(path, flag)
     write_output(path, render_fleet_report(records), flag)
