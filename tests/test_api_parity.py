@@ -136,3 +136,32 @@ def test_pose_stream_refuses_float_stamps():
     assert len(PoseStream([], np.zeros((0, 3)), np.zeros((0, 4)))) == 0   # empty lists are no float stamps
     with pytest.raises(DataError, match="finite"):
         PoseStream.from_seconds([np.nan, 1.0], xyz, quat)
+
+
+def test_solve_has_the_command_lines_defaults_and_values(tmp_path, capsys):
+    """Issue 21: Python ``solve()`` defaulted to α = 1.0 where ``handeye solve`` defaults to auto, refused
+    ``alpha="auto"`` with a TypeError, and refused ``method="Tsai"`` which the CLI took as ``--method Tsai``.
+    Now both surfaces take the options' defaults and values, and give the same answer."""
+    import inspect
+    import json
+    from pathlib import Path
+
+    import handeye_cli
+    from handeye_cli.cli import main
+    from handeye_cli.io.pairfile import read_pairs
+
+    pairs = Path(__file__).parents[1] / "sample_data" / "pairs.csv"
+    params = inspect.signature(handeye_cli.solve).parameters
+    assert params["alpha"].default == FIELDS["alpha"][2] == "auto"
+    assert params["method"].default == FIELDS["method"][2]
+    A, B, w = read_pairs(str(pairs))
+    for method, alpha in (("DQopt", "auto"), ("Tsai", "2")):
+        sol = handeye_cli.solve(A, B, method=method, alpha=alpha, weights=w)
+        with pytest.raises(SystemExit) as exit_:
+            main(["solve", str(pairs), "--method", method, "--alpha", alpha, "--format", "json"])
+        doc = json.loads(capsys.readouterr().out)
+        assert exit_.value.code == 0 and sol.method == method.lower()
+        assert doc["alpha"] == pytest.approx(sol.alpha) and doc["method"] == sol.method and sol.alpha != 1.0
+        assert np.allclose(doc["matrix"], sol.matrix, atol=1e-12)
+    with pytest.raises(ConfigError, match=r"\(alpha\)"):
+        handeye_cli.solve(A, B, alpha="fast")
