@@ -1,0 +1,16 @@
+"""What a new user hit on the command line (issue 21, item 1), each as the user typed it."""
+from __future__ import annotations
+
+from _util import ROOT, run
+
+SAMPLE = ROOT / "sample_data"
+
+
+def test_frames_a_given_one_frame_names_the_flag_not_a_frame(capsys) -> None:
+    """``--frames-a base_link --topic-b …`` said "unknown TF frame '--topic-b'" (then "file not found"): click
+    took the next flag as CHILD. Now one line naming --frames-a and the PARENT CHILD it takes."""
+    code, out, err = run(capsys, "calibrate", SAMPLE / "rig.mcap", "--frames-a", "base_link", "--topic-b",
+                         "/cam1/pose")
+    assert code == 2 and out == ""
+    assert err.startswith("error: --frames-a takes two frame names, PARENT CHILD; got '--topic-b' as CHILD")
+    assert "--frames-a odom base_link" in err and len(err.splitlines()) == 1
