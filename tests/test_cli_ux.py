@@ -14,3 +14,12 @@ def test_frames_a_given_one_frame_names_the_flag_not_a_frame(capsys) -> None:
     assert code == 2 and out == ""
     assert err.startswith("error: --frames-a takes two frame names, PARENT CHILD; got '--topic-b' as CHILD")
     assert "--frames-a odom base_link" in err and len(err.splitlines()) == 1
+
+
+def test_a_ros2_bags_metadata_yaml_points_at_the_bag_folder(capsys) -> None:
+    """Passing a ROS 2 bag's metadata.yaml suggested --config (a configuration file); it is the bag's index."""
+    code, out, err = run(capsys, "calibrate", SAMPLE / "rig_ros2" / "metadata.yaml", "--topic-a", "/cam0/pose",
+                         "--topic-b", "/cam1/pose")
+    assert code == 2 and out == "" and "--config" not in err
+    assert "a ROS 2 bag's metadata.yaml" in err
+    assert err.rstrip().endswith(f"pass the bag's folder: {SAMPLE / 'rig_ros2'}")
