@@ -23,3 +23,14 @@ def test_a_ros2_bags_metadata_yaml_points_at_the_bag_folder(capsys) -> None:
     assert code == 2 and out == "" and "--config" not in err
     assert "a ROS 2 bag's metadata.yaml" in err
     assert err.rstrip().endswith(f"pass the bag's folder: {SAMPLE / 'rig_ros2'}")
+
+
+def test_inverted_tum_streams_keep_their_names_in_the_launch_line(capsys) -> None:
+    """TUM inputs with --invert-b named sensor b 'world' (``--frame-id rig_a --child-frame-id world``), both
+    inverted 'world → world': pasted into ROS, that breaks TF. Each sensor keeps its file's name."""
+    for inverted in (["--invert-b"], ["--invert-a", "--invert-b"]):
+        code, out, _ = run(capsys, "calibrate", SAMPLE / "rig_a.tum", SAMPLE / "rig_b.tum", *inverted,
+                           "--accept-poor-fit", "--pairs", "consecutive", "--format", "tf-static", "-q")
+        line = next(s for s in out.splitlines() if s.startswith("ros2 run"))
+        assert code in (0, 3) and "world" not in out         # 3: a poor fit written on request
+        assert line.endswith("--frame-id rig_a --child-frame-id rig_b")
