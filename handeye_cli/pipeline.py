@@ -349,7 +349,7 @@ def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options, offse
                          "synced_kept": len(stations)}]
     else:
         kept, gate_counts = sync_and_gate(stream_a, stream_b, sync=sync.sync, max_dt_ns=sync.max_dt_ns,
-                                          time_offset_ns=offset_ns, gate=gates.effective_gate,
+                                          time_offset_ns=offset_ns, gate=gates.gate,
                                           max_translation_m=gates.max_jump, max_rotation_rad=gates.max_jump_rad,
                                           min_samples=options.solver.min_pairs + 1)
         strategy, stage_counts = p.pairs, [gate_counts]

@@ -34,3 +34,22 @@ def test_inverted_tum_streams_keep_their_names_in_the_launch_line(capsys) -> Non
         line = next(s for s in out.splitlines() if s.startswith("ros2 run"))
         assert code in (0, 3) and "world" not in out         # 3: a poor fit written on request
         assert line.endswith("--frame-id rig_a --child-frame-id rig_b")
+
+
+def test_pose_jump_limits_mean_something_or_are_refused(capsys) -> None:
+    """``--max-jump 0.01`` and ``--max-jump off`` did nothing under the default ``--gate auto``, and the settings
+    said ``gate: auto`` when both limits off had switched the gate off. Now a limit under another gate is one
+    line naming the flag and the fix; with --gate paper it applies; both off reads gate off."""
+    import json
+
+    files = (SAMPLE / "rig_a.tum", SAMPLE / "rig_b.tum", "--pairs", "consecutive", "--format", "json", "-q")
+    for limit in (["--max-jump", "0.01"], ["--max-jump", "off"], ["--max-jump-deg", "3"]):
+        code, out, err = run(capsys, "calibrate", *files, *limit)
+        assert code == 2 and out == "" and len(err.splitlines()) == 1
+        assert f"({limit[0]})" in err and "--gate paper" in err and "gate auto ignores it" in err
+    code, out, _ = run(capsys, "calibrate", *files, "--gate", "paper", "--max-jump", "0.3")
+    tight = run(capsys, "calibrate", *files, "--gate", "paper", "--max-jump", "0.001")
+    assert code == 0 and json.loads(out)["settings"]["options"]["max_jump"] == 0.3
+    assert tight[0] == 2 and "pose-jump gate" in tight[2]                    # the limit is applied
+    code, out, _ = run(capsys, "calibrate", *files, "--max-jump", "off", "--max-jump-deg", "off")
+    assert code == 0 and json.loads(out)["settings"]["options"]["gate"] == "off"

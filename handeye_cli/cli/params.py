@@ -81,7 +81,7 @@ def _frame_pair(ctx: click.Context, param: click.Parameter, value: tuple[str, st
     """``--frames-a PARENT CHILD``: two frame names; a flag taken as a frame (``--frames-a base_link --topic-b
     …``: click gives ``--topic-b`` as CHILD) is refused naming the flag and what it takes."""
     flag = param.opts[0]
-    for role, name in zip(("PARENT", "CHILD"), value or ()):
+    for role, name in zip(("PARENT", "CHILD"), value or (), strict=False):
         if name.startswith("-"):
             raise ConfigError(f"{flag} takes two frame names, PARENT CHILD; got {name!r} as {role}", flag,
                               f"give both frames, the parent first, e.g. {flag} odom base_link")
