@@ -5,7 +5,7 @@ Public API::
     handeye_cli.solve(motions_a, motions_b, method="dqopt", alpha="auto", prior=None, weights=None)
     handeye_cli.calibrate_files("a.tum", "b.tum", method="dqopt")     # files (or StreamSpec/PoseStream)
     handeye_cli.calibrate_files("log.mcap", topic_a="/cam0/pose", topic_b="/cam1/pose", alpha="auto")
-    handeye_cli.calibrate(stream_a, stream_b, max_jump="off")          # two PoseStreams → Calibration
+    handeye_cli.calibrate(stream_a, stream_b, gate="off")              # two PoseStreams → Calibration
     handeye_cli.load_options(config_file=None, preset=None, **options) # defaults < preset < file < keywords
     handeye_cli.calibrate_rig_files("log.mcap", ["cam0=/cam0/pose", "imu=tf:odom,imu_link"], RigOptions())
     handeye_cli.document(calibration)                                  # the result as the CLI prints it

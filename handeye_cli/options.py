@@ -11,9 +11,13 @@ Units: seconds, metres, degrees, as each field's help says. Gates that can be sw
 
 Examples
 --------
->>> opts = Options.from_flat(max_jump="off", alpha="auto", pairs="stride:30")
+>>> opts = Options.from_flat(gate="paper", max_jump="off", alpha="auto", pairs="stride:30")
 >>> opts.gates.max_jump is None, opts.solver.alpha, opts.pairs.pairs
 (True, 'auto', 'stride:30')
+>>> Options.from_flat(max_jump=0.3)          # a limit of the paper gate, under the default gate auto
+Traceback (most recent call last):
+...
+handeye_cli.errors.ConfigError: a pose-jump limit is given, but ... gate auto ignores it (max_jump): ...
 >>> Options.from_flat(max_dt="fast")
 Traceback (most recent call last):
 ...
@@ -97,7 +101,7 @@ def integer(*, low: int = 0) -> Parser:
 def choice(*names: str) -> Parser:
     """Parser of one of ``names`` (case-insensitive); the names also become the flag's click.Choice."""
     def parse(value: Any, where: str) -> str:
-        word = _words(value)
+        word = "off" if value is False and "off" in names else _words(value)     # YAML reads `off` as false
         if word not in names:
             raise ConfigError(f"bad value {value!r}", where, f"choose one of {', '.join(names)}")
         return word

@@ -457,7 +457,7 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
               inputs: dict[str, Any] | None = None, **overrides: Any) -> Calibration:
     """Calibrate ``T_a_b`` from two pose streams ``T_wa_a(t)``, ``T_wb_b(t)`` (int64 ns stamps,
     positions [m], quaternions x-y-z-w). ``options`` (default: the defaults), updated by
-    ``overrides`` given by flat option name (``method="dqopt"``, ``max_jump="off"``…). Raises a
+    ``overrides`` given by flat option name (``method="dqopt"``, ``gate="off"``…). Raises a
     :class:`~handeye_cli.errors.HandEyeError` subclass on data that cannot be calibrated.
 
     Every option acts as in :func:`calibrate_files` given the same poses in files: ``invert_a`` /

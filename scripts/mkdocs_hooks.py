@@ -44,7 +44,7 @@ class _Processor(Preprocessor):
 class ClickExamples(Extension):
     """The preprocessor, registered just after mkdocs-click's (priority 141)."""
 
-    def extendMarkdown(self, md: Markdown) -> None:  # noqa: N802 - Markdown's name
+    def extendMarkdown(self, md: Markdown) -> None:
         md.preprocessors.register(_Processor(md), "click_examples", 140)
 
 

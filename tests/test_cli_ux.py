@@ -53,3 +53,16 @@ def test_pose_jump_limits_mean_something_or_are_refused(capsys) -> None:
     assert tight[0] == 2 and "pose-jump gate" in tight[2]                    # the limit is applied
     code, out, _ = run(capsys, "calibrate", *files, "--max-jump", "off", "--max-jump-deg", "off")
     assert code == 0 and json.loads(out)["settings"]["options"]["gate"] == "off"
+
+
+def test_gate_off_in_a_configuration_file(capsys, tmp_path) -> None:
+    """YAML reads ``gate: off`` as false, which the gate's choices refused ("bad value False"); it is off."""
+    import json
+
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("gate: off\nstations: off\n")
+    code, out, err = run(capsys, "calibrate", SAMPLE / "rig_a.tum", SAMPLE / "rig_b.tum", "--config", cfg,
+                         "--pairs", "consecutive", "--format", "json", "-q")
+    options = json.loads(out)["settings"]["options"]
+    assert code == 0, err
+    assert (options["gate"], options["stations"]) == ("off", "off")

@@ -1,6 +1,6 @@
 """What went wrong, in words a user can act on: too few pairs, and data that look wrong.
 
-Every fix names command-line flags (``--max-jump off``), never configuration keys.
+Every fix names command-line flags (``--gate off``), never configuration keys.
 """
 from __future__ import annotations
 

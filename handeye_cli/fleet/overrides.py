@@ -2,7 +2,7 @@
 paths to the options that differ for the inputs they match, by flat name as in ``--config``::
 
     "*/robot42/*": {time_offset: 0.02}
-    "logs/2026-11-03/*.bag": {max_jump: off, pairs: all}
+    "logs/2026-11-03/*.bag": {gate: off, pairs: all}
 
 An input matches a pattern when one of its paths does (:func:`fnmatch.fnmatch`, ``*`` also
 crosses ``/``). Matching entries apply in file order over the shared options (defaults < preset <
