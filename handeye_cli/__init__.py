@@ -2,10 +2,10 @@
 
 Public API::
 
-    handeye_cli.solve(motions_a, motions_b, method="dqopt", alpha=1.0, prior=None, weights=None)
+    handeye_cli.solve(motions_a, motions_b, method="dqopt", alpha="auto", prior=None, weights=None)
     handeye_cli.calibrate_files("a.tum", "b.tum", method="dqopt")     # files (or StreamSpec/PoseStream)
     handeye_cli.calibrate_files("log.mcap", topic_a="/cam0/pose", topic_b="/cam1/pose", alpha="auto")
-    handeye_cli.calibrate(stream_a, stream_b, max_jump="off")          # two PoseStreams → Calibration
+    handeye_cli.calibrate(stream_a, stream_b, gate="off")              # two PoseStreams → Calibration
     handeye_cli.load_options(config_file=None, preset=None, **options) # defaults < preset < file < keywords
     handeye_cli.calibrate_rig_files("log.mcap", ["cam0=/cam0/pose", "imu=tf:odom,imu_link"], RigOptions())
     handeye_cli.document(calibration)                                  # the result as the CLI prints it
@@ -25,13 +25,14 @@ from typing import TYPE_CHECKING, Any
 from .version import __version__
 
 if TYPE_CHECKING:
+    from .analysis.motions import solve
     from .comparison import MethodResult, compare_methods
     from .config import load_options
     from .errors import HandEyeError
     from .options import Options
     from .pipeline import Calibration, StreamSpec, calibrate, calibrate_files
     from .rig import RigOptions, RigResult, calibrate_rig, calibrate_rig_files
-    from .solvers import METHODS, Prior, Solution, solve
+    from .solvers import METHODS, Prior, Solution
     from .streams import PoseStream
 
 # the public names and their modules, imported on first use (PEP 562): a command imports only
@@ -42,7 +43,8 @@ _HOMES = {
     "load_options": "config", "HandEyeError": "errors", "Options": "options",
     "Calibration": "pipeline", "StreamSpec": "pipeline", "calibrate": "pipeline", "calibrate_files": "pipeline",
     "RigOptions": "rig", "RigResult": "rig", "calibrate_rig": "rig", "calibrate_rig_files": "rig",
-    "METHODS": "solvers", "Prior": "solvers", "Solution": "solvers", "solve": "solvers", "PoseStream": "streams",
+    "METHODS": "solvers", "Prior": "solvers", "Solution": "solvers", "solve": "analysis.motions",
+    "PoseStream": "streams",
 }
 
 __all__ = ["HandEyeError", "METHODS", "PoseStream", "Prior", "Solution", "solve", "Calibration", "StreamSpec",

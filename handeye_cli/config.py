@@ -39,7 +39,7 @@ def _parse_yaml(text: str, where: str) -> dict[str, Any]:
     for key, value in doc.items():
         if key in SECTIONS and isinstance(value, dict):
             raise ConfigError(f"grouped key {key!r}: options are flat now", where,
-                              f"write the options of {key!r} at the top level, e.g. max_jump: off "
+                              f"write the options of {key!r} at the top level, e.g. gate: off "
                               "(see configs/default.yaml)")
     return doc
 
@@ -69,7 +69,7 @@ def load_options(config_file: str | Path | None = None, preset: str | None = Non
                  base: Options | None = None, **overrides: Any) -> Options:
     """The options: defaults (or ``base``) < ``preset`` < ``config_file`` < ``overrides``.
 
-    ``overrides`` are flat option names with values as a user writes them (``max_jump="off"``,
+    ``overrides`` are flat option names with values as a user writes them (``gate="off"``,
     ``alpha="auto"``, ``time_offset=0.02``); ``None`` means "not given". Every value is checked:
     a bad one raises :class:`~handeye_cli.errors.ConfigError` naming where it came from."""
     opts = base or Options()

@@ -11,9 +11,13 @@ Units: seconds, metres, degrees, as each field's help says. Gates that can be sw
 
 Examples
 --------
->>> opts = Options.from_flat(max_jump="off", alpha="auto", pairs="stride:30")
+>>> opts = Options.from_flat(gate="paper", max_jump="off", alpha="auto", pairs="stride:30")
 >>> opts.gates.max_jump is None, opts.solver.alpha, opts.pairs.pairs
 (True, 'auto', 'stride:30')
+>>> Options.from_flat(max_jump=0.3)          # a limit of the paper gate, under the default gate auto
+Traceback (most recent call last):
+...
+handeye_cli.errors.ConfigError: a pose-jump limit is given, but ... gate auto ignores it (max_jump): ...
 >>> Options.from_flat(max_dt="fast")
 Traceback (most recent call last):
 ...
@@ -97,7 +101,7 @@ def integer(*, low: int = 0) -> Parser:
 def choice(*names: str) -> Parser:
     """Parser of one of ``names`` (case-insensitive); the names also become the flag's click.Choice."""
     def parse(value: Any, where: str) -> str:
-        word = _words(value)
+        word = "off" if value is False and "off" in names else _words(value)     # YAML reads `off` as false
         if word not in names:
             raise ConfigError(f"bad value {value!r}", where, f"choose one of {', '.join(names)}")
         return word
@@ -294,11 +298,6 @@ class GateOptions:
                                         "Limit of --gate paper: rotation [deg], or off.", "DEGREES|off")
 
     @property
-    def effective_gate(self) -> str:
-        """The gate that runs: ``off`` when both limits are off (as before --gate existed), else ``gate``."""
-        return "off" if self.max_jump is None and self.max_jump_deg is None else self.gate
-
-    @property
     def max_jump_rad(self) -> float | None:
         """The paper gate's rotation limit [rad], or None."""
         return None if self.max_jump_deg is None else math.radians(self.max_jump_deg)
@@ -397,7 +396,8 @@ class Options:
                 raise ConfigError(f"unknown option {name!r}", where or "options", _suggest(name))
             section, info, _ = FIELDS[name]
             grouped.setdefault(section, {})[name] = info.parse(value, f"{where}: {name}" if where else name)
-        return replace(out, **{s: replace(getattr(out, s), **v) for s, v in grouped.items()})
+        out = replace(out, **{s: replace(getattr(out, s), **v) for s, v in grouped.items()})
+        return replace(out, gates=_gate_limits(out.gates, grouped.get("gates", {}), where))
 
     def flat(self) -> dict[str, Any]:
         """Every option by its flat name (tuples as lists, mappings as dicts: ready for YAML/JSON)."""
@@ -415,6 +415,21 @@ class Options:
         """The options that differ from their defaults, by flat name."""
         default = Options().flat()
         return {k: v for k, v in self.flat().items() if v != default[k]}
+
+
+def _gate_limits(gates: GateOptions, given: Mapping[str, Any], where: str) -> GateOptions:
+    """One meaning for the pose-jump limits: they are ``--gate paper``'s. Both off is no gate at all, and the
+    settings say so (``gate: off``, as before ``--gate`` existed); a limit other than its default given while
+    another gate runs would do nothing, so it is refused naming the option."""
+    if gates.max_jump is None and gates.max_jump_deg is None:
+        return replace(gates, gate="off")
+    limits = [k for k in ("max_jump", "max_jump_deg") if k in given and given[k] != FIELDS[k][2]]
+    if limits and gates.gate != "paper":
+        raise ConfigError(f"a pose-jump limit is given, but it belongs to the paper gate and gate {gates.gate} "
+                          "ignores it",
+                          f"{where}: {limits[0]}" if where else limits[0],
+                          "add --gate paper to use the per-step limits, or --gate off for no gate")
+    return gates
 
 
 # Names of the grouped configuration layout before 0.2, with the one name each has now.

@@ -353,7 +353,7 @@ def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options, offse
                          "synced_kept": len(stations)}]
     else:
         kept, gate_counts = sync_and_gate(stream_a, stream_b, sync=sync.sync, max_dt_ns=sync.max_dt_ns,
-                                          time_offset_ns=offset_ns, gate=gates.effective_gate,
+                                          time_offset_ns=offset_ns, gate=gates.gate,
                                           max_translation_m=gates.max_jump, max_rotation_rad=gates.max_jump_rad,
                                           min_samples=options.solver.min_pairs + 1)
         strategy, stage_counts = p.pairs, [gate_counts]
@@ -485,7 +485,7 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
               inputs: dict[str, Any] | None = None, **overrides: Any) -> Calibration:
     """Calibrate ``T_a_b`` from two pose streams ``T_wa_a(t)``, ``T_wb_b(t)`` (int64 ns stamps,
     positions [m], quaternions x-y-z-w). ``options`` (default: the defaults), updated by
-    ``overrides`` given by flat option name (``method="dqopt"``, ``max_jump="off"``…). Raises a
+    ``overrides`` given by flat option name (``method="dqopt"``, ``gate="off"``…). Raises a
     :class:`~handeye_cli.errors.HandEyeError` subclass on data that cannot be calibrated.
 
     Every option acts as in :func:`calibrate_files` given the same poses in files: ``invert_a`` /

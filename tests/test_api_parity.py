@@ -32,6 +32,8 @@ REFUSED = {"wxyz_a", "wxyz_b", "time_unit", "csv_columns", "time_source", "stora
 # under every run (unless it is the option tested): consecutive pairs take 0.05 s where the default noise
 # model's 2000 pairs take 0.7 s; both surfaces get the same options either way
 FAST = {"pairs": "consecutive"}
+# the pose-jump limits are --gate paper's (refused under another gate): tested with it
+WITH = {"max_jump": {"gate": "paper"}, "max_jump_deg": {"gate": "paper"}}
 
 
 def _value(name: str):
@@ -89,7 +91,7 @@ def test_option_acts_alike_in_memory_or_is_refused(recording, name):
             calibrate(sa, sb, **{name: value})
         assert info.value.where == name and f"{name}=" in str(info.value)
         return
-    options = {**FAST, name: value}
+    options = {**FAST, **WITH.get(name, {}), name: value}
     from_files = _outcome(lambda: calibrate_files(fa, fb, **options))
     in_memory = _outcome(lambda: calibrate(sa, sb, **options))
     assert from_files == in_memory, name
@@ -137,3 +139,32 @@ def test_pose_stream_refuses_float_stamps():
     assert len(PoseStream([], np.zeros((0, 3)), np.zeros((0, 4)))) == 0   # empty lists are no float stamps
     with pytest.raises(DataError, match="finite"):
         PoseStream.from_seconds([np.nan, 1.0], xyz, quat)
+
+
+def test_solve_has_the_command_lines_defaults_and_values(tmp_path, capsys):
+    """Issue 21: Python ``solve()`` defaulted to α = 1.0 where ``handeye solve`` defaults to auto, refused
+    ``alpha="auto"`` with a TypeError, and refused ``method="Tsai"`` which the CLI took as ``--method Tsai``.
+    Now both surfaces take the options' defaults and values, and give the same answer."""
+    import inspect
+    import json
+    from pathlib import Path
+
+    import handeye_cli
+    from handeye_cli.cli import main
+    from handeye_cli.io.pairfile import read_pairs
+
+    pairs = Path(__file__).parents[1] / "sample_data" / "pairs.csv"
+    params = inspect.signature(handeye_cli.solve).parameters
+    assert params["alpha"].default == FIELDS["alpha"][2] == "auto"
+    assert params["method"].default == FIELDS["method"][2]
+    A, B, w = read_pairs(str(pairs))
+    for method, alpha in (("DQopt", "auto"), ("Tsai", "2")):
+        sol = handeye_cli.solve(A, B, method=method, alpha=alpha, weights=w)
+        with pytest.raises(SystemExit) as exit_:
+            main(["solve", str(pairs), "--method", method, "--alpha", alpha, "--format", "json"])
+        doc = json.loads(capsys.readouterr().out)
+        assert exit_.value.code == 0 and sol.method == method.lower()
+        assert doc["alpha"] == pytest.approx(sol.alpha) and doc["method"] == sol.method and sol.alpha != 1.0
+        assert np.allclose(doc["matrix"], sol.matrix, atol=1e-12)
+    with pytest.raises(ConfigError, match=r"\(alpha\)"):
+        handeye_cli.solve(A, B, alpha="fast")

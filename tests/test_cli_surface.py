@@ -168,11 +168,13 @@ def test_frame_names_are_valid_tf2_ids(capsys, rig):
 
 
 def test_python_api_takes_paths_and_keyword_options(rig):
-    cal = handeye_cli.calibrate_files(str(rig["a"]), rig["b"], method="dq2steps", max_jump="off", pairs="stride:10")
+    cal = handeye_cli.calibrate_files(str(rig["a"]), rig["b"], method="dq2steps", gate="paper", max_jump="off",
+                                      pairs="stride:10")
     assert cal.options.solver.method == "dq2steps" and cal.options.gates.max_jump is None
     rot, trans = pose_error(cal.matrix, rig["X"])
     assert rot < 0.2 and trans < 0.01
-    same = handeye_cli.calibrate_files(*rig["streams"], method="dq2steps", max_jump="off", pairs="stride:10")
+    same = handeye_cli.calibrate_files(*rig["streams"], method="dq2steps", gate="paper", max_jump="off",
+                                       pairs="stride:10")
     np.testing.assert_allclose(same.matrix, cal.matrix, atol=1e-6)
     with pytest.raises(ConfigError, match="did you mean max_jump"):
         handeye_cli.calibrate_files(rig["a"], rig["b"], max_jmp=0.2)

@@ -206,5 +206,22 @@ def test_site_builds_strict(tmp_path: Path) -> None:
     assert out.returncode == 0, out.stderr[-5000:]
     cli_page = (site / "reference" / "cli" / "index.html").read_text(encoding="utf-8")
     assert "--max-jump" in cli_page and "handeye calibrate" in cli_page      # generated from the click commands
+    # issue 21: examples ran together as paragraphs and a glob's * became italics; every command's are code
+    assert "logs/2026-11-*/" in re.sub(r"<[^>]+>", "", cli_page) and "2026-11-<em>" not in cli_page
+    assert cli_page.count('<div class="highlight"><pre><span></span><code>handeye') >= 8
+    assert "not part of this version" not in cli_page and "| 1 |" not in cli_page and ">1</td>" in cli_page
     api_page = (site / "reference" / "api" / "index.html").read_text(encoding="utf-8")
     assert "calibrate_files" in api_page and "ConfigError" in api_page      # generated from the docstrings
+
+
+def test_cli_examples_become_code_blocks() -> None:
+    """The hook of the CLI reference (scripts/mkdocs_hooks.py) fences a help text's examples, and only them."""
+    spec = importlib.util.spec_from_file_location("mkdocs_hooks", ROOT / "scripts" / "mkdocs_hooks.py")
+    assert spec is not None and spec.loader is not None
+    hooks = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hooks)
+    lines = ["Intro text:", "  - a list item", "", "Examples:", "  handeye batch logs/*/ \\\\", "      --jobs 8",
+             "  handeye check r.yaml", "Exit codes: 0 ok,", "  1 drift"]
+    assert hooks.fence_examples(lines) == [
+        "Intro text:", "  - a list item", "", "Examples:", "", "```shell", "handeye batch logs/*/ \\\\",
+        "    --jobs 8", "handeye check r.yaml", "```", "Exit codes: 0 ok,", "  1 drift"]

@@ -118,7 +118,8 @@ def test_too_few_samples_name_the_flags_and_the_rates() -> None:
     with pytest.raises(DataError) as info:
         sync_and_gate(rec.a, rec.b, gate="paper", min_samples=10)    # a 1 Hz stream steps beyond 10 cm / 11.5°
     text = str(info.value)
-    for flag in ("--gate auto", "--gate off", "--max-jump off --max-jump-deg off", "--time-offset SECONDS"):
+    for flag in ("--gate auto", "--gate off", "--gate paper with wider --max-jump/--max-jump-deg",
+                 "--time-offset SECONDS"):
         assert flag in text
     assert re.search(r"a 100 Hz, b (0\.99|1\.0|1) Hz", text) and "gates." not in text
     with pytest.raises(DataError, match="--sync auto.*--max-dt"):

@@ -99,7 +99,7 @@ def test_the_paper_gate_stays_available_and_says_what_to_relax(capsys, tmp_path)
     fa, fb = write_tum(tmp_path / "a.tum", rec.a), write_tum(tmp_path / "b.tum", rec.b)
     code, _, err = run(capsys, "calibrate", fa, fb, "--gate", "paper")
     assert code == 2 and err.count("\n") == 1
-    assert "a 100 Hz, b 1 Hz" in err and "--gate auto" in err and "--max-jump off --max-jump-deg off" in err
+    assert "a 100 Hz, b 1 Hz" in err and "--gate auto" in err and "wider --max-jump/--max-jump-deg" in err
     code, out, err = run(capsys, "calibrate", fa, fb, "--gate", "paper", "--max-jump", "off", "--max-jump-deg", "off",
                          "-q")
     assert code == 0, err

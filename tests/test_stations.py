@@ -106,7 +106,7 @@ def test_stations_off_treats_the_capture_as_continuous_tracking(capsys, tmp_path
     c = simulate_arm(12, sparse=True, seed=0)
     fa, fb = write_tum(tmp_path / "robot.tum", c.robot), write_tum(tmp_path / "camera.tum", c.camera)
     code, _, err = run(capsys, "calibrate", fa, fb, "--invert-b", "--stations", "off", "--gate", "paper", "-q")
-    assert code == 2 and "pose-jump gate" in err and "--max-jump off" in err
+    assert code == 2 and "pose-jump gate" in err and "--gate off" in err
     code, _, err = run(capsys, "calibrate", fa, fb, "--invert-b", "--stations", "off", "-q")
     assert code == 0, err                 # the default gate compares a's and b's motions: any step size passes
 

@@ -1,6 +1,6 @@
 """What went wrong, in words a user can act on: too few pairs, and data that look wrong.
 
-Every fix names command-line flags (``--max-jump off``), never configuration keys.
+Every fix names command-line flags (``--gate off``), never configuration keys.
 """
 from __future__ import annotations
 
@@ -59,5 +59,6 @@ def data_warning(res: Residuals, weights: np.ndarray | None, samples: SampleCoun
                 "streams may not be rigidly attached, be mis-synchronised (give --time-offset SECONDS), come from "
                 "the wrong topics, or b's translations have another scale (monocular odometry: --scale auto)")
     return (f"the pose-jump gate dropped {samples.dropped_pose_jump} of {samples.synced} samples "
-            f"({100 * dropped:.0f} %): the sensors move faster than its limits allow at this rate; raise "
-            "--max-jump / --max-jump-deg, or check the tracking")
+            f"({100 * dropped:.0f} %): the sensors move faster than its limits allow at this rate; try "
+            "--gate auto (it follows the rate), widen --gate paper's --max-jump / --max-jump-deg, or check the "
+            "tracking")

@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> None:
     try:
         code = cli.main(args=args, prog_name="handeye", standalone_mode=False)
     except HandEyeError as e:
-        _fail(f"error: {e}", 2, debug)
+        _fail(f"error: {_as_flags(e)}", 2, debug)
     except click.ClickException as e:       # usage errors are 2; click's generic ones would be 1 (= drift)
         ctx = getattr(e, "ctx", None)
         hint = f" (run '{ctx.command_path} --help')" if ctx is not None else ""
@@ -98,6 +98,17 @@ def main(argv: list[str] | None = None) -> None:
               f"{__version__}; please report it with the command line; rerun with --debug for the traceback",
               4, debug)
     sys.exit(code if isinstance(code, int) else 0)
+
+
+def _as_flags(error: HandEyeError) -> HandEyeError:
+    """The command line's words for an error: the library names an option by its key (``(max_jump)``, the
+    Python keyword); given on the command line, that is its flag (``(--max-jump)``). A key in a file
+    (``c.yaml: max_jump``) stays the file's key. The one place the CLI translates."""
+    from ..options import FIELDS
+
+    if error.where not in FIELDS:
+        return error
+    return type(error)(error.what, "--" + error.where.replace("_", "-"), error.fix)
 
 
 def _fail(line: str, code: int, debug: bool) -> NoReturn:

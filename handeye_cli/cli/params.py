@@ -13,6 +13,7 @@ from typing import Any
 import click
 
 from ..config import load_options, presets
+from ..errors import ConfigError
 from ..options import FIELDS, Options, optional_flag
 from ..output.formats import ALL_FORMATS
 
@@ -78,13 +79,26 @@ def options_from_cli(params: dict[str, Any]) -> Options:
     return load_options(params.pop("config_file", None), params.pop("preset", None), **given)
 
 
+def _frame_pair(ctx: click.Context, param: click.Parameter, value: tuple[str, str] | None
+                ) -> tuple[str, str] | None:
+    """``--frames-a PARENT CHILD``: two frame names; a flag taken as a frame (``--frames-a base_link --topic-b
+    …``: click gives ``--topic-b`` as CHILD) is refused naming the flag and what it takes."""
+    flag = param.opts[0]
+    for role, name in zip(("PARENT", "CHILD"), value or (), strict=False):
+        if name.startswith("-"):
+            raise ConfigError(f"{flag} takes two frame names, PARENT CHILD; got {name!r} as {role}", flag,
+                              f"give both frames, the parent first, e.g. {flag} odom base_link")
+    return value
+
+
 stream_options = apply(
     click.option("--topic-a", help="Topic of stream a (PoseStamped, PoseWithCovarianceStamped, TransformStamped, "
                  "Odometry, TFMessage, Foxglove pose types)."),
     click.option("--topic-b", help="Topic of stream b."),
-    click.option("--frames-a", nargs=2, metavar="PARENT CHILD", help="Stream a as the TF chain PARENT→CHILD "
-                 "resolved through /tf and /tf_static."),
-    click.option("--frames-b", nargs=2, metavar="PARENT CHILD", help="Stream b as a TF chain."),
+    click.option("--frames-a", nargs=2, metavar="PARENT CHILD", callback=_frame_pair, help="Stream a as the TF "
+                 "chain PARENT→CHILD resolved through /tf and /tf_static (the parent first, e.g. odom base_link)."),
+    click.option("--frames-b", nargs=2, metavar="PARENT CHILD", callback=_frame_pair,
+                 help="Stream b as a TF chain PARENT CHILD."),
 )
 
 output_options = apply(

@@ -5,13 +5,12 @@ from typing import Any
 
 import click
 
-from ..analysis.alpha import noise_model_alpha
+from ..analysis.motions import solve as solve_pairs
 from ..config import load_options
 from ..io.pairfile import read_pairs
 from ..output.document import result_document
 from ..output.writers import check_writable, output_format
 from ..pipeline import read_prior
-from ..solvers import solve as solve_pairs
 from .common import CONTEXT, emit
 from .params import flags, output_options
 
@@ -38,8 +37,6 @@ def solve(pairs_file: str, output: str | None, fmt: str | None, **given: Any) ->
     fmt = output_format(output, fmt)
     A, B, weights = read_pairs(pairs_file)
     prior = read_prior(options)
-    alpha = (noise_model_alpha(A, B, prior=prior, weights=weights).alpha if s.alpha == "auto"
-             else float(s.alpha))          # auto: ML under a noise model fitted to the pairs' residuals
-    sol = solve_pairs(A, B, method=s.method, alpha=alpha, prior=prior, weights=weights)
+    sol = solve_pairs(A, B, method=s.method, alpha=s.alpha, prior=prior, weights=weights)
     emit(result_document(sol, inputs={"pairs_file": pairs_file}, samples={"pairs": len(A)},
                          warnings=list(sol.warnings)), output, fmt)     # a failed optimality certificate

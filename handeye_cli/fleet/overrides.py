@@ -5,7 +5,7 @@ pair: ``[PARENT, CHILD]`` or ``"PARENT CHILD"``), so that one run covers a mixed
 
     "*/robot42/*": {time_offset: 0.02}
     "robot07*": {topic_b: /imu/pose}
-    "logs/2026-11-03/*.bag": {max_jump: off, pairs: all, frames_a: [odom, base_link]}
+    "logs/2026-11-03/*.bag": {gate: off, pairs: all, frames_a: [odom, base_link]}
 
 An input matches a pattern when one of its paths does as a whole (:func:`fnmatch.fnmatch`, ``*``
 also crosses ``/``), or, for a pattern without ``/``, when one of its paths' components does: so

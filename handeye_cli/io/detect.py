@@ -31,6 +31,9 @@ def _classify_header(name: str, suffix: str, line: str) -> str:
     """``csv`` for a CSV header row; a ReadError saying what the file is for anything else."""
     if _PAIRS_HEADER.match(line):
         raise _not_a_stream(name, "a motion-pairs file (ax, ay, az, aqx, …)", f"use `handeye solve {name}`")
+    if line.startswith("rosbag2_bagfile_information:"):
+        folder = str(Path(name).parent)
+        raise _not_a_stream(name, "a ROS 2 bag's metadata.yaml", f"pass the bag's folder: {folder}")
     if suffix in (".yaml", ".yml") or _YAML_LINE.match(line):
         raise _not_a_stream(name, "a YAML file", "pass a configuration with --config; " + _SUPPORTED)
     if line.count(",") >= 7:

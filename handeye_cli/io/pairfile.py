@@ -30,7 +30,7 @@ CSV_COLUMNS = ("ax", "ay", "az", "aqx", "aqy", "aqz", "aqw", "bx", "by", "bz", "
 def _file(path: str | Path) -> Path:
     p = Path(path)
     if not p.is_file():
-        raise HandEyeError("file not found", str(p), "check the path")
+        raise ReadError("file not found", str(p), "check the path")
     return p
 
 
@@ -39,13 +39,13 @@ def _read_npz(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         with np.load(p) as z:
             missing = {"A", "B"} - set(z.files)
             if missing:
-                raise HandEyeError(f"missing array(s) {', '.join(sorted(missing))}; found {', '.join(z.files)}",
+                raise ReadError(f"missing array(s) {', '.join(sorted(missing))}; found {', '.join(z.files)}",
                                    str(p), "save the motions as A and B, each of shape (N, 4, 4)")
             return z["A"], z["B"], (z["weights"] if "weights" in z.files else None)
     except (OSError, ValueError) as e:
         if isinstance(e, HandEyeError):
             raise
-        raise HandEyeError("not a readable .npz file", str(p), "write it with numpy.savez(path, A=..., B=...)") from e
+        raise ReadError("not a readable .npz file", str(p), "write it with numpy.savez(path, A=..., B=...)") from e
 
 
 def _read_csv(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -53,19 +53,19 @@ def _read_csv(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         header = [h.strip() for h in f.readline().split(",")]
     expected = list(CSV_COLUMNS)
     if header[:14] != expected or header[14:] not in ([], ["weight"]):
-        raise HandEyeError(f"unexpected CSV header {','.join(header)!r}", f"{p}:1",
+        raise ReadError(f"unexpected CSV header {','.join(header)!r}", f"{p}:1",
                            f"the header must be {','.join(CSV_COLUMNS)}[,weight]")
     try:
         data = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2)
     except ValueError as e:
-        raise HandEyeError(f"unreadable row: {e}", str(p), f"every row needs {len(header)} numbers") from e
+        raise ReadError(f"unreadable row: {e}", str(p), f"every row needs {len(header)} numbers") from e
     if data.shape[1] != len(header):
-        raise HandEyeError(f"rows have {data.shape[1]} columns, the header {len(header)}", str(p),
+        raise ReadError(f"rows have {data.shape[1]} columns, the header {len(header)}", str(p),
                            "give one number per header column")
     norms = np.linalg.norm(data[:, [3, 4, 5, 6, 10, 11, 12, 13]].reshape(-1, 2, 4), axis=2)
     bad = np.flatnonzero(~(np.isfinite(norms).all(axis=1) & (norms > 1e-9).all(axis=1)))
     if len(bad):
-        raise HandEyeError("NaN or zero-norm quaternion", f"{p}:{bad[0] + 2}", "repair or remove that row")
+        raise ReadError("NaN or zero-norm quaternion", f"{p}:{bad[0] + 2}", "repair or remove that row")
     A = se3.from_xyz_quat(data[:, 0:3], data[:, 3:7])
     B = se3.from_xyz_quat(data[:, 7:10], data[:, 10:14])
     return A, B, (data[:, 14] if data.shape[1] == 15 else None)

@@ -19,7 +19,7 @@ import numpy as np
 import yaml
 
 from .._typing import FloatArray
-from ..errors import HandEyeError
+from ..errors import ConfigError
 from ..solvers import Solution
 
 if TYPE_CHECKING:
@@ -137,4 +137,4 @@ def render(doc: dict[str, Any], fmt: str = "yaml") -> str:
         return json.dumps(finite(doc), indent=2, allow_nan=False) + "\n"
     if fmt == "yaml":
         return yaml.dump(finite(doc), Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=10_000)
-    raise HandEyeError(f"unknown output format {fmt!r}", "--format", f"use one of {', '.join(FORMATS)}")
+    raise ConfigError(f"unknown output format {fmt!r}", "--format", f"use one of {', '.join(FORMATS)}")

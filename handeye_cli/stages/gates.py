@@ -204,7 +204,7 @@ def _too_few(kept: int, need: int, counts: dict[str, int], gate: str, max_dt_ns:
              f"(--gate {gate}) dropped {by_jump}")
     if by_jump > by_time:
         fix = ("the pose-jump gate dropped most: try --gate auto (it follows the sampling rate), --gate paper with "
-               "--max-jump off --max-jump-deg off, or --gate off; if the streams are not aligned in time, "
+               "wider --max-jump/--max-jump-deg, or --gate off; if the streams are not aligned in time, "
                "--time-offset SECONDS (auto, the default, estimates it where the data allow)")
     else:
         fix = ("the timestamp gate dropped most: let the slower stream set the sample times with --sync auto, widen "

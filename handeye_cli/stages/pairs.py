@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import HandEyeError
+from ..errors import ConfigError
 from ..geometry import se3
 from .sync import Synced
 
@@ -80,9 +80,9 @@ def _parse(strategy: str) -> tuple[str, int]:
     if name in ("stride", "random") and re.fullmatch(r"[0-9]+", arg) and int(arg) > 0:
         return name, int(arg)
     if name == "auto":
-        raise HandEyeError("the auto strategy needs a solve", "make_pairs",
+        raise ConfigError("the auto strategy needs a solve", "make_pairs",
                            "call handeye_cli.analysis.selection.select_pairs for auto")
-    raise HandEyeError(f"unknown pair strategy {strategy!r}", "pairs",
+    raise ConfigError(f"unknown pair strategy {strategy!r}", "pairs",
                        f"use one of {', '.join(STRATEGIES)} (K, N positive integers)")
 
 
@@ -231,7 +231,7 @@ def make_pairs(synced: Synced, strategy: str = "keyframes", *, keyframe_rotation
 
     Raises
     ------
-    HandEyeError: for an unknown strategy string.
+    ConfigError: for an unknown strategy string.
     """
     name, arg = _parse(strategy)
     if np.any(np.diff(synced.segment) < 0):

@@ -47,7 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from ..errors import HandEyeError
+from ..errors import DataError
 from ..geometry import dualquat as dq
 from ..geometry.lie import nearest_rotation
 from ..numeric.minimize import minimize_bounded
@@ -198,7 +198,7 @@ def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float) -> _S
     t0 = int(stamps[0]) + half
     centres = t0 + np.arange(max((int(stamps[-1]) - half - t0) // _GRID_NS + 1, 0), dtype=np.int64) * _GRID_NS
     if len(centres) < 2:
-        raise HandEyeError("pose stream too short for its sample rate to estimate a time offset", stream.source,
+        raise DataError("pose stream too short for its sample rate to estimate a time offset", stream.source,
                            "record more samples while rotating, or give a fixed --time-offset")
     q = stream.sample((t0 - half) + np.arange(len(centres) + 2 * steps, dtype=np.int64) * _GRID_NS).quat_xyzw
     omega = dq.to_rotvec(dq.relative(q[:-2 * steps], q[2 * steps:]))     # within [stamps[0], stamps[-1]]: all inside
@@ -273,13 +273,13 @@ def _coarse(sa: _Signal, sb: _Signal, max_offset_ns: int | None) -> tuple[float,
     if max_offset_ns is not None:
         allowed &= np.abs(offsets) <= max_offset_ns
     if not allowed.any():
-        raise HandEyeError("the streams are too short or too gappy to correlate their rotations", "time offset",
+        raise DataError("the streams are too short or too gappy to correlate their rotations", "time offset",
                            "give a fixed --time-offset, or widen --max-time-offset")
     score = np.where(allowed, ncc, -np.inf)
     k = int(np.argmax(score))
     best = float(score[k])
     if best < MIN_CORRELATION:
-        raise HandEyeError(
+        raise DataError(
             f"the two streams' angular speeds do not correlate (peak {best:.2f} < {MIN_CORRELATION})",
             "time offset", "the sensors must rotate (linear motion carries no timing information) and "
             "record the same motion; otherwise give a fixed --time-offset")
@@ -319,7 +319,7 @@ class _Refiner:
         keep = sa.valid & inside
         keep[keep] &= valid_b[idx_b[keep]]
         if keep.sum() < 10:
-            raise HandEyeError("too little overlap to refine the time offset", "time offset",
+            raise DataError("too little overlap to refine the time offset", "time offset",
                                "give a fixed --time-offset")
         self.ta, self.wa = ta[keep], sa.omega[keep]
 
@@ -411,7 +411,7 @@ class _StepRefiner:
         steps = np.flatnonzero(self.keep)
         steps = steps[np.linspace(0, len(steps) - 1, min(len(steps), _SCAN_STEPS)).astype(np.int64)]
         if len(grid) == 0 or len(steps) < 10:
-            raise HandEyeError("the streams are too short or too gappy to correlate their rotations", "time offset",
+            raise DataError("the streams are too short or too gappy to correlate their rotations", "time offset",
                                "give a fixed --time-offset, or widen --max-time-offset")
         block = max(1, 50_000 // len(steps))
         costs = np.concatenate([self._median_costs(grid[i:i + block], steps) for i in range(0, len(grid), block)])
@@ -485,7 +485,7 @@ def _on_steps(a: PoseStream, b: PoseStream, max_offset_ns: int | None) -> TimeOf
     offset_ns, std_ns = ref.refine(coarse, _SCAN_NS)
     corr = ref.correlation(offset_ns)
     if corr < MIN_CORRELATION:
-        raise HandEyeError(
+        raise DataError(
             f"the two streams' step rotations do not correlate (peak {corr:.2f} < {MIN_CORRELATION})",
             "time offset", "the sensors must rotate (linear motion carries no timing information) and "
             "record the same motion; otherwise give a fixed --time-offset")
@@ -505,13 +505,13 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
 
     Raises
     ------
-    HandEyeError: when a stream spans less than 2 s, the streams are too short or too gappy
+    DataError: when a stream spans less than 2 s, the streams are too short or too gappy
         to correlate, or their angular speeds do not correlate (too little rotation).
     """
     for name, stream in (("a", a), ("b", b)):
         span = stream.stamps_ns[-1] - stream.stamps_ns[0] if len(stream) else 0
         if span < _MIN_SPAN_NS:
-            raise HandEyeError(f"pose stream {name} spans {span / 1e9:.2f} s ({len(stream)} samples), too short "
+            raise DataError(f"pose stream {name} spans {span / 1e9:.2f} s ({len(stream)} samples), too short "
                                "to estimate a time offset", stream.source or f"stream {name}",
                                f"record at least {_MIN_SPAN_NS / 1e9:.0f} s of rotation, or give a fixed --time-offset")
     intervals = [np.median(np.diff(s.stamps_ns)) for s in (a, b)]
