@@ -128,7 +128,7 @@ def _stream(stamps_s: NDArray[np.float64], T: NDArray[np.float64], frame: str, c
 def simulate_ground(kind: str = "diff-drive", *, duration_s: float = 240.0, seed: int = 0,
                     mount: NDArray[np.float64] | None = None, base_rate: float = 50.0,
                     sensor_rate: float = 10.0, localiser_rate: float = 1.5, slip: float = 0.002,
-                    gyro_bias_deg_s: float = 0.005, localiser_jumps: int = 3) -> GroundRecording:
+                    gyro_bias_deg_s: float = 0.002, localiser_jumps: int = 3) -> GroundRecording:
     """A ground robot's log: base pose stream, sensor odometry and (diff-drive) a localiser.
 
     ``kind`` is ``diff-drive`` or ``car``; ``mount`` the true ``T_base_link_sensor`` (default
