@@ -25,6 +25,7 @@ estimated degrees of freedom do not depend on the nominal at all, the others equ
 """
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -37,7 +38,8 @@ from ..solvers import dualquat as dq
 from .covariance import LinearCovariance
 from .observability import Observability
 
-__all__ = ["DOF_NAMES", "Dof", "Subspace", "observable_subspace", "all_estimated", "dof_values", "ADVICE"]
+__all__ = ["DOF_NAMES", "Dof", "Subspace", "observable_subspace", "all_estimated", "dof_values", "from_values",
+           "with_values_of", "ESTIMATED", "ADVICE"]
 
 DOF_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 ESTIMATED, FROM_PRIOR, UNOBSERVABLE = "estimated", "from_prior", "unobservable"
@@ -96,6 +98,23 @@ class Subspace:
 def dof_values(X: FloatArray) -> FloatArray:
     """(6,) x, y, z [m] and roll, pitch, yaw [deg] (``R = Rz Ry Rx``) of a 4x4 ``T_a_b``."""
     return np.r_[X[:3, 3], Rotation.from_matrix(X[:3, :3]).as_euler("xyz", degrees=True)]
+
+
+def from_values(v: FloatArray) -> FloatArray:
+    """The 4x4 ``T_a_b`` of x, y, z [m] and roll, pitch, yaw [deg] (inverse of :func:`dof_values`)."""
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("xyz", v[3:], degrees=True).as_matrix()
+    T[:3, 3] = v[:3]
+    return T
+
+
+def with_values_of(N: FloatArray, X: FloatArray, names: Iterable[str]) -> FloatArray:
+    """``N`` (4x4 ``T_a_b``) with the degrees of freedom ``names`` (of :data:`DOF_NAMES`) taken from ``X``."""
+    v, x = dof_values(N), dof_values(X)
+    for name in names:
+        k = DOF_NAMES.index(name)
+        v[k] = x[k]
+    return from_values(v)
 
 
 def all_estimated(X: FloatArray, cov: LinearCovariance | None) -> Subspace:
