@@ -97,7 +97,7 @@ class Subspace:
 
 def dof_values(X: FloatArray) -> FloatArray:
     """(6,) x, y, z [m] and roll, pitch, yaw [deg] (``R = Rz Ry Rx``) of a 4x4 ``T_a_b``."""
-    return np.r_[X[:3, 3], Rotation.from_matrix(X[:3, :3]).as_euler("xyz", degrees=True)]
+    return np.asarray(np.r_[X[:3, 3], Rotation.from_matrix(X[:3, :3]).as_euler("xyz", degrees=True)], dtype=np.float64)
 
 
 def from_values(v: FloatArray) -> FloatArray:
@@ -189,7 +189,7 @@ def _in_plane(A: FloatArray, B: FloatArray, w: FloatArray, n_a: FloatArray, R_ti
     lin = np.linalg.lstsq((M * sw[:, :, None]).reshape(-1, 4), (rhs * sw).ravel(), rcond=None)[0]
     p0 = np.r_[lin[:2], np.arctan2(lin[3], lin[2])] if yaw0 is None else lin[:2]
     fit = least_squares(residual, p0, method="lm")
-    J = fit.jac
+    J = np.asarray(fit.jac, dtype=np.float64)
     dof = max(J.shape[0] - J.shape[1], 1)
     cov = np.linalg.pinv(J.T @ J) * (2 * fit.cost / dof)
     yaw = float(yaw0 if yaw0 is not None else fit.x[2])

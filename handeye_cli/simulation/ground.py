@@ -21,6 +21,7 @@ int64 ns; positions metres; base_link has x forward, z up. The truth ``T_base_se
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -120,7 +121,7 @@ def _odometry(T: NDArray[np.float64], rng: np.random.Generator, sigma_r: float, 
     return out
 
 
-def _stream(stamps_s: NDArray[np.float64], T: NDArray[np.float64], frame: str, child: str) -> PoseStream:
+def _stream(stamps_s: NDArray[np.floating[Any]], T: NDArray[np.float64], frame: str, child: str) -> PoseStream:
     ns = _START_NS + np.round(stamps_s * 1e9).astype(np.int64)
     return PoseStream.from_matrices(ns, T, frame_id=frame, child_frame_id=child, source="simulated")
 
@@ -144,7 +145,7 @@ def simulate_ground(kind: str = "diff-drive", *, duration_s: float = 240.0, seed
     X = np.asarray(mount if mount is not None else (LIDAR_MOUNT if kind == "diff-drive" else CAMERA_MOUNT),
                    dtype=np.float64)
     dt = 1.0 / _SIM_RATE
-    t_sim = np.arange(int(duration_s * _SIM_RATE) + 1) * dt
+    t_sim = np.arange(int(duration_s * _SIM_RATE) + 1, dtype=np.float64) * dt
     v, omega = _controls(t_sim, kind, rng)
     x, y, yaw = _integrate(dt, v, omega)
     z = np.zeros_like(x)
