@@ -74,10 +74,11 @@ def _controls(t: NDArray[np.float64], kind: str, rng: np.random.Generator
     omega = np.sin(2 * np.pi * f * t) * (0.8 if kind == "diff-drive" else 0.25)            # figure eights
     omega += 0.3 * np.sin(2 * np.pi * rng.uniform(0.1, 0.2) * t + rng.uniform(0, 2 * np.pi))
     v = (0.5 if kind == "diff-drive" else 8.0) * (1.0 + 0.4 * np.sin(2 * np.pi * rng.uniform(0.02, 0.05) * t))
-    if kind == "diff-drive":                   # a turn in place every ~30 s, 4 s long
-        spin = np.sin(2 * np.pi * t / 30.0) > 0.87
-        v = np.where(spin, 0.0, v)
-        omega = np.where(spin, 1.0, omega)
+    if kind == "diff-drive":                   # a turn in place every 30 s, ~5 s long, ramped (limited acceleration)
+        r = np.clip((np.sin(2 * np.pi * t / 30.0) - 0.75) / 0.2, 0.0, 1.0)
+        spin = r * r * (3 - 2 * r)
+        v = (1 - spin) * v
+        omega = (1 - spin) * omega + spin * 1.0
     return v, omega
 
 
