@@ -51,7 +51,7 @@ ADVICE = {
     "x": "drive a figure eight (translate while turning, not only around one fixed point)",
     "y": "drive a figure eight (translate while turning, not only around one fixed point)",
 }
-PRIOR_ADVICE = "or pass the robot's nominal for it: --prior robot.urdf (a URDF, launch file, " \
+PRIOR_ADVICE = "pass the robot's nominal instead: --prior robot.urdf (a URDF, launch file, " \
                "static_transform_publisher arguments, Kalibr YAML or handeye result)"
 
 
@@ -248,5 +248,5 @@ def observable_subspace(A: FloatArray, B: FloatArray, X: FloatArray, obs: Observ
     missing = [d.name for d in dofs if d.status != ESTIMATED]
     advice = tuple(dict.fromkeys(ADVICE[n] for n in missing))
     if missing and nominal is None:
-        advice += (f"{', '.join(missing)}: {PRIOR_ADVICE}",)
+        advice += (f"for {', '.join(missing)}: {PRIOR_ADVICE}",)
     return Subspace(out, tuple(dofs), n_a, advice)
