@@ -163,7 +163,8 @@ def main() -> None:
     print("\nsummary (defaults / best fixed strategy and α in hindsight; goal ≤ 1.2):")
     for name, rot, trans in worst:
         print(f"  {name:<13} rot {rot:5.2f}  trans {trans:5.2f}  {'ok' if max(rot, trans) <= 1.2 else 'MISSED'}")
-    print(f"{args.seeds} seeds × {args.duration:g} s per scenario; total {time.perf_counter() - t0:.0f} s")
+    print(f"{args.seeds} seeds × {args.duration:g} s per scenario, {args.ground_seeds} seeds × "
+          f"{args.ground_duration:g} s per ground kind; total {time.perf_counter() - t0:.0f} s")
 
 
 if __name__ == "__main__":

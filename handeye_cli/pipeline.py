@@ -503,6 +503,12 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
         if scaled is not None:
             kept, pairs, (solution, alpha, weights, robust) = scaled
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
+    if prior is not None:                                     # the prior only where the data leave something open
+        free = _solve_and_analyse(pairs, opts, None, selection, {})
+        free_obs = assess_observability(A, B, free[0].matrix, alpha=free[1], weights=free[2], samples=ij)
+        if free_obs.ok:
+            (solution, alpha, weights, robust), prior = free, None
+            diagnostics["prior"] = "not used: the motion determines every degree of freedom"
     obs = assess_observability(A, B, solution.matrix, alpha=alpha, prior=prior, weights=weights, samples=ij)
     warnings += [str(w) for w in obs.warnings]
     warnings += solution.warnings                             # a failed optimality certificate

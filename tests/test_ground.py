@@ -80,6 +80,19 @@ def test_wrong_prior_fixes_z_and_pulls_nothing_else(diff_drive, free, tmp_path):
     assert np.abs(moved[:2]).max() < 1e-5 and np.abs(moved[3:]).max() < 1e-4      # vs 2 cm and 1° wrong
 
 
+def test_a_prior_does_not_pull_what_near_planar_motion_determines():
+    """The car's suspension pitch and roll determine all six: the wrong prior is not used at all."""
+    car = simulate_ground("car", seed=1, duration_s=60.0)
+    wrong = _shifted(car.truth, yaw=1.0, pitch=1.0, y=0.02, z=0.05)
+    stp = "rosrun tf static_transform_publisher " + " ".join(repr(float(x)) for x in (
+        *wrong[:3, 3], *np.deg2rad(dof_values(wrong)[5:2:-1]))) + " base_link camera 100"
+    c = calibrate(car.base, car.sensor, prior=stp, name_a="base_link", name_b="camera")
+    assert c.diagnostics["prior"].startswith("not used")
+    assert set(d["status"] for d in c.diagnostics["degrees_of_freedom"].values()) == {"estimated"}
+    err = dof_values(c.matrix) - dof_values(car.truth)
+    assert np.abs(err[3:]).max() < 0.05 and np.hypot(err[0], err[1]) < 0.01         # vs 1° and 2 cm wrong
+
+
 def test_the_prior_reads_the_same_from_every_nominal_kind(diff_drive, tmp_path):
     T = _shifted(diff_drive.truth, z=0.05)
     t, q = T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_quat()
