@@ -21,7 +21,11 @@ Why this and not the prior term (eq 26): the prior term adds ``a δqᵀGδq + b|
 direction, so a wrong nominal pulls the determined degrees of freedom by an amount that depends
 on the weights and the number of pairs, and the weakly determined ones end up a blend of data
 and nominal that cannot be labelled either. The reduced solve keeps the two apart exactly: the
-estimated degrees of freedom do not depend on the nominal at all, the others equal it.
+estimated degrees of freedom do not depend on the nominal at all, the others equal it. Measured
+on :func:`~handeye_cli.simulation.ground.simulate_ground` diff-drive seeds 0–2 with a nominal
+wrong by yaw +1°, pitch +1°, y +2 cm: eq 26 at weights (1, 1) moves yaw by up to 0.34° and the
+plane by 4 mm; at (0.01, 0.01) z no longer reaches the nominal (330 mm off on seed 0); the reduced
+solve: yaw within 0.005°, the plane within 0.4 mm, z equal to the nominal.
 """
 from __future__ import annotations
 
