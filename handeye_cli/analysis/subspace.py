@@ -29,13 +29,11 @@ solve: yaw within 0.005°, the plane within 0.4 mm, z equal to the nominal.
 """
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
 from .._typing import FloatArray
 from ..solvers import dualquat as dq
@@ -101,13 +99,17 @@ class Subspace:
 
 def dof_values(X: FloatArray) -> FloatArray:
     """(6,) x, y, z [m] and roll, pitch, yaw [deg] (``R = Rz Ry Rx``) of a 4x4 ``T_a_b``."""
-    return np.asarray(np.r_[X[:3, 3], Rotation.from_matrix(X[:3, :3]).as_euler("xyz", degrees=True)], dtype=np.float64)
+    R = X[:3, :3]
+    rpy = (np.arctan2(R[2, 1], R[2, 2]), np.arcsin(np.clip(-R[2, 0], -1.0, 1.0)), np.arctan2(R[1, 0], R[0, 0]))
+    return np.asarray(np.r_[X[:3, 3], np.rad2deg(rpy)], dtype=np.float64)
 
 
 def from_values(v: FloatArray) -> FloatArray:
     """The 4x4 ``T_a_b`` of x, y, z [m] and roll, pitch, yaw [deg] (inverse of :func:`dof_values`)."""
+    roll, pitch, yaw = np.deg2rad(v[3:])
     T = np.eye(4)
-    T[:3, :3] = Rotation.from_euler("xyz", v[3:], degrees=True).as_matrix()
+    T[:3, :3] = _rot(np.array([0.0, 0.0, 1.0]), yaw) @ _rot(np.array([0.0, 1.0, 0.0]), pitch) \
+        @ _rot(np.array([1.0, 0.0, 0.0]), roll)
     T[:3, 3] = v[:3]
     return T
 
@@ -131,7 +133,9 @@ def all_estimated(X: FloatArray, cov: LinearCovariance | None) -> Subspace:
 
 
 def _rot(axis: FloatArray, angle: float) -> FloatArray:
-    return np.asarray(Rotation.from_rotvec(axis * angle).as_matrix(), dtype=np.float64)
+    """Rotation matrix of ``angle`` [rad] about the unit ``axis`` (Rodrigues)."""
+    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.asarray(np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * (K @ K), dtype=np.float64)
 
 
 def _align(n_b: FloatArray, n_a: FloatArray) -> FloatArray:
@@ -166,6 +170,21 @@ def _tilt_std(ra: FloatArray, rb: FloatArray, R: FloatArray, n_a: FloatArray) ->
     return float(np.sqrt(np.sum(e_perp ** 2) / (2 * len(ra)) / max(np.sum((ra @ n_a) ** 2), 1e-300)))
 
 
+def _gauss_newton(residual: Callable[[FloatArray], FloatArray], p: FloatArray,
+                  iterations: int = 20) -> tuple[FloatArray, FloatArray]:
+    """Minimise ``|residual(p)|²`` by Gauss–Newton with a forward-difference Jacobian (a few smooth
+    parameters; scipy.optimize stays unimported on the calibrate path). Returns ``(p, J)``."""
+    J = np.zeros((0, len(p)))
+    for _ in range(iterations):
+        r = residual(p)
+        J = np.stack([(residual(p + h) - r) / 1e-7 for h in np.eye(len(p)) * 1e-7], axis=1)
+        step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        p = p + step
+        if np.abs(step).max() < 1e-12:
+            break
+    return p, J
+
+
 def _in_plane(A: FloatArray, B: FloatArray, w: FloatArray, n_a: FloatArray, R_tilt: FloatArray, z: float,
               yaw0: float | None) -> tuple[float, FloatArray, FloatArray]:
     """Yaw about ``n_a`` [rad], translation across ``n_a`` (2,) in the basis ``u1, u2``, and their 3x3
@@ -192,14 +211,14 @@ def _in_plane(A: FloatArray, B: FloatArray, w: FloatArray, n_a: FloatArray, R_ti
     rhs = np.outer(nu, n_a) - base
     lin = np.linalg.lstsq((M * sw[:, :, None]).reshape(-1, 4), (rhs * sw).ravel(), rcond=None)[0]
     p0 = np.r_[lin[:2], np.arctan2(lin[3], lin[2])] if yaw0 is None else lin[:2]
-    fit = least_squares(residual, p0, method="lm")
-    J = np.asarray(fit.jac, dtype=np.float64)
+    p, J = _gauss_newton(residual, np.asarray(p0, dtype=np.float64))
+    r = residual(p)
     dof = max(J.shape[0] - J.shape[1], 1)
-    cov = np.linalg.pinv(J.T @ J) * (2 * fit.cost / dof)
-    yaw = float(yaw0 if yaw0 is not None else fit.x[2])
+    cov = np.linalg.pinv(J.T @ J) * (float(r @ r) / dof)
+    yaw = float(yaw0 if yaw0 is not None else p[2])
     full = np.zeros((3, 3))
-    full[:len(fit.x), :len(fit.x)] = cov
-    t = fit.x[0] * u1 + fit.x[1] * u2
+    full[:len(p), :len(p)] = cov
+    t = p[0] * u1 + p[1] * u2
     return yaw, t, full
 
 
