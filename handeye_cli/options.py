@@ -334,8 +334,9 @@ class SolverOptions:
     scale: float | str = option(1.0, number(unit="metres per unit of stream b", word="auto"),
                                 "Scale of stream b's translations [m per unit] (monocular odometry), or auto to "
                                 "estimate it with T_a_b.", "NUMBER|auto")
-    prior: str | None = option(None, path, "Prior T_a_b file (a handeye result, or YAML with translation and "
-                               "quaternion_xyzw): fixes directions the motion cannot observe (eq 26).", "FILE")
+    prior: str | None = option(None, path, "Nominal T_a_b (a URDF, launch file, static_transform_publisher "
+                               "line, Kalibr YAML or handeye result; frames a, b as the result names them): fixes "
+                               "what the motion cannot observe.", "FILE")
     prior_weights: tuple[float, float] = option((1.0, 1.0), weight_pair,
                                                 "Weights a,b of the prior's rotation and translation terms.", "A,B")
     min_pairs: int = option(3, integer(low=2), "Fewer motion pairs than this is an error.", "N")

@@ -38,9 +38,10 @@ from .analysis.fit_test import fit_test, sample_noise
 from .analysis.inversion import InversionVerdict, check_inversion
 from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit, scale_reading
 from .analysis.selection import Selection, select_pairs
+from .analysis.subspace import observable_subspace
 from .config import load_options
 from .errors import ConfigError, HandEyeError
-from .io.pairfile import read_extrinsic
+from .io.nominal import read_nominal
 from .io.spec import StreamSpec
 from .options import FIELDS, Options, ReadOptions
 from .solvers import Prior, Solution, solve
@@ -156,9 +157,8 @@ class Calibration:
     def frames(self) -> dict[str, str]:
         """Names of frames a and b: ``name_a``/``name_b`` if given, else the streams' child frames
         (as valid tf2 frame ids: no leading '/')."""
-        out = self.options.output
-        return {"a": out.name_a or self.stream_a.child_frame_id.lstrip("/") or "a",
-                "b": out.name_b or self.stream_b.child_frame_id.lstrip("/") or "b"}
+        a, b = frame_names(self.options, self.stream_a, self.stream_b)
+        return {"a": a, "b": b}
 
     def bootstrap_deviations(self) -> np.ndarray | None:
         """(K, 6) bootstrap deviations of X: rotation vector [deg] (3), translation [m] (3)."""
@@ -323,15 +323,25 @@ def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Pri
     return at_zero
 
 
-def read_prior(options: Options) -> Prior | None:
-    """The prior of the options (``prior`` file, ``prior_weights``: paper eq 26), or None."""
+def frame_names(options: Options, stream_a: PoseStream, stream_b: PoseStream) -> tuple[str, str]:
+    """Names of frames a and b: ``name_a``/``name_b`` if given, else the streams' child frames
+    (as valid tf2 frame ids: no leading '/')."""
+    out = options.output
+    return (out.name_a or stream_a.child_frame_id.lstrip("/") or "a",
+            out.name_b or stream_b.child_frame_id.lstrip("/") or "b")
+
+
+def read_prior(options: Options, frames: tuple[str, str] | None = None) -> Prior | None:
+    """The prior of the options (``prior``: any nominal :func:`~handeye_cli.io.nominal.read_nominal`
+    reads, the transform between ``frames`` (a, b); ``prior_weights``: paper eq 26), or None."""
     s = options.solver
     if s.prior is None:
         return None
     try:
-        T = read_extrinsic(s.prior)
+        T = read_nominal(s.prior).transform(*(frames or (None, None)))
     except HandEyeError as e:                 # name the flag that chose the file
-        raise type(e)(e.what, e.where, f"{e.fix} given with --prior" if e.fix else "check --prior") from None
+        fix = e.fix.replace("--against", "--prior") if e.fix else "check --prior"
+        raise type(e)(e.what, e.where, fix if "--prior" in fix else f"{fix} given with --prior") from None
     return Prior(T, *s.prior_weights)
 
 
@@ -526,7 +536,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     warnings = [*stream_a.warnings, *stream_b.warnings, *offset_warnings]       # readers' warnings name their file
     if order is not None and order.chosen_by == "fit":
         warnings.insert(0, order.message(stream_a, stream_b))
-    prior = read_prior(opts)                                   # the prior file is read once
+    prior = read_prior(opts, frame_names(opts, stream_a, stream_b))       # the prior file is read once
     kept, pairs, samples, stations, selection = pairs_of(stream_a, stream_b, opts, offset_ns, prior)
     if offset_report.get("applied"):
         kept, pairs, samples, stations, selection = _confirmed_offset(
@@ -553,10 +563,22 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
         if scaled is not None:
             (kept, pairs, samples, stations, selection), (solution, alpha, weights, robust) = scaled
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
+    if prior is not None:                                     # the prior only where the data leave something open
+        free = _solve_and_analyse(pairs, opts, None, selection, {})
+        free_obs = assess_observability(A, B, free[0].matrix, alpha=free[1], weights=free[2], samples=ij)
+        if free_obs.ok:
+            (solution, alpha, weights, robust), prior = free, None
+            diagnostics["prior"] = "not used: the motion determines every degree of freedom"
     obs = assess_observability(A, B, solution.matrix, alpha=alpha, prior=prior, weights=weights, samples=ij)
     warnings += [str(w) for w in obs.warnings]
     warnings += solution.warnings                             # a failed optimality certificate
     diagnostics["observability"] = obs.as_dict()
+    subspace = observable_subspace(A, B, solution.matrix, obs, weights=weights,
+                                   nominal=None if prior is None else prior.T_a_b)
+    if subspace.axis_a is not None:                           # planar: the reduced in-plane solve
+        solution = replace(solution, matrix=subspace.matrix, problem=None, dual_quaternion=None)
+        warnings += [f"not estimated: {k} ({v})" for k, v in subspace.skipped.items()] + list(subspace.advice)
+    diagnostics["degrees_of_freedom"] = subspace.as_dict()
     if len(A) > 2 * TIME_BLOCKS:        # σ from independent samples beside σ from blocks of time (drift)
         check = drift_check(A, B, solution.matrix, time_blocks(pairs.t_i_ns, pairs.t_j_ns), alpha=alpha,
                             prior=prior, weights=weights, samples=ij)

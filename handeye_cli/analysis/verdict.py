@@ -7,10 +7,15 @@ bootstrap interval (``uncertainty.rotation_interval_deg`` of ``δθ = Log(R* R̂
 ``uncertainty.translation_interval_m``, both (2, 3)), the difference is *significant* when the
 nominal lies outside the interval on some axis. A sensor has **drifted** when its rotation or its
 translation is out of tolerance and — where significance is known — significant.
+
+Only the degrees of freedom the data determined are judged: when the result's
+``degrees_of_freedom`` marks some ``from_prior`` or ``unobservable`` (planar motion, see
+:mod:`.subspace`), the nominal takes the result's value in those (URDF x, y, z, roll, pitch, yaw)
+before the comparison, and the verdict lists them as ``skipped`` with the reason.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -20,6 +25,7 @@ from ..errors import DataError
 from ..geometry import dualquat as dq
 from ..geometry import se3
 from ..io.nominal import Nominal
+from .subspace import ESTIMATED, with_values_of
 
 __all__ = ["DEFAULT_MAX_ROTATION_DEG", "DEFAULT_MAX_TRANSLATION_M", "Verdict", "compare", "verdict_for"]
 
@@ -37,6 +43,7 @@ class Verdict:
     bootstrap interval (None without an interval); ``as_dict`` adds ``significant``, either of them.
     nominal: where the nominal came from (``source``, ``kind``) and its ``translation`` [m] and
     ``quaternion_xyzw``.
+    skipped: the degrees of freedom not judged (not estimated from the data), with the reason.
     """
 
     rotation_deg: float
@@ -46,6 +53,7 @@ class Verdict:
     rotation_significant: bool | None
     translation_significant: bool | None
     nominal: dict[str, Any]
+    skipped: dict[str, str] = field(default_factory=dict)
 
     @property
     def rotation_out(self) -> bool:
@@ -71,6 +79,8 @@ class Verdict:
             out["significant"] = bool(self.rotation_significant or self.translation_significant)
             out["rotation_significant"] = self.rotation_significant
             out["translation_significant"] = self.translation_significant
+        if self.skipped:
+            out["skipped"] = dict(self.skipped)
         return {**out, "nominal": self.nominal}
 
     def summary(self) -> str:
@@ -79,7 +89,8 @@ class Verdict:
             else "out of tolerance but not significant"
         return (f"{word}: rotation {self.rotation_deg:.3f}° (max {self.max_rotation_deg:g}°), translation "
                 f"{self.translation_m * 1000:.2f} mm (max {self.max_translation_m * 1000:g} mm) from the nominal "
-                f"{self.nominal.get('source', '')}".rstrip())
+                f"{self.nominal.get('source', '')}".rstrip()
+                + (f"; not judged (not estimated from the data): {', '.join(self.skipped)}" if self.skipped else ""))
 
 
 def _significance(X: NDArray[np.float64], N: NDArray[np.float64], uncertainty: dict[str, Any] | None) -> tuple[
@@ -118,5 +129,9 @@ def verdict_for(doc: dict[str, Any], nominal: Nominal, max_rotation_deg: float =
     nominal's transform between the result's frames a and b."""
     frames = doc.get("frames") or {}
     N = nominal.transform(frames.get("a"), frames.get("b"))
-    return compare(np.asarray(doc["matrix"], dtype=float), N, max_rotation_deg, max_translation_m,
-                   uncertainty=doc.get("uncertainty"), nominal={"source": nominal.source, "kind": nominal.kind})
+    X = np.asarray(doc["matrix"], dtype=float)
+    skipped = {name: f"{d.get('status')}: {d.get('reason', '')}".rstrip(": ")
+               for name, d in (doc.get("degrees_of_freedom") or {}).items() if d.get("status") != ESTIMATED}
+    v = compare(X, with_values_of(N, X, skipped), max_rotation_deg, max_translation_m,
+                uncertainty=doc.get("uncertainty"), nominal={"source": nominal.source, "kind": nominal.kind})
+    return replace(v, skipped=skipped)

@@ -1,0 +1,130 @@
+"""Ground robots (issue 22): the simulation, the observable subspace on planar motion, the prior from
+any nominal, drift verdicts on the estimated degrees of freedom only, through the API and the CLI."""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from _logs import write_tum
+from _util import run
+from scipy.spatial.transform import Rotation
+
+from handeye_cli.analysis.subspace import DOF_NAMES, dof_values, from_values
+from handeye_cli.config import load_options
+from handeye_cli.pipeline import calibrate, read_prior
+from handeye_cli.simulation.ground import simulate_ground
+
+DURATION = 120.0
+
+
+@pytest.fixture(scope="module")
+def diff_drive() -> object:
+    return simulate_ground("diff-drive", seed=2, duration_s=DURATION)
+
+
+@pytest.fixture(scope="module")
+def free(diff_drive) -> object:
+    """The calibration with default options and no prior."""
+    return calibrate(diff_drive.base, diff_drive.sensor)
+
+
+def _urdf(path: Path, T: np.ndarray) -> Path:
+    v = dof_values(T)
+    xyz, rpy = " ".join(repr(float(x)) for x in v[:3]), " ".join(repr(float(np.deg2rad(a))) for a in v[3:])
+    path.write_text(f'<robot name="r"><link name="base_link"/><link name="lidar"/>'
+                    f'<joint name="j" type="fixed"><parent link="base_link"/><child link="lidar"/>'
+                    f'<origin xyz="{xyz}" rpy="{rpy}"/></joint></robot>')
+    return path
+
+
+def _shifted(T: np.ndarray, **delta: float) -> np.ndarray:
+    v = dof_values(T)
+    for name, d in delta.items():
+        v[DOF_NAMES.index(name)] += d
+    return from_values(v)
+
+
+def test_simulation_is_seeded_and_shaped_like_a_ground_robot():
+    g = simulate_ground("diff-drive", seed=5, duration_s=30.0)
+    again = simulate_ground("diff-drive", seed=5, duration_s=30.0)
+    assert np.array_equal(g.base.xyz, again.base.xyz) and np.array_equal(g.sensor.quat_xyzw, again.sensor.quat_xyzw)
+    assert not np.array_equal(g.base.xyz, simulate_ground("diff-drive", seed=6, duration_s=30.0).base.xyz)
+    assert np.all(g.base.xyz[:, 2] == 0.0)                                       # wheel odometry is 2-D
+    assert g.localiser is not None and 1.0 <= len(g.localiser) / 30.0 <= 2.0     # 1–2 Hz
+    assert g.jumped.sum() == 3 and (g.base.frame_id, g.localiser.frame_id) == ("odom", "map")
+    car = simulate_ground("car", seed=5, duration_s=30.0)
+    tilt = Rotation.from_quat(car.base.quat_xyzw).as_euler("xyz", degrees=True)[:, :2]
+    assert 0.8 < np.abs(tilt).max() <= 2.5                                       # suspension: ±1–2°
+
+
+def test_planar_motion_estimates_only_what_it_determines(diff_drive, free):
+    c = free
+    dofs = c.diagnostics["degrees_of_freedom"]
+    assert {n: d["status"] for n, d in dofs.items()} == {**dict.fromkeys(DOF_NAMES, "estimated"), "z": "unobservable"}
+    assert "std" not in dofs["z"] and all(dofs[n]["std"] > 0 for n in DOF_NAMES if n != "z")
+    err = dof_values(c.matrix) - dof_values(diff_drive.truth)
+    assert abs(err[5]) < 0.05 and np.abs(err[3:5]).max() < 0.2 and np.abs(err[:2]).max() < 0.003
+    assert any("--prior robot.urdf" in w for w in c.warnings) and any("tilt the sensor head" in w for w in c.warnings)
+
+
+def test_wrong_prior_fixes_z_and_pulls_nothing_else(diff_drive, free, tmp_path):
+    wrong = _shifted(diff_drive.truth, yaw=1.0, pitch=1.0, y=0.02)                # wrong where the data see
+    c = calibrate(diff_drive.base, diff_drive.sensor, prior=str(_urdf(tmp_path / "r.urdf", wrong)),
+                  name_a="base_link", name_b="lidar")
+    dofs = c.diagnostics["degrees_of_freedom"]
+    assert dofs["z"]["status"] == "from_prior" and c.matrix[2, 3] == pytest.approx(wrong[2, 3], abs=1e-12)
+    moved = dof_values(c.matrix) - dof_values(free.matrix)           # the pair weights see the prior, the DOFs don't
+    assert np.abs(moved[:2]).max() < 1e-5 and np.abs(moved[3:]).max() < 1e-4      # vs 2 cm and 1° wrong
+
+
+def test_a_prior_does_not_pull_what_near_planar_motion_determines():
+    """The car's suspension pitch and roll determine all six: the wrong prior is not used at all."""
+    car = simulate_ground("car", seed=1, duration_s=60.0)
+    wrong = _shifted(car.truth, yaw=1.0, pitch=1.0, y=0.02, z=0.05)
+    stp = "rosrun tf static_transform_publisher " + " ".join(repr(float(x)) for x in (
+        *wrong[:3, 3], *np.deg2rad(dof_values(wrong)[5:2:-1]))) + " base_link camera 100"
+    c = calibrate(car.base, car.sensor, prior=stp, name_a="base_link", name_b="camera")
+    assert c.diagnostics["prior"].startswith("not used")
+    assert set(d["status"] for d in c.diagnostics["degrees_of_freedom"].values()) == {"estimated"}
+    err = dof_values(c.matrix) - dof_values(car.truth)
+    assert np.abs(err[3:]).max() < 0.05 and np.hypot(err[0], err[1]) < 0.01         # vs 1° and 2 cm wrong
+
+
+def test_the_prior_reads_the_same_from_every_nominal_kind(diff_drive, tmp_path):
+    T = _shifted(diff_drive.truth, z=0.05)
+    t, q = T[:3, 3], Rotation.from_matrix(T[:3, :3]).as_quat()
+    stp = ("ros2 run tf2_ros static_transform_publisher " + " ".join(
+        f"--{k} {float(v)!r}" for k, v in zip(("x", "y", "z", "qx", "qy", "qz", "qw"), [*t, *q], strict=True))
+        + " --frame-id base_link --child-frame-id lidar")
+    launch = tmp_path / "r.launch"
+    launch.write_text('<launch><node pkg="tf2_ros" exec="static_transform_publisher" name="s" args="'
+                      + " ".join(repr(float(v)) for v in [*t, *q]) + ' base_link lidar"/></launch>')
+    result = tmp_path / "nominal.yaml"
+    result.write_text(yaml.safe_dump({"matrix": T.tolist(), "frames": {"a": "base_link", "b": "lidar"}}))
+    options = load_options(None, None, name_a="base_link", name_b="lidar")
+    priors = [read_prior(replace(options, solver=replace(options.solver, prior=p)), ("base_link", "lidar"))
+              for p in (str(_urdf(tmp_path / "r.urdf", T)), stp, str(launch), str(result))]
+    for p in priors:
+        assert p is not None and np.allclose(p.T_a_b, T, atol=1e-9)
+    c = calibrate(diff_drive.base, diff_drive.sensor, prior=stp, name_a="base_link", name_b="lidar")
+    assert c.matrix[2, 3] == pytest.approx(T[2, 3], abs=1e-9)
+
+
+def test_fleet_check_judges_the_estimated_degrees_of_freedom(diff_drive, tmp_path, capsys):
+    """A nominal whose z is off by 5 cm raises no alarm on planar logs; 1° of yaw or 2 cm in the plane does."""
+    a, b = write_tum(tmp_path / "odom.txt", diff_drive.base), write_tum(tmp_path / "lidar.txt", diff_drive.sensor)
+    yawed = _urdf(tmp_path / "yawed.urdf", _shifted(diff_drive.truth, yaw=1.0))
+    code, out, err = run(capsys, "calibrate", a, b, "--name-a", "base_link", "--name-b", "lidar",
+                         "--against", yawed, "-o", tmp_path / "r.yaml")
+    assert code == 1, err
+    doc = yaml.safe_load((tmp_path / "r.yaml").read_text())
+    assert doc["degrees_of_freedom"]["z"]["status"] == "unobservable"
+    for name, change, drift in (("z", {"z": 0.05}, False), ("shift", {"x": 0.014, "y": 0.014}, True),
+                                ("yaw", {"yaw": 1.0}, True)):
+        nominal = _urdf(tmp_path / f"{name}.urdf", _shifted(diff_drive.truth, **change))
+        code, out, err = run(capsys, "check", tmp_path / "r.yaml", "--against", nominal)
+        assert code == (1 if drift else 0), (name, out, err)
+        assert "not judged (not estimated from the data): z" in out + err
