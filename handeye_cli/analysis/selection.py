@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..errors import HandEyeError
 from ..geometry import dualquat as dq
 from ..geometry import se3
 from ..solvers import Prior, solve
@@ -239,6 +240,21 @@ def _kept_pairs(synced: Synced, segs: _Segments, strides: NDArray[np.int64], max
     return _pairs(synced, i, i + np.repeat(strides, sizes)), crowding
 
 
+def _blocked(pairs: Pairs, cap: float, weights: NDArray[np.float64], prior: Prior | None) -> float:
+    """:func:`~.alpha.blocked_alpha` of the pairs, judged on the data alone where they determine the extrinsic: a
+    prior's term counts as exact information in the predicted errors (its own error is no part of them), so with it
+    every smaller α looks better, and the translations that alone determine a ground vehicle's yaw lose their weight
+    to a prior that may be wrong (a car with a prior 1° off in yaw: yaw 0.0005–0.005° without it, 0.012–0.067°
+    with it). A prior is used only when the pairs cannot be solved without one."""
+    blocks = time_blocks(pairs.t_i_ns, pairs.t_j_ns)
+    try:
+        return blocked_alpha(pairs.A, pairs.B, cap, blocks, weights=weights).alpha
+    except HandEyeError:
+        if prior is None:
+            raise
+        return blocked_alpha(pairs.A, pairs.B, cap, blocks, prior=prior, weights=weights).alpha
+
+
 def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt", prior: Prior | None = None,
                  probe: int = 200, rounds: int = 3) -> Selection:
     """The ``auto`` strategy (module docstring): pairs, weights, α and noise model for ``synced``.
@@ -271,7 +287,6 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
         weights = weights / (1.0 + model.drift_share(fk) * np.clip(crowding - 1.0, 0.0, None))
         X = solve(pairs.A, pairs.B, method=method, alpha=alpha, prior=prior, weights=weights).matrix
     if model.kind == "drifting":       # errors shared across time: the ML α is an upper bound (analysis.alpha)
-        alpha = blocked_alpha(pairs.A, pairs.B, alpha, time_blocks(pairs.t_i_ns, pairs.t_j_ns), prior=prior,
-                              weights=weights).alpha
+        alpha = _blocked(pairs, alpha, weights, prior)
     return Selection(pairs, weights / weights.mean(), alpha, model, tuple(int(k) for k in pr.strides[kept]), done,
                      int(pr.available[kept].sum()))
