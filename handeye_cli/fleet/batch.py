@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import heapq
 import json
-import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -23,6 +22,7 @@ from ..analysis.verdict import verdict_for
 from ..errors import HandEyeError, WriteError
 from ..io.nominal import Nominal
 from ..io.progress import Progress, progress
+from ..output.document import finite
 from .cache import job_key, load_done, store
 from .engine import Job, run_jobs
 
@@ -125,20 +125,9 @@ def _excess(v: dict[str, Any]) -> float:
                float(v["translation_m"]) / max(float(v["max_translation_m"]), 1e-12))
 
 
-def _finite(value: Any) -> Any:
-    """NaN and infinities → None (null), recursively: JSON Lines consumers (jq) reject NaN."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_finite(v) for v in value]
-    return value
-
-
 def record_line(record: Record) -> str:
     """One JSON Lines record (strict JSON: non-finite numbers are null)."""
-    return json.dumps(_finite(record), separators=(",", ":"), allow_nan=False)
+    return json.dumps(finite(record), separators=(",", ":"), allow_nan=False)
 
 
 def _judge(record: Record, s: BatchSettings) -> Record:
