@@ -41,6 +41,7 @@ from .analysis.selection import Selection, select_pairs
 from .analysis.subspace import observable_subspace
 from .config import load_options
 from .errors import ConfigError, HandEyeError
+from .geometry import se3
 from .io.nominal import read_nominal
 from .io.spec import StreamSpec
 from .options import FIELDS, Options, ReadOptions
@@ -129,8 +130,6 @@ class Calibration:
         return f"Calibration({self._line()})"
 
     def _line(self) -> str:
-        from .geometry import se3
-
         f, t = self.frames, self.translation
         fit = self.diagnostics.get("fit_test", {})
         cert = self.solution.certificate
