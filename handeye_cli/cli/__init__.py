@@ -102,13 +102,18 @@ def main(argv: list[str] | None = None) -> None:
 
 def _as_flags(error: HandEyeError) -> HandEyeError:
     """The command line's words for an error: the library names an option by its key (``(max_jump)``, the
-    Python keyword); given on the command line, that is its flag (``(--max-jump)``). A key in a file
-    (``c.yaml: max_jump``) stays the file's key. The one place the CLI translates."""
-    from ..options import FIELDS
+    Python keyword; a rig's ``(scales)``, RigOptions' field); given on the command line, that is its flag
+    (``(--max-jump)``, ``(--scale)``). A key in a file (``c.yaml: max_jump``) stays the file's key. The one
+    place the CLI translates."""
+    from dataclasses import fields
 
-    if error.where not in FIELDS:
-        return error
-    return type(error)(error.what, "--" + error.where.replace("_", "-"), error.fix)
+    from ..options import FIELDS
+    from ..rig import RigOptions
+
+    rig = {f.name: f.metadata["flag"] for f in fields(RigOptions) if "flag" in f.metadata}
+    flag = "--" + error.where.replace("_", "-") if error.where in FIELDS else rig.get(error.where, "--stream"
+                                                                                     if error.where == "streams" else "")
+    return type(error)(error.what, flag, error.fix) if flag else error
 
 
 def _fail(line: str, code: int, debug: bool) -> NoReturn:
