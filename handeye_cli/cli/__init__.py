@@ -110,9 +110,8 @@ def _as_flags(error: HandEyeError) -> HandEyeError:
     from ..options import FIELDS
     from ..rig import RigOptions
 
-    rig = {f.name: f.metadata["flag"] for f in fields(RigOptions) if "flag" in f.metadata}
-    flag = "--" + error.where.replace("_", "-") if error.where in FIELDS else rig.get(error.where, "--stream"
-                                                                                     if error.where == "streams" else "")
+    rig = {"streams": "--stream", **{f.name: f.metadata["flag"] for f in fields(RigOptions) if "flag" in f.metadata}}
+    flag = "--" + error.where.replace("_", "-") if error.where in FIELDS else rig.get(error.where, "")
     return type(error)(error.what, flag, error.fix) if flag else error
 
 
