@@ -373,10 +373,13 @@ def _parse_file(path: Path) -> tuple[str, tuple[Edge, ...]]:
     if text.lstrip().startswith("<"):
         import xml.etree.ElementTree as ET  # 20 ms to import: only for URDF and launch XML
 
+        snippet = re.sub(r"<!--.*?-->", "", text, flags=re.S).lstrip().startswith("<joint")    # urdf-joint
         try:
-            root = ET.fromstring(text)
+            root = ET.fromstring(f"<robot>{text}</robot>" if snippet else text)
         except ET.ParseError as e:
             raise ReadError(f"invalid XML: {e}", where, _FIX) from None
+        if snippet:
+            return "urdf-joint", _urdf(root, where)
         return ("urdf", _urdf(root, where)) if root.tag == "robot" else _launch_xml(root, where)
     try:
         doc, problem = load_yaml(text), None
