@@ -35,7 +35,9 @@ def _command(name: str) -> click.Command:
 
 
 def _flags(command: click.Command) -> set[str]:
-    return {opt for p in command.params for opt in (*p.opts, *p.secondary_opts)}
+    """The flags a command takes (a hidden one is a refusal: it takes no value, test_report_and_quiet_…)."""
+    assert all(not p.expose_value for p in command.params if getattr(p, "hidden", False))
+    return {opt for p in command.params if not getattr(p, "hidden", False) for opt in (*p.opts, *p.secondary_opts)}
 
 
 @pytest.mark.parametrize("name", sorted(COMMANDS))
@@ -134,10 +136,11 @@ def test_report_and_quiet_mean_one_thing_or_are_refused(capsys, files, tmp_path)
     assert code == 0 and "matrix:" in out and err == ""
     for args in (("solve", pairs, "--report", tmp_path / "r.html"), ("check", pairs, "--report", tmp_path / "r.html"),
                  ("check", pairs, "-q"), ("rig", "--stream", "a=/a", "--report", tmp_path / "r.html"),
+                 ("rig", "--stream", "a=/a", "--prior", "a=robot.urdf"),
                  ("report", pairs, "-o", tmp_path / "f.html", "--report", tmp_path / "r.html")):
         code, _, err = run(capsys, *args)
         line = err.strip().splitlines()
-        flag_ = "-q" if "-q" in args else "--report"
+        flag_ = "-q" if "-q" in args else "--prior" if "--prior" in args else "--report"
         assert code == 2 and len(line) == 1 and line[0].startswith("error: ") and f"({flag_}):" in line[0], (args, err)
     report = tmp_path / "compare.html"
     code, out, err = run(capsys, "compare", files["a"], files["b"], "--pairs", "consecutive", "--report", report,

@@ -18,7 +18,7 @@ from ..options import EVERY_PAIR, FIELDS, Options, optional_flag
 from ..output.formats import ALL_FORMATS, SUMMARY_FORMATS
 
 __all__ = ["apply", "command_options", "options_from_cli", "OPTION_NAMES", "per_stream_options", "per_stream_values",
-           "stream_options", "output_options", "scoped", "quiet_option", "report_option", "refused_report",
+           "stream_options", "output_options", "scoped", "quiet_option", "report_option", "refused", "refused_report",
            "refused_quiet", "summary_format"]
 
 F = Callable[..., Any]
@@ -130,21 +130,24 @@ def per_stream_values(params: dict[str, Any], form: str) -> dict[str, Any]:
     return values
 
 
+def refused(decls: tuple[str, ...], what: str, why: str, *, is_flag: bool = False) -> Callable[[F], F]:
+    """A flag a command does not take although others do, refused as one line: ``what`` the command does not
+    do and ``why`` (what to run instead). Hidden from --help, so that a flag means one thing everywhere, or a
+    clear no — never click's bare "No such option"."""
+    def refuse(ctx: click.Context, param: click.Parameter, value: Any) -> None:
+        if value:
+            raise ConfigError(f"{ctx.command_path} {what}", decls[0], why)
+    return click.option(*decls, is_flag=is_flag, expose_value=False, callback=refuse, hidden=True)
+
+
 def refused_report(why: str) -> Callable[[F], F]:
-    """``--report`` where a command has no page to write: refused as one line naming what to run instead (the
-    flag is hidden from --help, but means the same everywhere: a report of this run, or a clear no)."""
-    def refuse(ctx: click.Context, param: click.Parameter, value: str | None) -> None:
-        if value is not None:
-            raise ConfigError(f"{ctx.command_path} writes no report", "--report", why)
-    return click.option("--report", metavar="FILE", expose_value=False, callback=refuse, hidden=True)
+    """``--report`` where a command has no page to write (a report of this run everywhere else)."""
+    return refused(("--report",), "writes no report", why)
 
 
 def refused_quiet(why: str) -> Callable[[F], F]:
-    """``-q/--quiet`` where a command prints nothing to quiet: refused as one line saying why."""
-    def refuse(ctx: click.Context, param: click.Parameter, value: bool) -> None:
-        if value:
-            raise ConfigError(f"{ctx.command_path} has nothing to quiet", "-q", why)
-    return click.option("-q", "--quiet", is_flag=True, expose_value=False, callback=refuse, hidden=True)
+    """``-q/--quiet`` where a command prints nothing to quiet."""
+    return refused(("-q", "--quiet"), "has nothing to quiet", why, is_flag=True)
 
 
 def summary_format(what: str) -> Callable[[F], F]:

@@ -28,6 +28,7 @@ from .params import (
     per_stream_options,
     per_stream_values,
     quiet_option,
+    refused,
     refused_report,
 )
 
@@ -65,6 +66,8 @@ def _drift_message(verdicts: dict[str, Verdict]) -> str:
 @verdict_options
 @output_options
 @refused_report("handeye rig has no report page: run 'handeye calibrate --report FILE' on a pair of its streams")
+@refused(("--prior",), "takes no prior", "a prior is of one T_a_b, and the rig combines its pairs by their data's "
+         "covariance, which a prior on one pair would not enter: calibrate that pair with 'handeye calibrate --prior'")
 @quiet_option
 def rig(log: str | None, **p: Any) -> None:
     """Calibrate every sensor of a rig from one log: T_ref_k for each stream k, jointly.
