@@ -218,7 +218,8 @@ def test_cli_flag_and_python_keyword_share_default_and_values(capsys, key):
     _, info, default = FIELDS[key]
     (param,) = [p for p in _command("calibrate").params if p.name == key]
     if not info.secret:     # the flag's default is "not given": options.py's, which its help shows
-        assert param.default is None and f"[default: {_default_text(default)}]" in (param.help or "")
+        shown = f"[default: {_default_text(default)}]" if "[default:" not in info.help else "[default: "
+        assert param.default is None and (param.help or "").count("[default: ") == 1 and shown in (param.help or "")
     probes = (True, False) if info.parse in (flag, optional_flag) else (*PROBES, *info.choices,
                                                                          *(c.upper() for c in info.choices))
     for value in probes:
