@@ -159,6 +159,21 @@ def test_one_format_vocabulary(name):
         assert fmt is None                                                      # report writes HTML only
 
 
+def test_batch_output_dir_writes_every_result_format(capsys, files, tmp_path):
+    fleet = tmp_path / "robot01"
+    fleet.mkdir()
+    for name in ("a", "b"):
+        (fleet / f"{name}.tum").symlink_to(files[name])
+    for fmt in ALL_FORMATS:
+        out = tmp_path / fmt
+        code, records, err = run(capsys, "batch", fleet, "--pairs", "consecutive", "-j", "1", "-q", "--output-dir",
+                                 out, "--format", fmt)
+        assert code == 0 and json.loads(records)["status"] == "ok", err
+        (written,) = [p for p in out.iterdir() if not p.name.endswith(".handeye.json") or fmt == "json"]
+        X_read = read_nominal(written).transform(*json.loads(records)["frames"].values())
+        assert np.allclose(X_read, json.loads(records)["matrix"], atol=1e-9), fmt
+
+
 def test_urdf_joint_pastes_into_a_robot_and_reads_back(capsys, files, tmp_path):
     code, out, err = run(capsys, "calibrate", files["a"], files["b"], "--pairs", "consecutive", "--name-a",
                          "base&link", "--name-b", "cam<1>", "--format", "urdf-joint", "-q")
