@@ -270,3 +270,16 @@ def test_rig_settings_record_scale_as_yaml(capsys, files, tmp_path):
                        "b=0.5", "--pairs", "consecutive", "-q", "-o", out)
     assert code == 0, err
     assert yaml.safe_load(out.read_text(encoding="utf-8"))["settings"]["scales"]["b"]["value"] == 0.5
+
+
+def test_library_errors_name_keywords_and_the_cli_their_flags(capsys, files):
+    with pytest.raises(ConfigError) as e:
+        handeye_cli.load_options(preset="no-such-preset")
+    assert e.value.where == "preset"
+    with pytest.raises(ConfigError) as e:
+        handeye_cli.calibrate_rig_files(None, [f"a={files['a']}", f"b={files['b']}"], RigOptions(block_s=0.0))
+    assert e.value.where == "block_s"
+    code, _, err = run(capsys, "rig", "--stream", f"a={files['a']}", "--stream", f"b={files['b']}", "--block", "0")
+    assert code == 2 and err.strip() == f"error: {e.value.what} (--block): {e.value.fix}"
+    code, _, err = run(capsys, "rig", "--stream", f"a={files['a']}")
+    assert code == 2 and "(--stream)" in err

@@ -112,7 +112,7 @@ def compare(X: NDArray[np.float64], N: NDArray[np.float64], max_rotation_deg: fl
             uncertainty: dict[str, Any] | None = None, nominal: dict[str, Any] | None = None) -> Verdict:
     """The verdict on the result ``X`` against the nominal ``N`` (both 4x4 ``T_a_b``)."""
     if max_rotation_deg < 0 or max_translation_m < 0:
-        raise DataError("negative tolerance", "--max-rotation-deg/--max-translation-m", "give limits ≥ 0")
+        raise DataError("negative tolerance", "max_rotation_deg/max_translation_m", "give limits ≥ 0")
     X, N = np.asarray(X, dtype=float), np.asarray(N, dtype=float)
     t, q = se3.to_xyz_quat(N)
     rot_sig, trans_sig = _significance(X, N, uncertainty)

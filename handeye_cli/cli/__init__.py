@@ -100,19 +100,27 @@ def main(argv: list[str] | None = None) -> None:
     sys.exit(code if isinstance(code, int) else 0)
 
 
+# the library's keywords that are no option of options.py, and their flags
+_KEYWORDS = {"preset": "--preset", "config_file": "--config", "fmt": "--format", "streams": "--stream",
+             "max_rotation_deg": "--max-rotation-deg", "max_translation_m": "--max-translation-m"}
+
+
 def _as_flags(error: HandEyeError) -> HandEyeError:
     """The command line's words for an error: the library names an option by its key (``(max_jump)``, the
-    Python keyword; a rig's ``(scales)``, RigOptions' field); given on the command line, that is its flag
-    (``(--max-jump)``, ``(--scale)``). A key in a file (``c.yaml: max_jump``) stays the file's key. The one
-    place the CLI translates."""
+    Python keyword; a rig's ``(scales)``, RigOptions' field; ``a/b`` for two keys); given on the command line,
+    that is its flag (``(--max-jump)``, ``(--scale)``). A key in a file (``c.yaml: max_jump``) stays the file's
+    key. The one place the CLI translates; the Python API keeps the keys."""
     from dataclasses import fields
 
     from ..options import FIELDS
     from ..rig import RigOptions
 
-    rig = {"streams": "--stream", **{f.name: f.metadata["flag"] for f in fields(RigOptions) if "flag" in f.metadata}}
-    flag = "--" + error.where.replace("_", "-") if error.where in FIELDS else rig.get(error.where, "")
-    return type(error)(error.what, flag, error.fix) if flag else error
+    flags = {**_KEYWORDS, **{k: "--" + k.replace("_", "-") for k in FIELDS},
+             **{f.name: f.metadata["flag"] for f in fields(RigOptions) if "flag" in f.metadata}}
+    keys = error.where.split("/") if error.where else []
+    if not keys or not all(k in flags for k in keys):
+        return error
+    return type(error)(error.what, "/".join(flags[k] for k in keys), error.fix)
 
 
 def _fail(line: str, code: int, debug: bool) -> NoReturn:

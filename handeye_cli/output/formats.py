@@ -100,7 +100,7 @@ def _refuse(frames: list[Frame], fmt: str, problem: Callable[[str], str | None])
     for name in (n for f in frames for n in (f.parent, f.child)):
         why = problem(name)
         if why:
-            raise ConfigError(f"frame name {name!r} cannot be written as {fmt}: {why}", "--format",
+            raise ConfigError(f"frame name {name!r} cannot be written as {fmt}: {why}", "fmt",
                               "name the frames with --name-a/--name-b (letters, digits, '_', '.', '/', '-')")
 
 
@@ -222,5 +222,5 @@ def render_format(doc: dict[str, Any], fmt: str) -> str:
     if fmt in ("yaml", "json"):
         return render(doc, fmt)
     if fmt not in _WRITERS:
-        raise ConfigError(f"unknown output format {fmt!r}", "--format", f"use one of {', '.join(ALL_FORMATS)}")
+        raise ConfigError(f"unknown output format {fmt!r}", "fmt", f"use one of {', '.join(ALL_FORMATS)}")
     return _WRITERS[fmt](doc, transforms_of(doc))
