@@ -159,7 +159,8 @@ def summary_format(what: str) -> Callable[[F], F]:
 quiet_option = click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr "
                             "(the result and errors are still written).")
 report_option = click.option("--report", "report_file", metavar="FILE", help="Also write a self-contained HTML "
-                             "report of this run (what it shows: docs/design.md, 'Reports').")
+                             "report of this run: calibrate and compare the log's trajectories, residuals, gates, "
+                             "uncertainty and warnings; batch the fleet trend of its records.")
 
 
 def options_from_cli(params: dict[str, Any]) -> Options:
