@@ -283,3 +283,23 @@ def test_library_errors_name_keywords_and_the_cli_their_flags(capsys, files):
     assert code == 2 and err.strip() == f"error: {e.value.what} (--block): {e.value.fix}"
     code, _, err = run(capsys, "rig", "--stream", f"a={files['a']}")
     assert code == 2 and "(--stream)" in err
+
+
+def test_a_nominal_frame_is_taken_from_the_topic_only_when_one_matches(capsys, tmp_path):
+    """/cam0/pose names cam0 in a robot URDF; with a link 'pose' too, the topic names two: one clear line."""
+    joints = ('<joint name="j0" type="fixed"><parent link="base"/><child link="cam0"/><origin xyz="0 0 1"/></joint>'
+              '<joint name="j1" type="fixed"><parent link="cam0"/><child link="cam1"/>'
+              '<origin xyz="0.168 -0.1792 0.1344" rpy="0.4525 0.7216 0.4525"/></joint>')
+    log = ROOT / "sample_data" / "rig.mcap"
+    for links, ok in (("base cam0 cam1", True), ("base cam0 cam1 pose", False)):
+        extra = '<joint name="j2" type="fixed"><parent link="base"/><child link="pose"/></joint>' if not ok else ""
+        urdf = tmp_path / "robot.urdf"
+        urdf.write_text(f'<robot name="r">{"".join(f"<link name={chr(34)}{n}{chr(34)}/>" for n in links.split())}'
+                        f"{joints}{extra}</robot>", encoding="utf-8")
+        code, out, err = run(capsys, "calibrate", log, "--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose",
+                             "--against", urdf, "--format", "json", "-q")
+        if ok:
+            assert code == 0 and json.loads(out)["verdict"]["nominal"]["frames"] == ["cam0", "cam1"], err
+        else:
+            assert code == 2 and len(err.strip().splitlines()) == 1 and "--name-a/--name-b" in err
+            assert "'cam0_pose' is not in the nominal" in err
