@@ -199,6 +199,9 @@ def test_a_name_that_says_another_format_is_one_warning(capsys, files, tmp_path,
                        "-o", tmp_path / name)
     mismatch = [line for line in err.splitlines() if "though its name says" in line]
     assert code == 0 and len(mismatch) == int(warned)
+    code, _, err = run(capsys, "rig", "--stream", f"a={files['a']}", "--stream", f"b={files['b']}", "--pairs",
+                       "consecutive", "-q", "--format", fmt, "-o", tmp_path / f"rig-{name}")
+    assert code == 0 and sum("though its name says" in line for line in err.splitlines()) == int(warned)
     assert not warned or mismatch[0].startswith(f"warning: {name} is written as --format {fmt}")
 
 

@@ -18,9 +18,8 @@ from scipy.spatial.transform import Rotation
 
 from ..analysis.verdict import Verdict
 from ..io.nominal import read_nominal
-from ..output.writers import check_writable, output_format
 from .check import verdict_options
-from .common import CONTEXT, emit, finish
+from .common import CONTEXT, emit, finish, result_format
 from .params import (
     command_options,
     options_from_cli,
@@ -101,8 +100,7 @@ def rig(log: str | None, **p: Any) -> None:
 
     options = options_from_cli(p)
     specs = [parse_stream(s) for s in p["streams"]]
-    check_writable(p["output"], "-o")
-    fmt = output_format(p["output"], p["fmt"])
+    fmt = result_format(p["output"], p["fmt"])
     nominal = read_nominal(p["against"]) if p["against"] else None      # a bad nominal fails before the work
     if nominal is not None:
         check_sensor_names([str(s.name) for s in specs], nominal)
