@@ -306,3 +306,21 @@ def test_a_nominal_frame_is_taken_from_the_topic_only_when_one_matches(capsys, t
         else:
             assert code == 2 and len(err.strip().splitlines()) == 1 and "--name-a/--name-b" in err
             assert "'cam0_pose' is not in the nominal" in err
+
+
+@pytest.mark.parametrize(("key", "value"), [("method", "DQopt"), ("method", "Tsai"), ("method", "bogus"),
+                                            ("alpha", "AUTO"), ("alpha", "off"), ("alpha", "-1"), ("alpha", "2")])
+def test_solve_cli_and_python_share_values_and_case_rule(capsys, key, value):
+    from handeye_cli.io.pairfile import read_pairs
+
+    pairs = ROOT / "sample_data" / "pairs.csv"
+    A, B, w = read_pairs(pairs)
+    try:
+        handeye_cli.solve(A, B, weights=w, **{key: value})
+        python = "accepted"
+    except ConfigError as e:
+        python = "refused"
+        assert e.where == key
+    code, out, err = run(capsys, "solve", pairs, f"--{key}", value, "-q")
+    assert (code == 0) == (python == "accepted"), err
+    assert python == "refused" or "matrix:" in out
