@@ -193,18 +193,20 @@ def _spec(source: Source, topic: str | None, frames: tuple[str, str] | None) -> 
 
 
 def read_streams(specs: Sequence[StreamSpec | PoseStream], options: Options | None = None, *,
-                 quiet: bool = True) -> list[PoseStream]:
+                 quiet: bool = True, quaternion_orders: Sequence[str] | None = None) -> list[PoseStream]:
     """The streams of ``specs`` (a PoseStream is taken as it is), as the files hold them: the one read path of
     calibrate, rig and batch. Each input is detected once and every stream of one log read in one pass
     (:func:`~handeye_cli.io.read_specs`); ``options.read`` sets the time source, CSV columns and time unit of
     every file, ``wxyz_a`` / ``wxyz_b`` the quaternion order of the first / second stream (a rig's others: the
-    format's, open to the fit). :func:`calibrate_read` inverts them where the options say so."""
+    format's, open to the fit), or ``quaternion_orders`` per spec (``auto``, ``xyzw``, ``wxyz``: a rig's, by stream
+    name). :func:`calibrate_read` inverts them where the options say so."""
     from .io import read_specs  # mcap/rosbags: import only when reading
 
     read = (options or Options()).read
     wxyz = (read.wxyz_a, read.wxyz_b)
     files = [(k, s) for k, s in enumerate(specs) if isinstance(s, StreamSpec)]
-    orders = ["auto" if k > 1 or wxyz[k] is None else "wxyz" if wxyz[k] else "xyzw" for k, _ in files]
+    orders = [quaternion_orders[k] if quaternion_orders else "auto" if k > 1 or wxyz[k] is None
+              else "wxyz" if wxyz[k] else "xyzw" for k, _ in files]
     read_now = read_specs([s for _, s in files], time_source=read.time_source,
                           columns=dict(read.csv_columns) if read.csv_columns else None, quaternion_orders=orders,
                           time_unit=read.time_unit, quiet=quiet)

@@ -161,8 +161,10 @@ def option_rows() -> list[str]:
         for name, (sec, info, default) in FIELDS.items():
             if sec == section:
                 help_text = info.help.replace("|", "\\|")
-                rows.append(f"| `{name}` | `--{name.replace('_', '-')}` | {sec} | `{_default_text(default)}` "
-                            f"| {help_text} |")
+                rig = f", rig `--{info.per_stream.replace('_', '-')} NAME`" if info.per_stream not in (None, "name") \
+                    else ", rig: the stream's NAME" if info.per_stream else ""
+                rows.append(f"| `{name}` | `--{name.replace('_', '-')}` | {sec} | {' '.join(info.commands)}{rig} "
+                            f"| `{_default_text(default)}` | {help_text} |")
     return rows
 
 

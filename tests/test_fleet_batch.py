@@ -199,6 +199,11 @@ def test_fleet_report_renders_in_headless_chromium(fleet, capsys, tmp_path):
     if not (root / "verdicts.jsonl").exists():
         pytest.fail("test_fleet_records_order_statuses_and_exit_code must run first (it writes the records)")
     code, out, err = run(capsys, "report", root / "verdicts.jsonl", "-o", tmp_path / "fleet.html")
+    statuses = [json.loads(line)["status"] for line in (root / "verdicts.jsonl").read_text().splitlines()]
+    assert code == 0 and out == "" and err == (f"{tmp_path / 'fleet.html'}: {len(statuses)} records ("
+                                               f"{statuses.count('ok')} ok, {statuses.count('drift')} drift, "
+                                               f"{statuses.count('error')} error)\n")
+    code, out, err = run(capsys, "report", root / "verdicts.jsonl", "-o", tmp_path / "fleet.html", "-q")
     assert code == 0 and out == "" and err == ""
     text = (tmp_path / "fleet.html").read_text(encoding="utf-8")
     stamp = re.compile(r"Generated [^<]* by")

@@ -108,7 +108,7 @@ def _svg(html: str) -> str:
 
 def test_the_fleet_report_draws_one_line_per_robot_with_the_legend_off_the_data(capsys, tmp_path):
     _fleet_records(tmp_path / "records.jsonl")
-    code, out, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html")
+    code, out, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html", "-q")
     assert code == 0 and out == err == ""
     html = (tmp_path / "fleet.html").read_text()
     svg = _svg(html)
@@ -124,9 +124,9 @@ def test_the_fleet_report_reads_a_records_file_with_a_cut_last_line(capsys, tmp_
     _fleet_records(tmp_path / "records.jsonl")
     text = (tmp_path / "records.jsonl").read_text()
     (tmp_path / "records.jsonl").write_text(text[:-40])       # the batch was killed writing its last record
-    code, out, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html")
-    assert code == 0 and out == "" and "records.jsonl:6: the last line is cut" in err
+    code, out, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html", "-q")
+    assert code == 0 and out == "" and "records.jsonl:6: the last line is cut" in err      # warnings stay
     assert "5 log(s) of 2 robot(s)" in (tmp_path / "fleet.html").read_text()
     (tmp_path / "records.jsonl").write_text(text.rstrip("\n"))  # whole, with no final newline: kept
-    code, _, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html")
+    code, _, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html", "-q")
     assert code == 0 and err == "" and "6 log(s)" in (tmp_path / "fleet.html").read_text()

@@ -129,7 +129,7 @@ def test_too_few_samples_name_the_flags_and_the_rates() -> None:
 
 def test_bad_gate_settings_are_config_errors() -> None:
     rec = simulate_rates(Rig(X), 30, 20, duration_s=10, seed=10)
-    with pytest.raises(ConfigError, match="--gate"):
+    with pytest.raises(ConfigError, match=r"\(gate\)"):
         sync_and_gate(rec.a, rec.b, gate="strict")
     with pytest.raises(ConfigError, match="accept_after"):
         paper_gate(rec.a, accept_after=0)

@@ -6,9 +6,10 @@ from typing import Any
 import click
 
 from ..output.document import plain, render
+from ..output.formats import SUMMARY_FORMATS
 from ..output.writers import write_stdout
 from .common import CONTEXT
-from .params import flags, options_from_cli
+from .params import command_options, options_from_cli, quiet_option
 
 
 def _inspect_text(info: dict[str, Any]) -> str:
@@ -33,11 +34,11 @@ def _inspect_text(info: dict[str, Any]) -> str:
 
 @click.command("inspect", context_settings=CONTEXT)
 @click.argument("input_file", type=click.Path())
-@click.option("--format", "fmt", type=click.Choice(["text", "yaml", "json"]), default="text", show_default=True,
+@click.option("--format", "fmt", type=click.Choice(SUMMARY_FORMATS), default="text", show_default=True,
               help="Human-readable text, or machine-readable YAML/JSON.")
 @click.option("--all-tf", is_flag=True, help="Read every TF message for the TF edges [default: the first 2000].")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
-@flags("storage_option", "remote_timeout", "remote_retries")
+@quiet_option
+@command_options("inspect")
 def inspect(input_file: str, fmt: str, all_tf: bool, quiet: bool, **remote: Any) -> None:
     """List the topics, message types, counts, rates and time span of a log, which topics carry
     poses, and its TF frame tree.
