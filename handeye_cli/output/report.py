@@ -12,10 +12,11 @@ x-y-z-w; metres, and degrees in everything shown.
 
 Contents: the extrinsic (matrix, translation, quaternion, rotation in degrees), method, α, cost,
 pairs used and inputs; the warnings; (1) both trajectories in a's world after applying the
-extrinsic, (2) per-pair residuals over time, (3) what each stage kept and each gate dropped (one log scale, a zero without a bar),
-(4) the bootstrap spread when given; a titled table for every other block of the result document
-(time offset, uncertainty, residuals, robust, solver, fit test, …; values not computed left out),
-and the options that differ from the defaults. It needs no optional dependency.
+extrinsic, (2) per-pair residuals over time, (3) what each stage kept and each gate dropped
+(one log scale, a zero without a bar), (4) the bootstrap spread when given; a titled table for
+every other block of the result document (time offset, uncertainty, residuals, robust, solver,
+fit test, …; values not computed left out), and the options that differ from the defaults.
+It needs no optional dependency.
 """
 from __future__ import annotations
 
