@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from ..errors import ConfigError, DataError
 from ..options import Options
+from ..pipeline import check_samples
 from ..streams import PoseStream
 from .graph import loop_closures, synchronise
 from .joint import CONSISTENCY_P_VALUE, Consistency, JointProblem, Motions, bootstrap_rig, consistency, refine
@@ -118,6 +119,8 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
     when a sensor cannot be calibrated against any other."""
     opts = options or RigOptions()
     names = list(streams)
+    for name, stream in streams.items():
+        check_samples(stream, f"stream {name!r}")
     n, ref = len(names), _check(names, opts)
     cfg = opts.options
     inverted = [name in opts.invert for name in names]
