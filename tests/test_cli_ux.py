@@ -90,3 +90,18 @@ def test_help_names_one_default_and_every_method(capsys) -> None:
     assert code == 0 and name_a.count("[default:") == 1 and "child frame" in name_a
     method = text.split("Solver:", 1)[1].split(" --", 1)[0]
     assert all(re.search(rf"\b{m}\b", method) for m in METHODS), method
+
+
+def test_a_missing_optional_package_is_named_as_the_registry_knows_it(capsys, monkeypatch) -> None:
+    """The hint ``pip install 'handeye-cli[report]'`` named a package that is not on the registry, which a user
+    of a checkout cannot install; the hints for URLs and Dask name the packages themselves."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "fsspec", None)          # import fsspec → ImportError
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    code, out, err = run(capsys, "inspect", "s3://bucket/log.mcap")
+    assert code == 2 and out == "" and err.rstrip().endswith("pip install fsspec s3fs (S3)")
+    code, _, err = run(capsys, "batch", SAMPLE / "rig.mcap", "--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose",
+                       "--scheduler", "tcp://127.0.0.1:1")
+    assert code == 2 and "pip install 'dask[distributed]'" in err
+    assert "handeye-cli[" not in err
