@@ -18,12 +18,11 @@ from __future__ import annotations
 import io
 import json
 from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, BinaryIO
 
-import numpy as np
 from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, Footer, Message, Schema
@@ -188,14 +187,28 @@ class McapSource:
 
     def topic_spans(self) -> dict[str, tuple[int, int]]:
         """Of a scanned file, what the scan saw; of an indexed one, from the MessageIndex records of
-        the chunks that hold each channel's first and last messages (a few small reads, no chunk
-        decompressed). A channel of a file without message indexes is left out."""
+        the chunks that hold each channel's first and last messages (one read of a chunk's message
+        indexes, which follow it, serves every channel; no chunk decompressed). A topic with a channel
+        the indexes do not cover is left out."""
         spans = dict(self._channel_spans)
         if self._indexed:
+            read: dict[int, dict[int, tuple[int, int]]] = {}
             with self._open() as f, unreadable(self.name):
+                def times(ix: Any) -> dict[int, tuple[int, int]]:
+                    if ix.chunk_start_offset not in read:
+                        f.seek(ix.chunk_start_offset + ix.chunk_length)
+                        try:
+                            entries = message_index(memoryview(f.read(ix.message_index_length)),
+                                                    set(ix.message_index_offsets))
+                        except ValueError:      # an index record past its section: no times from it
+                            entries = []
+                        read[ix.chunk_start_offset] = {cid: (int(r[:, 0].min()), int(r[:, 0].max()))
+                                                       for cid, r in entries}
+                    return read[ix.chunk_start_offset]
+
                 for cid in self._channels:
                     chunks = [ix for ix in self._chunks if cid in ix.message_index_offsets]
-                    first, last = _first_time(f, chunks, cid), _first_time(f, chunks, cid, last=True)
+                    first, last = _edge_time(chunks, cid, times), _edge_time(chunks, cid, times, last=True)
                     if first is not None and last is not None:
                         spans[cid] = (first, -last)
         out = spans_by_topic((self._channels[cid].topic, span) for cid, span in spans.items() if cid in self._channels)
@@ -272,11 +285,13 @@ class McapSource:
                 yield from self._chunk_records(Chunk.read(ReadDataStream(f)), index.chunk_start_offset)
 
 
-def _first_time(f: BinaryIO, chunks: list[Any], cid: int, *, last: bool = False) -> int | None:
+def _edge_time(chunks: list[Any], cid: int, times: Callable[[Any], dict[int, tuple[int, int]]], *,
+               last: bool = False) -> int | None:
     """The first log time [ns] of channel ``cid`` in ``chunks`` (the chunk indexes holding it), or
-    minus the last one with ``last``: the chunks' MessageIndex records read in order of their start
-    (end) time until no later chunk can hold an earlier (later) message. None when the indexes
-    list none (a damaged index: the channel is then rated over the log's span)."""
+    minus the last one with ``last``: ``times(chunk)`` (the chunk's (first, last) per channel) asked
+    in order of the chunks' start (end) time until no later chunk can hold an earlier (later)
+    message. None when the indexes list none (a damaged index: the topic is then rated over the
+    log's span)."""
     def bound(ix: Any) -> int:
         return -int(ix.message_end_time) if last else int(ix.message_start_time)
 
@@ -284,16 +299,8 @@ def _first_time(f: BinaryIO, chunks: list[Any], cid: int, *, last: bool = False)
     for ix in sorted(chunks, key=bound):
         if best is not None and bound(ix) > best:
             break
-        f.seek(ix.message_index_offsets[cid])
-        head = f.read(9)
-        blob = memoryview(head + f.read(int.from_bytes(head[1:9], "little")))
-        try:
-            entries = message_index(blob, {cid})
-        except ValueError:          # an index record longer than the file: no times from it
-            continue
-        for _, rows in entries:
-            times = rows[:, 0].astype(np.int64)
-            edge = -int(times.max()) if last else int(times.min())
+        if cid in (got := times(ix)):
+            edge = -got[cid][1] if last else got[cid][0]
             best = edge if best is None else min(best, edge)
     return best
 
