@@ -145,3 +145,19 @@ def test_inspect_text_rates_tf_tree_and_a_cut_file_as_the_user_reads_them(capsys
     code, out, err = run(capsys, "inspect", path)
     warning = out.splitlines()[1]
     assert code == 0 and warning.startswith(f"  warning: {path} is cut off") and "is lost" in warning
+
+
+def test_a_topic_whose_span_the_log_does_not_tell_is_rated_over_the_logs(tmp_path, streams, monkeypatch):
+    """A storage the readers cannot ask for a topic's span (several MCAP files of a ROS 2 bag, a compressed
+    .db3): its rate is over the log's span, and says so."""
+    from handeye_cli.cli.inspect import _rate
+    from handeye_cli.io import mcap_reader
+
+    a, b = streams
+    path = write_mcap(tmp_path / "log.mcap", log_channels(a, b))
+    monkeypatch.setattr(mcap_reader.McapSource, "topic_spans", lambda self: {})
+    info = inspect_log(path)
+    cam = next(t for t in info["topics"] if t["topic"] == "/cam0/pose")
+    assert (cam["first_ns"], cam["last_ns"], cam["rate_over"]) == (None, None, "log")
+    assert cam["rate_hz"] == round(len(a) / info["duration_ns"] * 1e9, 3)
+    assert _rate(cam) == f"{cam['rate_hz']} Hz (over the log's span)"
