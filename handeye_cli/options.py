@@ -342,8 +342,10 @@ class PairOptions:
 class SolverOptions:
     """The solver and its cost (paper eqs 8, 26)."""
 
-    method: str = option("dqopt", choice(*METHODS), "Solver: dqopt is the global optimum (paper §3.2.1); the others "
-                         "are the paper's approximations and Daniilidis' method.", commands=SOLVER)
+    method: str = option("dqopt", choice(*METHODS), "Solver: dqopt is the global optimum (paper §3.2.1); dq2steps, "
+                         "dqconvrlx, dq2ndord and dqitr the paper's approximations; daniilidis the dual-quaternion "
+                         "SVD; tsai, park, horaud and andreff the classical methods (rotation, then translation).",
+                         commands=SOLVER)
     alpha: float | str = option("auto", number(unit="1/m", word="auto"),
                                 "Weight of translational residuals [1/m] (eq 8), or auto (maximum likelihood "
                                 "under the recording's noise model).", "NUMBER|auto", commands=SOLVER)

@@ -40,7 +40,7 @@ from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit,
 from .analysis.selection import Selection, select_pairs
 from .analysis.subspace import observable_subspace
 from .config import load_options
-from .errors import ConfigError, HandEyeError
+from .errors import ConfigError, DataError, HandEyeError
 from .geometry import se3
 from .io.nominal import read_nominal
 from .io.spec import StreamSpec
@@ -55,7 +55,7 @@ from .stages.sync import Synced, default_max_dt_ns
 from .streams import PoseStream
 
 __all__ = ["Calibration", "StreamSpec", "Uncertainty", "calibrate", "calibrate_files", "calibrate_read",
-           "inverted_as_read", "read_streams", "refuse_unread"]
+           "check_samples", "inverted_as_read", "read_streams", "refuse_unread"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -514,6 +514,22 @@ def _inversion_inputs(read: ReadOptions) -> dict[str, bool]:
     return {key: True for key in ("invert_a", "invert_b") if getattr(read, key)}
 
 
+def check_samples(stream: PoseStream, label: str) -> None:
+    """A stream built in memory whose samples hold a NaN or infinite value or a zero-norm quaternion is
+    refused naming the first as the user indexes the arrays (``label``, e.g. ``stream b``, then ``sample 10``,
+    0-based), not as a
+    motion later (``motions_b[401]``). Streams read from files have such samples dropped already
+    (with a warning), so this is quiet for them."""
+    quat = stream.quat_xyzw
+    bad = ~(np.isfinite(stream.xyz).all(axis=1) & np.isfinite(quat).all(axis=1)) | ~(np.abs(quat) > 0).any(axis=1)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{label}, sample {k} (0-based: xyz[{k}] {stream.xyz[k].tolist()}, quat_xyzw[{k}] "
+                        f"{quat[k].tolist()}) has a NaN or infinite value or a zero-norm quaternion; "
+                        f"{int(bad.sum())} such sample(s) in all", stream.source or label,
+                        "remove or repair those samples (a file's are dropped with a warning)")
+
+
 def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
                    inputs: dict[str, Any] | None = None, scale_by_fit: bool = True) -> Calibration:
     """:func:`calibrate` streams as a reader produced them with ``opts.read`` (parsed, not yet inverted: the
@@ -528,6 +544,8 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     → [bootstrap]. After the solve, b's translations found in other units by the fit are estimated with
     ``T_a_b`` (``scale_by_fit``; ``handeye rig`` passes False: its consistency test names such a stream).
     """
+    check_samples(stream_a, "stream a")
+    check_samples(stream_b, "stream b")
     given = stream_a, stream_b                                 # as read: what a second reading starts from
     if opts.solver.scale not in (1.0, "auto"):
         stream_b = replace(stream_b, xyz=stream_b.xyz * float(opts.solver.scale))

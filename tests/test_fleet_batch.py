@@ -182,7 +182,7 @@ def test_dask_cluster_gives_byte_identical_records(fleet, capsys):
     except ImportError:
         if os.environ.get("CI"):
             raise
-        pytest.skip("dask.distributed is not installed (pip install 'handeye-cli[dask]'); CI installs it")
+        pytest.skip("dask.distributed is not installed (pip install 'dask[distributed]'); CI installs it")
     root, _, _ = fleet
     inputs = [str(root / "logs" / "robot0[0-4]"), root / "logs" / "broken", root / "logs" / "robot22"]
     code_local, local, _ = run(capsys, *_args(root, *inputs, "--jobs", "2", "-q"))

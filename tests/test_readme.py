@@ -36,6 +36,9 @@ def test_quickstart_first_command_runs_on_the_sample(tmp_path):
                          text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert "matrix:" in out.stdout and "quaternion_xyzw:" in out.stdout
+    # the name the README gives the result is the one printed (it said T_cam0_cam1; it is T_cam0_pose_cam1_pose)
+    named = re.search(r"the result, `(T_\w+)` as YAML", (ROOT / "README.md").read_text(encoding="utf-8"))
+    assert named is not None and out.stderr.startswith(f"{named.group(1)}: translation")
 
 
 def _fleet_recipe() -> str:

@@ -103,6 +103,9 @@ def test_text_pair_and_inspect(s3, capsys):
     info = json.loads(out)
     assert code == 0 and info["path"] == f"s3://{BUCKET}/logs/rig.mcap"
     assert {t["topic"] for t in info["topics"]} >= {"/cam0/pose", "/cam1/pose"}
+    _, local_out, _ = run(capsys, "inspect", SAMPLES / "rig.mcap", "--format", "json")
+    local_info = json.loads(local_out)           # each topic's span from its message indexes, read by range
+    assert info["topics"] == local_info["topics"] and info["tf_frames"] == local_info["tf_frames"]
 
 
 def test_remote_and_local_mcap_streams_are_identical(s3):

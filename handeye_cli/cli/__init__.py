@@ -14,6 +14,7 @@ runs one process per core.
 """
 from __future__ import annotations
 
+import difflib
 import os
 import sys
 import traceback
@@ -43,6 +44,15 @@ class LazyGroup(click.Group):
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted(COMMANDS)
+
+    def resolve_command(self, ctx: click.Context,
+                        args: list[str]) -> tuple[str | None, click.Command | None, list[str]]:
+        """As click's, with "did you mean" for a mistyped command (click offers it for options only)."""
+        if args and args[0] not in COMMANDS and not args[0].startswith("-"):
+            close = difflib.get_close_matches(args[0], COMMANDS, n=1, cutoff=0.6)
+            if close:
+                ctx.fail(f"No such command {args[0]!r}. (Did you mean {close[0]!r}?)")
+        return super().resolve_command(ctx, args)
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         if cmd_name not in COMMANDS:

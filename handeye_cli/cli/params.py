@@ -37,7 +37,8 @@ def _default_text(default: Any) -> str:
 def _flag(name: str) -> Callable[[F], F]:
     _, info, default = FIELDS[name]
     dashed = "--" + name.replace("_", "-")
-    help_text = info.help if "[default:" in info.help else f"{info.help} [default: {_default_text(default)}]"
+    given = "[default:" in info.help         # the help says what the default is in words (--name-a)
+    help_text = info.help if given else f"{info.help} [default: {_default_text(default)}]"
     if isinstance(default, bool) or info.parse is optional_flag:
         return click.option(f"{dashed}/--no-{dashed[2:]}", name, default=None, help=help_text)
     kind = click.Choice(info.choices, case_sensitive=False) if info.choices else click.STRING

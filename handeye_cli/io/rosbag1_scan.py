@@ -23,7 +23,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from ..errors import ReadError
 from .common import CHUNK_LIMIT, ChunkError, decode_errors, inflate, open_clamped
 from .messages import normalize_type, pose_decoder
-from .source import Decoder, TopicInfo
+from .source import Decoder, TopicInfo, spans_by_topic
 
 __all__ = ["Bag1Scan", "check_lengths"]
 
@@ -40,16 +40,17 @@ class Bag1Scan:
         self.truncated = False
         self._conns: dict[int, tuple[str, str, str]] = {}     # id → (topic, type, message definition)
         self._counts: Counter[int] = Counter()
+        self._spans: dict[int, tuple[int, int]] = {}         # id → (first, last) log time [ns]
         self._skipped: dict[str, None] = {}     # one line per chunk skipped
-        stamps = []
         for conn, stamp, _ in self._messages(None):
             self._counts[conn] += 1
-            stamps.append(stamp)
+            lo, hi = self._spans.get(conn, (stamp, stamp))
+            self._spans[conn] = (min(lo, stamp), max(hi, stamp))
         if not self._counts:
             lost = "".join(f"; {k}" for k in self._skipped)
             raise ReadError(f"cannot read file: {reason}; no complete message found by a linear scan{lost}", self.name,
                             "the bag is empty or damaged; try `rosbag reindex` (ROS 1)")
-        self._span = (min(stamps), max(stamps))
+        self._span = (min(lo for lo, _ in self._spans.values()), max(hi for _, hi in self._spans.values()))
         self.notes = (f"{self.name} has no usable index ({reason}); read by a linear scan of its records",
                       *self._skipped)
 
@@ -120,6 +121,9 @@ class Bag1Scan:
 
     def span(self) -> tuple[int, int] | None:
         return self._span
+
+    def topic_spans(self) -> dict[str, tuple[int, int]]:
+        return spans_by_topic((self._conns[cid][0], span) for cid, span in self._spans.items() if cid in self._conns)
 
     def _decoder(self, typ: str, msgdef: str) -> Decoder:
         store = get_typestore(Stores.EMPTY)

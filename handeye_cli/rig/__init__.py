@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from ..errors import ConfigError, DataError
 from ..options import FIELDS, Options
-from ..pipeline import calibrate_read
+from ..pipeline import calibrate_read, check_samples
 from ..streams import PoseStream
 from .graph import loop_closures, synchronise
 from .joint import CONSISTENCY_P_VALUE, Consistency, JointProblem, Motions, bootstrap_rig, consistency, refine
@@ -182,6 +182,8 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
     when a sensor cannot be calibrated against any other."""
     opts = options or RigOptions()
     names = list(streams)
+    for name, stream in streams.items():
+        check_samples(stream, f"stream {name!r}")
     n, ref = len(names), _check(names, opts)
     given = per_stream(opts, names)
     cfg = opts.options
