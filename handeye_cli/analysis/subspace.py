@@ -224,6 +224,29 @@ def _in_plane(A: FloatArray, B: FloatArray, w: FloatArray, n_a: FloatArray, R_ti
     return yaw, t, full
 
 
+def _reduced(A: FloatArray, B: FloatArray, w: FloatArray, X: FloatArray,
+             axes: tuple[FloatArray, FloatArray, FloatArray, FloatArray], nominal: FloatArray | None,
+             yaw_fixed: bool, max_tilt_std_deg: float) -> tuple[FloatArray, float, bool, FloatArray]:
+    """The reduced solve about the common axis ``n_a`` (``axes``: :func:`_axes`' ``n_a, n_b, ra, rb``): the tilt
+    from the axes' alignment when they are measured well (else the nominal's), the translation along ``n_a``
+    (and, on a fixed rotation line, the angle about it) from the nominal, failing that from the full solve
+    ``X``; yaw and the translation across ``n_a`` from eq 4's rows. Returns ``(T_a_b, tilt std [rad], tilt
+    estimated, covariance of yaw and the in-plane translation)``."""
+    n_a, n_b, ra, rb = axes
+    R_meas = _align(n_b, n_a)
+    tilt_std = _tilt_std(ra, rb, _rot(n_a, _yaw_about(X[:3, :3], R_meas, n_a)) @ R_meas, n_a)
+    tilt_ok = bool(np.rad2deg(tilt_std) <= max_tilt_std_deg)
+    R_tilt = R_meas if tilt_ok or nominal is None else _align(nominal[:3, :3].T @ n_a, n_a)
+    src = nominal if nominal is not None else X
+    along = float(src[:3, 3] @ n_a)
+    yaw0 = _yaw_about(src[:3, :3], R_tilt, n_a) if yaw_fixed else None
+    yaw, t_perp, cov = _in_plane(A, B, w, n_a, R_tilt, along, yaw0)
+    out = np.eye(4)
+    out[:3, :3] = _rot(n_a, yaw) @ R_tilt
+    out[:3, 3] = t_perp + along * n_a
+    return out, tilt_std, tilt_ok, cov
+
+
 def _oblique(A: FloatArray, B: FloatArray, w: FloatArray, X: FloatArray, obs: Observability, axis_a: FloatArray,
              nominal: FloatArray | None, max_tilt_std_deg: float) -> Subspace:
     """One rotation axis ``n_a`` that is not z of frame a (an arm turned about one joint).
@@ -244,17 +267,8 @@ def _oblique(A: FloatArray, B: FloatArray, w: FloatArray, X: FloatArray, obs: Ob
     n_a, n_b, ra, rb = _axes(A, B, w)
     if n_a @ axis_a < 0:                                        # the finding's sign (signs stay paired)
         n_a, n_b = -n_a, -n_b
-    R_meas = _align(n_b, n_a)
-    tilt_std = _tilt_std(ra, rb, _rot(n_a, _yaw_about(X[:3, :3], R_meas, n_a)) @ R_meas, n_a)
-    tilt_ok = np.rad2deg(tilt_std) <= max_tilt_std_deg
-    R_tilt = R_meas if tilt_ok else _align(nominal[:3, :3].T @ n_a, n_a)
-    along = float(nominal[:3, 3] @ n_a)
     yaw_fixed = "fixed_rotation_line" in set(obs.codes)
-    yaw0 = _yaw_about(nominal[:3, :3], R_tilt, n_a) if yaw_fixed else None
-    yaw, t_perp, cov = _in_plane(A, B, w, n_a, R_tilt, along, yaw0)
-    out = np.eye(4)
-    out[:3, :3] = _rot(n_a, yaw) @ R_tilt
-    out[:3, 3] = t_perp + along * n_a
+    out, tilt_std, tilt_ok, cov = _reduced(A, B, w, X, (n_a, n_b, ra, rb), nominal, yaw_fixed, max_tilt_std_deg)
     v = dof_values(out)
     mixed = np.abs(n_a) > np.sin(np.deg2rad(AXIS_Z_TOLERANCE_DEG))
     name = describe_direction(n_a, "a")
@@ -296,19 +310,8 @@ def observable_subspace(A: FloatArray, B: FloatArray, X: FloatArray, obs: Observ
     if abs(obs.axis_a[2]) < np.cos(np.deg2rad(AXIS_Z_TOLERANCE_DEG)):
         return _oblique(A, B, w, X, obs, obs.axis_a, nominal, max_tilt_std_deg)
     n_a, n_b, ra, rb = _axes(A, B, w)
-    R_meas = _align(n_b, n_a)
-    tilt_std = _tilt_std(ra, rb, _rot(n_a, _yaw_about(X[:3, :3], R_meas, n_a))
-                         @ R_meas, n_a)
-    tilt_ok = np.rad2deg(tilt_std) <= max_tilt_std_deg
-    R_tilt = R_meas if tilt_ok or nominal is None else _align(nominal[:3, :3].T @ n_a, n_a)
-    z_src = nominal if nominal is not None else X
-    z = float(z_src[:3, 3] @ n_a)
     yaw_fixed = "fixed_rotation_line" in codes
-    yaw0 = _yaw_about(z_src[:3, :3], R_tilt, n_a) if yaw_fixed else None
-    yaw, t_perp, cov = _in_plane(A, B, w, n_a, R_tilt, z, yaw0)
-    out = np.eye(4)
-    out[:3, :3] = _rot(n_a, yaw) @ R_tilt
-    out[:3, 3] = t_perp + z * n_a
+    out, tilt_std, tilt_ok, cov = _reduced(A, B, w, X, (n_a, n_b, ra, rb), nominal, yaw_fixed, max_tilt_std_deg)
     v = dof_values(out)
     open_status = FROM_PRIOR if nominal is not None else UNOBSERVABLE
     why_z = "the motion rotates about one axis only (z of frame a): translation along it does not change the fit"
