@@ -23,12 +23,14 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 POSE_SCHEMA = b"std_msgs/Header header\ngeometry_msgs/Pose pose\n"
 TOPICS = ["--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose"]
+START = 1_700_000_000_000_000_000   # [ns] the logs' first stamp
 
 
 def _pose_cdr(stamp_ns: int, frame: bytes, xyz: np.ndarray, q: np.ndarray) -> bytes:
@@ -48,22 +50,38 @@ def _motion(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return xyz, rot.as_quat()
 
 
-def write_image_log(path: Path, *, seconds: float, image_bytes: int, own_chunks: bool, image_hz: float = 10.0,
-                    pose_hz: float = 50.0, seed: int = 0) -> Path:
-    """An MCAP with one camera topic of random (incompressible) images and two PoseStamped topics
-    /cam0/pose, /cam1/pose = cam0 · X. ``own_chunks``: every second of poses is written and flushed
-    into a chunk of its own before that second's images; else they interleave in time."""
-    from mcap.writer import Writer
+def _scene(seconds: float, own_chunks: bool, image_hz: float, pose_hz: float) -> tuple[list[tuple[int, int, int]], Any]:
+    """(events (stamp [ns], 0 pose | 1 image, index) in write order, (xyz0, q0, xyz1, q1) of the pose
+    topics /cam0/pose and /cam1/pose = cam0 · X). ``own_chunks``: every second's poses come before that
+    second's images (the writers end a chunk around them); else poses and images interleave in time."""
     from scipy.spatial.transform import Rotation
 
-    rng = np.random.default_rng(seed)
     X_rot, X_t = Rotation.from_rotvec([0.1, -0.2, 0.3]), np.array([0.1, 0.05, -0.02])
     t_pose = np.arange(0, seconds, 1 / pose_hz)
     xyz0, q0 = _motion(t_pose)
-    r1 = Rotation.from_quat(q0) * X_rot
     xyz1 = xyz0 + Rotation.from_quat(q0).apply(X_t)
-    q1 = r1.as_quat()
-    start = 1_700_000_000_000_000_000
+    q1 = (Rotation.from_quat(q0) * X_rot).as_quat()
+    events = [(int(s * 1e9) + START, 0, k) for k, s in enumerate(t_pose)]
+    events += [(int(s * 1e9) + START, 1, k) for k, s in enumerate(np.arange(0, seconds, 1 / image_hz))]
+    events.sort(key=(lambda e: (int((e[0] - START) // 1e9), e[1], e[0])) if own_chunks else None)
+    return events, (xyz0, q0, xyz1, q1)
+
+
+def _ends_chunk(events: list[tuple[int, int, int]], i: int) -> bool:
+    """Whether the poses' chunk ends after event ``i`` (the last pose of its second, poses in own chunks)."""
+    second = (events[i][0] - START) // 1_000_000_000
+    return events[i][1] == 0 and (i + 1 == len(events) or events[i + 1][1] == 1
+                                  or (events[i + 1][0] - START) // 1_000_000_000 != second)
+
+
+def write_image_log(path: Path, *, seconds: float, image_bytes: int, own_chunks: bool, image_hz: float = 10.0,
+                    pose_hz: float = 50.0, seed: int = 0) -> Path:
+    """An MCAP with one camera topic of random (incompressible) images and two PoseStamped topics
+    (:func:`_scene`); ``own_chunks``: every second of poses is flushed into a chunk of its own."""
+    from mcap.writer import Writer
+
+    rng = np.random.default_rng(seed)
+    events, (xyz0, q0, xyz1, q1) = _scene(seconds, own_chunks, image_hz, pose_hz)
     with open(path, "wb") as f:
         w = Writer(f, chunk_size=1 << 20)
         w.start(profile="ros2")
@@ -72,26 +90,49 @@ def write_image_log(path: Path, *, seconds: float, image_bytes: int, own_chunks:
         cam0 = w.register_channel("/cam0/pose", "cdr", pose)
         cam1 = w.register_channel("/cam1/pose", "cdr", pose)
         img = w.register_channel("/camera/image", "cdr", image)
-        events = [(int(s * 1e9) + start, 0, k) for k, s in enumerate(t_pose)]
-        events += [(int(s * 1e9) + start, 1, k) for k, s in enumerate(np.arange(0, seconds, 1 / image_hz))]
-        if own_chunks:
-            events.sort(key=lambda e: (int((e[0] - start) // 1e9), e[1], e[0]))
-        else:
-            events.sort()
-        last_second = -1
-        for stamp, kind, k in events:
-            second = int((stamp - start) // 1e9)
-            if own_chunks and second != last_second:
-                w.flush()
-                last_second = second
+        for i, (stamp, kind, k) in enumerate(events):
+            if own_chunks and kind == 0 and (i == 0 or events[i - 1][1] == 1):
+                w.flush()           # this second's poses start a chunk
             if kind == 0:
                 w.add_message(cam0, stamp, _pose_cdr(stamp, b"world", xyz0[k], q0[k]), stamp)
                 w.add_message(cam1, stamp, _pose_cdr(stamp, b"world", xyz1[k], q1[k]), stamp)
             else:
                 w.add_message(img, stamp, b"\0\1\0\0" + rng.bytes(image_bytes), stamp)
-            if own_chunks and kind == 0 and (stamp + int(1e9 / pose_hz) - start) // int(1e9) != second:
-                w.flush()           # this second's poses end their chunk before its images
+            if own_chunks and _ends_chunk(events, i):
+                w.flush()           # … and end it before its images
         w.finish()
+    return path
+
+
+def _ros1_header(stamp_ns: int, frame: bytes) -> bytes:
+    return struct.pack("<III", 0, stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000) + struct.pack(
+        "<I", len(frame)) + frame
+
+
+def write_image_bag(path: Path, *, seconds: float, image_bytes: int, own_chunks: bool, image_hz: float = 10.0,
+                    pose_hz: float = 50.0, seed: int = 0) -> Path:
+    """The ROS 1 bag of :func:`write_image_log` (uncompressed chunks): images are
+    sensor_msgs/CompressedImage, a chunk each; ``own_chunks``: every second of poses in a chunk of its own."""
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    rng = np.random.default_rng(seed)
+    events, (xyz0, q0, xyz1, q1) = _scene(seconds, own_chunks, image_hz, pose_hz)
+    with Writer(path) as w:
+        cam0, cam1 = (w.add_connection(t, "geometry_msgs/msg/PoseStamped", typestore=store)
+                      for t in ("/cam0/pose", "/cam1/pose"))
+        img = w.add_connection("/camera/image", "sensor_msgs/msg/CompressedImage", typestore=store)
+        for i, (stamp, kind, k) in enumerate(events):
+            if kind == 0:
+                w.chunk_threshold = 1 << 30
+                w.write(cam0, stamp, _ros1_header(stamp, b"world") + struct.pack("<7d", *xyz0[k], *q0[k]))
+                w.chunk_threshold = 0 if own_chunks and _ends_chunk(events, i) else 1 << 20
+                w.write(cam1, stamp, _ros1_header(stamp, b"world") + struct.pack("<7d", *xyz1[k], *q1[k]))
+            else:
+                w.chunk_threshold = 0 if own_chunks else 1 << 20
+                w.write(img, stamp, _ros1_header(stamp, b"") + struct.pack("<I", 4) + b"jpeg"
+                        + struct.pack("<I", image_bytes) + rng.bytes(image_bytes))
     return path
 
 
@@ -109,6 +150,23 @@ def lower_bound(path: Path) -> int:
     chunks = sum(ix.chunk_length + ix.message_index_length for ix in summary.chunk_indexes
                  if wanted & set(ix.message_index_offsets))
     return size - summary_start + chunks
+
+
+def lower_bound_bag(path: Path, topics: tuple[str, ...] = ("/cam0/pose", "/cam1/pose")) -> int:
+    """The ROS 1 bag's magic and header record (without its padding) + its index (connections, chunk
+    infos) + the chunks holding ``topics``, each with the index data records after it (up to the next chunk) [B]."""
+    from rosbags.rosbag1 import Reader
+
+    data = path.read_bytes()
+    at = data.index(b"index_pos=") + len(b"index_pos=")
+    (index_pos,) = struct.unpack_from("<Q", data, at)
+    (head_len,) = struct.unpack_from("<I", data, 13)
+    with Reader(path) as bag:
+        wanted = {c.id for c in bag.connections if c.topic in topics}
+        starts = sorted(info.pos for info in bag.chunk_infos)
+        ends = dict(zip(starts, [*starts[1:], index_pos], strict=True))
+        chunks = sum(ends[info.pos] - info.pos for info in bag.chunk_infos if wanted & set(info.connection_counts))
+    return 13 + 8 + head_len + len(data) - index_pos + chunks
 
 
 def _free_port() -> int:

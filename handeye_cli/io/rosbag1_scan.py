@@ -186,7 +186,7 @@ class Bag1Index(_Bag1):
         self._conns = dict(conns)
         self._infos = chunk_infos                   # (position [B], start, end [ns], {connection: count})
         ends = sorted({pos for pos, *_ in chunk_infos} | {index_pos})
-        self._extent = dict(zip(ends, ends[1:]))    # a chunk's record and its index data: up to the next chunk
+        self._extent = dict(zip(ends, ends[1:], strict=False))   # a chunk and its index data: to the next
         for _, _, _, counts in chunk_infos:
             self._counts.update(counts)
         timed = [(start, end) for _, start, end, counts in chunk_infos if any(counts.values())]
@@ -196,17 +196,16 @@ class Bag1Index(_Bag1):
         """The messages of the chunks holding ``conns``, in order of log time (file order among equal times)."""
         chunks = sorted(pos for pos, _, _, counts in self._infos
                         if conns is None or any(counts.get(c) for c in conns))
-        ranges = self._obj.ranges([(pos, self._extent[pos] - pos) for pos in chunks])
         found: list[tuple[int, int, int, bytes]] = []
-        for pos in chunks:
-            view = ranges.view(pos, self._extent[pos] - pos)
-            records = self._records(io.BytesIO(view))
-            chunk = next(records, None)                 # the chunk record; the index data after it is not needed
-            if chunk is None or chunk[0].get("op") != bytes([RecordType.CHUNK]):
-                raise ReadError(f"the bag's index points at byte {pos}, which holds no chunk", self.name,
-                                "the bag is damaged; try `rosbag reindex` (ROS 1)")
-            found += ((stamp, len(found) + k, conn, raw)
-                      for k, (conn, stamp, raw) in enumerate(self._walk(iter([chunk]), conns)))
+        with self._obj.ranges([(pos, self._extent[pos] - pos) for pos in chunks]) as ranges:
+            for pos in chunks:
+                records = self._records(io.BytesIO(ranges.view(pos, self._extent[pos] - pos)))
+                chunk = next(records, None)             # the chunk record; the index data after it is not needed
+                if chunk is None or chunk[0].get("op") != bytes([RecordType.CHUNK]):
+                    raise ReadError(f"the bag's index points at byte {pos}, which holds no chunk", self.name,
+                                    "the bag is damaged; try `rosbag reindex` (ROS 1)")
+                found += ((stamp, len(found) + k, conn, raw)
+                          for k, (conn, stamp, raw) in enumerate(self._walk(iter([chunk]), conns)))
         found.sort(key=lambda m: m[:2])
         for stamp, _, conn, raw in found:
             yield conn, stamp, raw
@@ -216,7 +215,7 @@ def indexed(obj: RemoteObject) -> Bag1Index | str:
     """The ROS 1 bag ``obj`` read by byte range (:class:`Bag1Index`), or why it cannot be: no index
     (the recorder never wrote one), an index past the object's end (cut short), or a damaged one.
     Asks for the bag header (already held from detecting the format) and the index."""
-    f = obj.file()
+    f: BinaryIO = obj.file()     # type: ignore[assignment]
     try:
         if f.read(len(_MAGIC)) != _MAGIC:
             return "not a ROS 1 bag (wrong magic)"
@@ -246,7 +245,7 @@ def indexed(obj: RemoteObject) -> Bag1Index | str:
                 return "a damaged index (chunk info)"
             pairs = [int.from_bytes(data[k:k + 4], "little") for k in range(0, len(data), 4)]
             infos.append((head.get_uint64("chunk_pos"), head.get_time("start_time") if count else 0,
-                          head.get_time("end_time") if count else 0, dict(zip(pairs[::2], pairs[1::2]))))
+                          head.get_time("end_time") if count else 0, dict(zip(pairs[::2], pairs[1::2], strict=True))))
     except _ERRORS:
         return "a damaged index"
     if any(not len(_MAGIC) < pos < index_pos for pos, *_ in infos):
