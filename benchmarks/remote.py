@@ -14,14 +14,19 @@ same logs on local disk, in logs per second.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import http.server
 import os
+import re
 import shutil
 import socket
 import struct
 import subprocess
 import sys
 import tempfile
+import threading
 import time
+import urllib.request
 from pathlib import Path
 from typing import Any
 
@@ -166,7 +171,7 @@ def lower_bound_bag(path: Path, topics: tuple[str, ...] = ("/cam0/pose", "/cam1/
         starts = sorted(info.pos for info in bag.chunk_infos)
         ends = dict(zip(starts, [*starts[1:], index_pos], strict=True))
         chunks = sum(ends[info.pos] - info.pos for info in bag.chunk_infos if wanted & set(info.connection_counts))
-    return 13 + 8 + head_len + len(data) - index_pos + chunks
+    return int(13 + 8 + head_len + len(data) - index_pos + chunks)
 
 
 def _free_port() -> int:
@@ -175,20 +180,97 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def _run(args: list[str], env: dict[str, str]) -> tuple[float, dict[str, object], int]:
-    """(wall time [s], the result document, peak RSS [kB] of the process) of ``handeye ARGS``."""
-    probe = ("import sys\nfrom handeye_cli.cli import main\ncode = 0\ntry:\n    main(sys.argv[1:])\n"
+class _RangeHandler(http.server.BaseHTTPRequestHandler):
+    """Files of the server's folder over plain HTTP, answering ``Range: bytes=a-b`` with 206 and just
+    those bytes (a request costs its bytes, not the object's: unlike moto, which reads the whole object
+    for every request)."""
+
+    def _target(self) -> tuple[Path, int, int] | None:
+        path = Path(self.server.root) / self.path.lstrip("/")      # type: ignore[attr-defined]
+        if not path.is_file():
+            self.send_error(404)
+            return None
+        size = path.stat().st_size
+        asked = re.fullmatch(r"bytes=(\d+)-(\d*)", self.headers.get("Range", ""))
+        start, stop = (int(asked[1]), min(size, int(asked[2] or size - 1) + 1)) if asked else (0, size)
+        self.send_response(206 if asked else 200)
+        self.send_header("Content-Type", "application/octet-stream")
+        self.send_header("Content-Length", str(stop - start))
+        self.send_header("Accept-Ranges", "bytes")
+        if asked:
+            self.send_header("Content-Range", f"bytes {start}-{stop - 1}/{size}")
+        self.end_headers()
+        return path, start, stop
+
+    def do_HEAD(self) -> None:
+        self._target()
+
+    def do_GET(self) -> None:
+        target = self._target()
+        if target is None:
+            return
+        path, start, stop = target
+        with open(path, "rb") as f, contextlib.suppress(ConnectionError):
+            f.seek(start)
+            while start < stop and (piece := f.read(min(1 << 20, stop - start))):
+                self.wfile.write(piece)
+                start += len(piece)
+
+    def log_message(self, *args: object) -> None:
+        pass
+
+
+def _http_server(root: Path) -> http.server.ThreadingHTTPServer:
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _RangeHandler)
+    server.root = str(root)                 # type: ignore[attr-defined]
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    return server
+
+
+def _run(args: list[str], env: dict[str, str]) -> tuple[float, dict[str, Any], int, int]:
+    """(wall time [s], the result document, peak RSS [kB], range requests answered) of ``handeye ARGS``."""
+    probe = ("import sys\nfrom handeye_cli.cli import main\nfrom handeye_cli.io import remote\nasked = []\n"
+             "fetch = remote.RemoteObject.fetch\n"
+             "remote.RemoteObject.fetch = lambda self, a, b: asked.append(b - a) or fetch(self, a, b)\n"
+             "code = 0\ntry:\n    main(sys.argv[1:])\n"
              "except SystemExit as e:\n    code = e.code or 0\n"
              "hwm = [l for l in open('/proc/self/status') if l.startswith('VmHWM')][0].split()[1]\n"
-             "sys.stderr.write('\\nRSS %s\\n' % hwm)\n"
+             "sys.stderr.write('\\nREQUESTS %d\\nRSS %s\\n' % (len(asked), hwm))\n"
              "sys.exit(code)\n")
     start = time.perf_counter()
     out = subprocess.run([sys.executable, "-c", probe, *args], env=env, capture_output=True, text=True, check=True)
     seconds = time.perf_counter() - start
     rss = int(out.stderr.rsplit("RSS ", 1)[1])
+    requests = int(out.stderr.rsplit("REQUESTS ", 1)[1].split()[0])
     import yaml
 
-    return seconds, yaml.safe_load(out.stdout) if args[0] == "calibrate" else {}, rss
+    return seconds, yaml.safe_load(out.stdout) if args[0] == "calibrate" else {}, rss, requests
+
+
+def _case(name: str, path: Path, bound: int, urls: dict[str, str], downloads: dict[str, Any],
+          env: dict[str, str], t_request: dict[str, float]) -> None:
+    """Print one log's figures: by range from each server against download-then-read from the same
+    server (each way of downloading), all measured here."""
+    size = path.stat().st_size
+    local = path.with_name("downloaded" + path.suffix)
+    t_read, doc_local, rss_local, _ = _run(["calibrate", str(path), *TOPICS, "-q"], env)
+    print(f"{name}: {size / 1e6:.0f} MB; lower bound by its own index {bound / size:.4f} of the file; "
+          f"local read {t_read:.2f} s, peak RSS {rss_local / 1e3:.0f} MB")
+    for server, url in urls.items():
+        t_range, doc, rss, requests = _run(["calibrate", url, *TOPICS, "-q"], env)
+        fetched = int(doc["inputs"]["bytes_fetched"])
+        assert doc["matrix"] == doc_local["matrix"], "the remote and the local calibrations differ"
+        print(f"  {server}: fetched/size {fetched / size:.4f}, fetched/bound {fetched / bound:.3f}, "
+              f"{requests} range requests ({t_request[server] * 1e3:.0f} ms each for 1 byte of this object); "
+              f"by range {t_range:.2f} s, peak RSS {rss / 1e3:.0f} MB")
+        for how, download in downloads[server].items():
+            start = time.perf_counter()
+            download(url, local)
+            t_get = time.perf_counter() - start
+            t_local, _, _, _ = _run(["calibrate", str(local), *TOPICS, "-q"], env)
+            local.unlink()
+            print(f"    vs download ({how}) then read: {t_get:.2f} + {t_local:.2f} = {t_get + t_local:.2f} s: "
+                  f"ratio {t_range / (t_get + t_local):.2f}")
 
 
 def main() -> None:
@@ -200,7 +282,7 @@ def main() -> None:
     from moto.server import ThreadedMotoServer
 
     port = _free_port()
-    server = ThreadedMotoServer(ip_address="127.0.0.1", port=port)
+    server = ThreadedMotoServer(ip_address="127.0.0.1", port=port, verbose=False)
     server.start()
     endpoint = f"http://127.0.0.1:{port}"
     env = {**os.environ, "AWS_ENDPOINT_URL": endpoint, "AWS_ACCESS_KEY_ID": "bench", "AWS_SECRET_ACCESS_KEY": "bench",
@@ -210,36 +292,51 @@ def main() -> None:
     s3 = boto3.client("s3", endpoint_url=endpoint)
     s3.create_bucket(Bucket="bench")
     tmp = Path(tempfile.mkdtemp(prefix="handeye-bench-remote-"))
+    served = tmp / "served"
+    served.mkdir()
+    web = _http_server(served)
+    base = f"http://127.0.0.1:{web.server_address[1]}"
+
+    def one_get(url: str, to: Path) -> None:
+        key = url.split("/", 3)[3]
+        with open(to, "wb") as f:
+            shutil.copyfileobj(s3.get_object(Bucket="bench", Key=key)["Body"], f, 1 << 20)
+
+    def http_get(url: str, to: Path) -> None:
+        with urllib.request.urlopen(url) as r, open(to, "wb") as f:
+            shutil.copyfileobj(r, f, 1 << 20)
+
+    downloads = {"moto S3": {"one GET": one_get,
+                             "boto3 download_file, as `aws s3 cp`": lambda u, to: s3.download_file(
+                                 "bench", u.split("/", 3)[3], str(to))},
+                 "plain HTTP range server": {"one GET": http_get}}
     try:
         image_bytes, image_hz = 1_000_000, 10.0
         seconds = args.mb * 1e6 / (image_bytes * image_hz)
-        print(f"uptime: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} (1, 5 min load)")
-        for own in (True, False):
+        print(f"load average: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} (1, 5 min); {os.cpu_count()} cores")
+        print("moto's server reads the whole object for every request (FakeKey.value, under a lock), so its "
+              "requests cost in proportion to the object, not to the bytes asked; the plain HTTP server reads "
+              "only the bytes asked, as object stores do")
+        for fmt, own in (("mcap", True), ("mcap", False), ("bag", True), ("bag", False)):
             layout = "poses in own chunks" if own else "poses interleaved in every chunk"
-            path = write_image_log(tmp / f"img_{int(own)}.mcap", seconds=seconds, image_bytes=image_bytes,
-                                   own_chunks=own, image_hz=image_hz)
-            size = path.stat().st_size
-            bound = lower_bound(path)
+            write = write_image_log if fmt == "mcap" else write_image_bag
+            path = write(served / f"img_{int(own)}.{fmt}", seconds=seconds, image_bytes=image_bytes,
+                         own_chunks=own, image_hz=image_hz)
+            bound = lower_bound(path) if fmt == "mcap" else lower_bound_bag(path)
             s3.upload_file(str(path), "bench", path.name)
-            url = f"s3://bench/{path.name}"
-            start = time.perf_counter()
-            for k in range(3):
-                s3.get_object(Bucket="bench", Key=path.name, Range=f"bytes={k}-{k}")["Body"].read()
-            t_byte = (time.perf_counter() - start) / 3
-            t_remote, doc, rss = _run(["calibrate", url, *TOPICS, "-q"], env)
-            fetched = int(doc["inputs"]["bytes_fetched"])                 # type: ignore[index]
-            start = time.perf_counter()
-            local = tmp / "downloaded.mcap"
-            s3.download_file("bench", path.name, str(local))
-            t_get = time.perf_counter() - start
-            t_local, doc_local, rss_local = _run(["calibrate", str(local), *TOPICS, "-q"], env)
-            assert doc_local["matrix"] == doc["matrix"]
-            local.unlink()
-            print(f"{layout}: {size / 1e6:.0f} MB; fetched/size {fetched / size:.4f}; bound/size {bound / size:.4f}; "
-                  f"fetched/bound {fetched / bound:.3f}; by range {t_remote:.2f} s vs download-then-read "
-                  f"{t_get + t_local:.2f} s ({t_get:.2f} + {t_local:.2f}): ratio {t_remote / (t_get + t_local):.2f}; "
-                  f"peak RSS {rss / 1e3:.0f} MB (local read {rss_local / 1e3:.0f} MB); "
-                  f"the server answers a 1-byte range of this object in {t_byte:.3f} s")
+            urls = {"moto S3": f"s3://bench/{path.name}", "plain HTTP range server": f"{base}/{path.name}"}
+            t_request = {}
+            for name, url in urls.items():
+                start = time.perf_counter()
+                for k in range(3):
+                    if name == "moto S3":
+                        s3.get_object(Bucket="bench", Key=path.name, Range=f"bytes={k}-{k}")["Body"].read()
+                    else:
+                        urllib.request.urlopen(urllib.request.Request(url, headers={"Range": f"bytes={k}-{k}"})).read()
+                t_request[name] = (time.perf_counter() - start) / 3
+            _case(f"{'MCAP' if fmt == 'mcap' else 'ROS 1 bag'}, {layout}", path, bound, urls, downloads, env,
+                  t_request)
+            s3.delete_object(Bucket="bench", Key=path.name)
             path.unlink()
         # batch over many small remote logs against the same logs on disk
         logs = tmp / "logs"
@@ -247,12 +344,14 @@ def main() -> None:
         for k in range(args.logs):
             write_image_log(logs / f"log{k:03d}.mcap", seconds=12, image_bytes=20_000, own_chunks=True, seed=k)
             s3.upload_file(str(logs / f"log{k:03d}.mcap"), "bench", f"fleet/log{k:03d}.mcap")
-        t_local, _, _ = _run(["batch", str(logs), *TOPICS, "-q", "--jobs", "2"], env)
-        t_remote, _, _ = _run(["batch", "s3://bench/fleet/", *TOPICS, "-q", "--jobs", "2"], env)
+        t_local, _, _, _ = _run(["batch", str(logs), *TOPICS, "-q", "--jobs", "2"], env)
+        t_remote, _, _, _ = _run(["batch", "s3://bench/fleet/", *TOPICS, "-q", "--jobs", "2"], env)
         print(f"batch --jobs 2 over {args.logs} logs: remote {args.logs / t_remote:.1f} logs/s, local "
-              f"{args.logs / t_local:.1f} logs/s (remote/local {t_local / t_remote:.2f})")
+              f"{args.logs / t_local:.1f} logs/s (remote/local {t_local / t_remote:.2f}); load average "
+              f"{os.getloadavg()[0]:.2f}")
     finally:
         shutil.rmtree(tmp, True)
+        web.shutdown()
         server.stop()
 
 
