@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import http.server
+import logging
 import os
 import re
 import shutil
@@ -186,6 +187,7 @@ class _RangeHandler(http.server.BaseHTTPRequestHandler):
     for every request)."""
 
     def _target(self) -> tuple[Path, int, int] | None:
+        time.sleep(self.server.latency)                             # type: ignore[attr-defined]
         path = Path(self.server.root) / self.path.lstrip("/")      # type: ignore[attr-defined]
         if not path.is_file():
             self.send_error(404)
@@ -220,9 +222,11 @@ class _RangeHandler(http.server.BaseHTTPRequestHandler):
         pass
 
 
-def _http_server(root: Path) -> http.server.ThreadingHTTPServer:
+def _http_server(root: Path, latency: float = 0.0) -> http.server.ThreadingHTTPServer:
+    """The files in ``root`` served on 127.0.0.1 (:class:`_RangeHandler`), each answer ``latency`` [s] late."""
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _RangeHandler)
     server.root = str(root)                 # type: ignore[attr-defined]
+    server.latency = latency                # type: ignore[attr-defined]
     threading.Thread(target=server.serve_forever, daemon=True).start()
     return server
 
@@ -277,7 +281,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--mb", type=float, default=200.0, help="size of each image-heavy log [MB]")
     parser.add_argument("--logs", type=int, default=100, help="logs in the batch comparison")
+    parser.add_argument("--latency-ms", type=float, default=30.0,
+                        help="the plain HTTP server's delay before each answer [ms] (an object store's first byte)")
     args = parser.parse_args()
+    logging.getLogger("werkzeug").setLevel(logging.ERROR)      # moto's server: no line per request
     import boto3
     from moto.server import ThreadedMotoServer
 
@@ -294,7 +301,7 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="handeye-bench-remote-"))
     served = tmp / "served"
     served.mkdir()
-    web = _http_server(served)
+    web = _http_server(served, args.latency_ms / 1e3)
     base = f"http://127.0.0.1:{web.server_address[1]}"
 
     def one_get(url: str, to: Path) -> None:
@@ -310,13 +317,17 @@ def main() -> None:
                              "boto3 download_file, as `aws s3 cp`": lambda u, to: s3.download_file(
                                  "bench", u.split("/", 3)[3], str(to))},
                  "plain HTTP range server": {"one GET": http_get}}
+    for probe in ("import fsspec, aiohttp", "import s3fs", "import handeye_cli.cli"):
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-c", probe], env=env, check=True)
+        print(f"start-up: python -c {probe!r}: {time.perf_counter() - start:.2f} s")
     try:
         image_bytes, image_hz = 1_000_000, 10.0
         seconds = args.mb * 1e6 / (image_bytes * image_hz)
         print(f"load average: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} (1, 5 min); {os.cpu_count()} cores")
         print("moto's server reads the whole object for every request (FakeKey.value, under a lock), so its "
-              "requests cost in proportion to the object, not to the bytes asked; the plain HTTP server reads "
-              "only the bytes asked, as object stores do")
+              "requests cost in proportion to the object, not to the bytes asked, and do not overlap; the plain "
+              f"HTTP server reads only the bytes asked, as object stores do, answering {args.latency_ms:g} ms late")
         for fmt, own in (("mcap", True), ("mcap", False), ("bag", True), ("bag", False)):
             layout = "poses in own chunks" if own else "poses interleaved in every chunk"
             write = write_image_log if fmt == "mcap" else write_image_bag

@@ -375,3 +375,23 @@ def test_a_ros1_bag_without_a_usable_index_is_downloaded_once(s3, tmp_path, dama
     assert any("linear scan" in w for w in remote[0].warnings)
     for x, y in zip(local, remote, strict=True):
         assert np.array_equal(x.stamps_ns, y.stamps_ns) and np.array_equal(x.xyz, y.xyz)
+
+
+def test_planned_ranges_near_ones_joined_far_ones_apart_and_asked_ahead():
+    """Ranges ≤ 64 KiB apart are one request (the gap counted), a far one its own; the views hold the
+    object's bytes whichever request brought them, and the requests ahead are all answered by the end."""
+    import fsspec
+
+    from handeye_cli.io.remote import _GAP, session
+
+    data = bytes(range(256)) * (1 << 13)                  # 2 MiB
+    with fsspec.open("memory://ranges/obj.bin", "wb") as f:
+        f.write(data)
+    planned = [(1000, 100), (1100 + _GAP, 50), (1 << 20, 4000), ((1 << 21) - 10, 10)]
+    with session((), 10.0, 2) as s:
+        obj = s.open("memory://ranges/obj.bin")
+        with obj.ranges(planned) as ranges:
+            views = [bytes(ranges.view(a, n)) for a, n in planned]
+        assert views == [data[a:a + n] for a, n in planned]
+        assert s.requests == 3 and s.bytes_fetched == (100 + _GAP + 50) + 4000 + 10
+        assert bytes(obj.ranges([]).view(5, 3)) == data[5:8] and s.requests == 4     # outside a plan: alone
