@@ -96,6 +96,12 @@ class Session:
     _cached_bytes: int = 0
     _lock: threading.Lock = field(default_factory=threading.Lock)   # the counts, added to from a Ranges pool
 
+    def count(self, n: int) -> None:
+        """Count one request answered with ``n`` bytes [B] (safe from the threads of :class:`Ranges`)."""
+        with self._lock:
+            self.bytes_fetched += n
+            self.requests += 1
+
     def fs(self, url: str) -> tuple[Any, str]:
         """(the fsspec file system of ``url``, its path there), with the timeouts and retries of this session."""
         if urlsplit(url).password is not None or "@" in urlsplit(url).netloc:
@@ -309,9 +315,7 @@ class RemoteObject:
             return b""
         data: bytes = self.session.call(self.url, f"reading bytes {start}-{stop}",
                                         lambda: self._fs.cat_file(self._path, start=start, end=stop))
-        with self.session._lock:
-            self.session.bytes_fetched += len(data)
-            self.session.requests += 1
+        self.session.count(len(data))
         return data
 
     def _hold(self, start: int, data: bytes) -> None:
