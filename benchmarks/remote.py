@@ -264,9 +264,17 @@ def _case(name: str, path: Path, bound: int, urls: dict[str, str], downloads: di
         t_range, doc, rss, requests = _run(["calibrate", url, *TOPICS, "-q"], env)
         fetched = int(doc["inputs"]["bytes_fetched"])
         assert doc["matrix"] == doc_local["matrix"], "the remote and the local calibrations differ"
+        from handeye_cli.io import read_log_streams
+        from handeye_cli.io.remote import session
+
+        start = time.perf_counter()
+        with session((), 30.0, 3):
+            read_log_streams(url, [("/cam0/pose", None), ("/cam1/pose", None)])
+        t_streams = time.perf_counter() - start
         print(f"  {server}: fetched/size {fetched / size:.4f}, fetched/bound {fetched / bound:.3f}, "
               f"{requests} range requests ({t_request[server] * 1e3:.0f} ms each for 1 byte of this object); "
-              f"by range {t_range:.2f} s, peak RSS {rss / 1e3:.0f} MB")
+              f"by range {t_range:.2f} s, of which reading the two streams {t_streams:.2f} s (in this process, "
+              f"imports done); peak RSS {rss / 1e3:.0f} MB")
         for how, download in downloads[server].items():
             start = time.perf_counter()
             download(url, local)

@@ -91,6 +91,7 @@ class Session:
     urls: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     _objects: dict[str, RemoteObject] = field(default_factory=dict)
+    _folders: dict[str, bool] = field(default_factory=dict)
     _cache: Path | None = None
     _cached: dict[str, Path] = field(default_factory=dict)
     _cached_bytes: int = 0
@@ -170,9 +171,12 @@ class Session:
         return self._objects[url]
 
     def is_folder(self, url: str) -> bool:
-        """Whether ``url`` names a folder (a prefix holding objects) rather than an object."""
-        fs, path = self.fs(url)
-        return bool(self.call(url, "listing", fs.isdir, path))
+        """Whether ``url`` names a folder (a prefix holding objects) rather than an object (asked once
+        a session: detecting the format and opening the input share the answer)."""
+        if url not in self._folders:
+            fs, path = self.fs(url)
+            self._folders[url] = bool(self.call(url, "listing", fs.isdir, path))
+        return self._folders[url]
 
     def listing(self, url: str, pattern: bool = False) -> list[tuple[str, bool]]:
         """(URL, whether a folder) of the objects under the folder ``url`` (recursively), or of what
