@@ -387,9 +387,10 @@ class _Collect:
 @contextlib.contextmanager
 def _views(path: Path | RemoteObject, planned: list[tuple[int, int]]) -> Iterator[Any]:
     """The chunk views of a local file (mapped) or of a remote object (:meth:`.remote.RemoteObject.ranges`:
-    the ``planned`` [(start, length)] ranges fetched in file order, adjacent ones together)."""
+    the ``planned`` [(start, length)] ranges fetched in file order, near ones together, a few at once)."""
     if not isinstance(path, Path):
-        yield path.ranges(planned)
+        with path.ranges(planned) as ranges:
+            yield ranges
         return
     with open(path, "rb") as f:
         yield _Mapped(f)
