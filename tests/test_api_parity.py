@@ -189,3 +189,19 @@ def test_a_nan_in_an_in_memory_stream_is_named_as_the_user_indexes_it():
     assert "motions" not in str(e.value)
     with pytest.raises(DataError, match=r"^stream 'cam1', sample 10 \(0-based"):
         calibrate_rig({"cam0": a, "cam1": bad})
+
+
+def test_python_errors_name_keywords_where_the_command_line_names_flags(capsys):
+    """The same refusal in each surface's words: the CLI's fix names flags, the Python API's the keyword
+    arguments (issue 21: the API's errors cited CLI flags)."""
+    from _util import run
+
+    import handeye_cli
+
+    with pytest.raises(handeye_cli.HandEyeError) as info:
+        handeye_cli.calibrate_files("sample_data/rig.mcap", topic_a="/cam0/pose", topic_b="/cam1/pose",
+                                    max_jump=0.01)
+    assert "(max_jump)" in str(info.value) and "gate='paper'" in info.value.fix and "--" not in str(info.value)
+    code, _, err = run(capsys, "calibrate", "sample_data/rig.mcap", "--topic-a", "/cam0/pose", "--topic-b",
+                       "/cam1/pose", "--max-jump", "0.01")
+    assert code == 2 and "(--max-jump)" in err and "--gate paper" in err
