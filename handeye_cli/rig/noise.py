@@ -265,12 +265,11 @@ def _white_energy(M: Array, S: Array, raw_ns: NDArray[np.int64], stamps_ns: NDAr
     _, back, ends = _spread(M, raw_ns, stamps_ns, start, end)
     idx = np.concatenate([ends[0][0], ends[1][0]])                          # (4, N): end lo, hi; start lo, hi
     share = np.concatenate([ends[0][1], ends[1][1]])
-    blocks = (S, S, S @ back, S @ back)                                     # ∂r/∂n of each term, per unit share
-    total = np.zeros((8, 6))
-    for a in range(4):
-        for b in range(4):
-            same = share[a] * share[b] * (idx[a] == idx[b])
-            total += np.einsum("n,nkc,nkc->kc", same, blocks[a], blocks[b])
+    S_back = S @ back                                                       # ∂r/∂n of the start's terms, per unit share
+    same = share[:, None] * share[None] * (idx[:, None] == idx[None])      # (4, 4, N): terms on one raw sample
+    kinds = (S * S, S * S_back, S_back * S_back)          # products of an end's and a start's terms: 3 kinds
+    weight = (same[:2, :2].sum(axis=(0, 1)), 2 * same[:2, 2:].sum(axis=(0, 1)), same[2:, 2:].sum(axis=(0, 1)))
+    total = sum(np.einsum("n,nkc->kc", w, P) for w, P in zip(weight, kinds, strict=True))
     return np.array([total[:4, :3].sum(), total[4:, :3].sum(), total[4:, 3:].sum()])
 
 
@@ -342,6 +341,13 @@ def _sigma(variances: StreamNoise, s: int) -> Array:
     return np.repeat([variances.rotation[s], variances.translation[s]], 3)
 
 
+def _through(L: Array, sigma: Array, M: Array) -> Array:
+    """``Σ_m L_m diag(σ) M_mᵀ`` (a, c) of per-sample maps ``L`` (m, a, 6), ``M`` (m, c, 6): the
+    covariance of two estimates' errors from one stream's independent samples, as one matrix product."""
+    return np.asarray(np.swapaxes(L * sigma, 0, 1).reshape(L.shape[1], -1)
+                      @ np.swapaxes(M, 0, 1).reshape(M.shape[1], -1).T, dtype=np.float64)
+
+
 def drift_corrections(pairs: list[tuple[int, int]], noise: list[EdgeNoise], variances: StreamNoise
                       ) -> list[Correction]:
     """Test each pair's relative drift ``d̂`` against its covariance under the streams' noise (χ²,
@@ -349,8 +355,7 @@ def drift_corrections(pairs: list[tuple[int, int]], noise: list[EdgeNoise], vari
     out = []
     for (j, k), nz in zip(pairs, noise, strict=True):
         dr = nz.drift
-        cov = sum(np.einsum("mab,b,mcb->ac", L, _sigma(variances, s), L, optimize=True)
-                  for L, s in zip(dr.maps, (j, k), strict=True))
+        cov = sum(_through(L, _sigma(variances, s), L) for L, s in zip(dr.maps, (j, k), strict=True))
         stat = float(dr.rate @ np.linalg.pinv(cov, hermitian=True) @ dr.rate)
         p = float(chdtrc(6, stat))
         out.append(Correction(dr.rate, stat, p, p < DRIFT_P_VALUE, dr.bias @ dr.rate))
@@ -372,7 +377,7 @@ def edge_covariance(pairs: list[tuple[int, int]], noise: list[EdgeNoise], varian
             for side_e, s in enumerate(pairs[e]):
                 if s in pairs[f]:
                     Le, Lf = maps[e][side_e], maps[f][pairs[f].index(s)]
-                    block += np.einsum("mab,b,mcb->ac", Le, _sigma(variances, s), Lf, optimize=True)
+                    block += _through(Le, _sigma(variances, s), Lf)
             C[6 * e:6 * e + 6, 6 * f:6 * f + 6] = block
             C[6 * f:6 * f + 6, 6 * e:6 * e + 6] = block.T
     return C
