@@ -15,7 +15,7 @@ Examples
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -35,6 +35,7 @@ from .analysis.alpha import TIME_BLOCKS, noise_model_alpha, time_blocks
 from .analysis.covariance import drift_check
 from .analysis.diagnosis import data_warning, too_few_pairs
 from .analysis.fit_test import fit_test, sample_noise
+from .analysis.stream_noise import StreamNoise, stream_noise
 from .analysis.inversion import InversionVerdict, check_inversion
 from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit, scale_reading
 from .analysis.selection import Selection, select_pairs
@@ -513,7 +514,8 @@ def _inversion_inputs(read: ReadOptions) -> dict[str, bool]:
 
 
 def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
-                   inputs: dict[str, Any] | None = None, scale_by_fit: bool = True) -> Calibration:
+                   inputs: dict[str, Any] | None = None, scale_by_fit: bool = True,
+                   noise_of: Callable[[PoseStream], StreamNoise | None] = stream_noise) -> Calibration:
     """:func:`calibrate` streams as a reader produced them with ``opts.read`` (parsed, not yet inverted: the
     file-only read options are recorded in the settings, not applied again), e.g. by :func:`read_streams`
     or a rig's reader (which inverts its streams itself and sets no ``invert_a``/``invert_b``).
@@ -525,6 +527,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     the streams' own noise unless ``accept_poor_fit``; see :mod:`~handeye_cli.analysis.fit_test`)
     → [bootstrap]. After the solve, b's translations found in other units by the fit are estimated with
     ``T_a_b`` (``scale_by_fit``; ``handeye rig`` passes False: its consistency test names such a stream).
+    ``noise_of``: each stream's jitter for the fit test (a rig passes a memo: its streams are in several pairs).
     """
     given = stream_a, stream_b                                 # as read: what a second reading starts from
     if opts.solver.scale not in (1.0, "auto"):
@@ -586,12 +589,12 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
             warnings.append(check.warning())
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    fit = fit_test(pairs, res, solution.matrix, sample_noise(stream_a, stream_b, kept, stations, opts.sync.sync),
+    fit = fit_test(pairs, res, solution.matrix, sample_noise(stream_a, stream_b, kept, stations, opts.sync.sync, noise_of),
                    mask=None if weights is None else weights > 0)        # refuses what no rigid rig gives
     diagnostics["fit_test"] = fit.as_dict()
     rejected = fit.refusal(opts, stations is not None, inverted=verdict is not None)
     if rejected and not opts.analysis.accept_poor_fit:
-        recovered = _robust_retry(*given, opts, inputs, scale_by_fit, fit.summary())
+        recovered = _robust_retry(*given, opts, inputs, scale_by_fit, fit.summary(), noise_of)
         if recovered is None:
             raise rejected
         return recovered
@@ -612,7 +615,8 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
 
 
 def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inputs: dict[str, Any] | None,
-                  scale_by_fit: bool, refused: str) -> Calibration | None:
+                  scale_by_fit: bool, refused: str, noise_of: Callable[[PoseStream], StreamNoise | None]
+                  ) -> Calibration | None:
     """A fit the fit test refused (``refused``: its figures), solved again with outliers rejected, as ``--robust``
     does (RANSAC on minimal sets, then the weighted optimal solve on the inliers): kept, with the settings saying
     ``robust`` and a first warning naming what was dropped, when at least ``RETRY_MIN_INLIERS`` of the pairs are
@@ -626,7 +630,7 @@ def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inp
         return None
     try:
         cal = calibrate_read(stream_a, stream_b, replace(opts, analysis=replace(opts.analysis, robust=True)),
-                             inputs=inputs, scale_by_fit=scale_by_fit)
+                             inputs=inputs, scale_by_fit=scale_by_fit, noise_of=noise_of)
     except HandEyeError:
         return None
     if (cal.robust is None or cal.robust.inliers.mean() < RETRY_MIN_INLIERS

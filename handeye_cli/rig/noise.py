@@ -343,9 +343,8 @@ def _sigma(variances: StreamNoise, s: int) -> Array:
 
 def _through(L: Array, sigma: Array, M: Array) -> Array:
     """``Σ_m L_m diag(σ) M_mᵀ`` (a, c) of per-sample maps ``L`` (m, a, 6), ``M`` (m, c, 6): the
-    covariance of two estimates' errors from one stream's independent samples, as one matrix product."""
-    return np.asarray(np.swapaxes(L * sigma, 0, 1).reshape(L.shape[1], -1)
-                      @ np.swapaxes(M, 0, 1).reshape(M.shape[1], -1).T, dtype=np.float64)
+    covariance of two estimates' errors from one stream's independent samples."""
+    return np.asarray(np.einsum("mab,b,mcb->ac", L, sigma, M, optimize=True), dtype=np.float64)
 
 
 def drift_corrections(pairs: list[tuple[int, int]], noise: list[EdgeNoise], variances: StreamNoise

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..analysis.stream_noise import StreamNoiseMemo
 from ..errors import ConfigError, HandEyeError
 from ..options import Options
 from ..pipeline import Calibration, calibrate_read
@@ -85,12 +86,13 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
     return out
 
 
-def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset], options: Options) -> Edge:
+def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset], options: Options,
+          noise: StreamNoiseMemo) -> Edge:
     # the rig's bootstrap resamples all pairs at once; a prior is of one T_a_b, not of every pair
     opts = Options.from_flat(options, time_offset=(offsets[k].offset_ns - offsets[j].offset_ns) / 1e9,
                              bootstrap=0, prior=None)
-    cal = calibrate_read(streams[j], streams[k], opts, scale_by_fit=False)   # the rig's reader applied the read
-    #                                                         options; a badly scaled stream is named by the rig
+    cal = calibrate_read(streams[j], streams[k], opts, scale_by_fit=False,   # the rig's reader applied the read
+                         noise_of=noise)                      # options; a badly scaled stream is named by the rig
     A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
     return Edge(j, k, cal, split_forms(A, B, np.ones((1, len(A))) if w is None else w[None], cal.solution.alpha)[0])
 
@@ -101,10 +103,11 @@ def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[Clock
     is the pair's, from ``offsets``); a pair that cannot be calibrated is left out with a warning. Returns the edges and
     the warnings (each pair's own warnings prefixed with its names)."""
     edges, warnings = [], []
+    noise = StreamNoiseMemo()                                 # each stream's jitter once, not once per pair
     for j in range(len(streams)):
         for k in range(j + 1, len(streams)):
             try:
-                edge = _edge(streams, j, k, offsets, options)
+                edge = _edge(streams, j, k, offsets, options, noise)
             except HandEyeError as e:
                 warnings.append(f"pair {names[j]}-{names[k]} left out: {e}")
                 continue
