@@ -35,10 +35,10 @@ from .analysis.alpha import TIME_BLOCKS, noise_model_alpha, time_blocks
 from .analysis.covariance import drift_check
 from .analysis.diagnosis import data_warning, too_few_pairs
 from .analysis.fit_test import fit_test, sample_noise
-from .analysis.stream_noise import StreamNoise, stream_noise
 from .analysis.inversion import InversionVerdict, check_inversion
 from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit, scale_reading
 from .analysis.selection import Selection, select_pairs
+from .analysis.stream_noise import StreamNoise, stream_noise
 from .analysis.subspace import observable_subspace
 from .config import load_options
 from .errors import ConfigError, HandEyeError
@@ -589,9 +589,9 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
             warnings.append(check.warning())
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    fit = fit_test(pairs, res, solution.matrix, sample_noise(stream_a, stream_b, kept, stations, opts.sync.sync, noise_of),
-                   mask=None if weights is None else weights > 0)        # refuses what no rigid rig gives
-    diagnostics["fit_test"] = fit.as_dict()
+    noise = sample_noise(stream_a, stream_b, kept, stations, opts.sync.sync, noise_of)
+    fit = fit_test(pairs, res, solution.matrix, noise, mask=None if weights is None else weights > 0)   # refuses
+    diagnostics["fit_test"] = fit.as_dict()                                         # what no rigid rig gives
     rejected = fit.refusal(opts, stations is not None, inverted=verdict is not None)
     if rejected and not opts.analysis.accept_poor_fit:
         recovered = _robust_retry(*given, opts, inputs, scale_by_fit, fit.summary(), noise_of)

@@ -12,11 +12,11 @@ from typing import Any
 
 import click
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..analysis.verdict import Verdict
 from ..config import presets
 from ..errors import ConfigError
+from ..geometry import dualquat as dq
 from ..io.nominal import read_nominal
 from ..output.writers import check_writable, output_format
 from .check import verdict_options
@@ -46,7 +46,7 @@ def _named(values: tuple[str, ...], flag: str) -> dict[str, str]:
 def _summary(doc: dict[str, Any]) -> str:
     lines = [f"rig of {len(doc['transforms']) + 1} sensors, reference {doc['reference']}:"]
     for t in doc["transforms"]:
-        angle = np.linalg.norm(Rotation.from_quat(t["quaternion_xyzw"]).as_rotvec(degrees=True))
+        angle = np.rad2deg(np.linalg.norm(dq.to_rotvec(np.asarray(t["quaternion_xyzw"], dtype=float))))
         x, y, z = t["translation"]
         lines.append(f"  T_{t['parent']}_{t['child']}: translation [{x:.4f}, {y:.4f}, {z:.4f}] m, "
                      f"rotation {angle:.3f}°")
