@@ -619,12 +619,12 @@ def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inp
                   ) -> Calibration | None:
     """A fit the fit test refused (``refused``: its figures), solved again with outliers rejected, as ``--robust``
     does (RANSAC on minimal sets, then the weighted optimal solve on the inliers): kept, with the settings saying
-    ``robust`` and a first warning naming what was dropped, when at least ``RETRY_MIN_INLIERS`` of the pairs are
-    inliers and those fit as clean data do (a fit-test ratio within ``RETRY_MAX_RATIO``); else None (the refusal
-    stands). Not tried when ``robust``
-    was asked for already: a stream with a few bad poses (a station seen wrongly, a tracking glitch) gives a
-    verified result, a wrong convention or streams that are not rigidly attached do not."""
-    from .analysis.robust import RETRY_MAX_RATIO, RETRY_MIN_INLIERS
+    ``robust`` and a first warning naming what was dropped, when at least ``RETRY_MIN_INLIERS`` of the samples
+    agree with the consensus (``consensus_share``) and the inliers fit as clean data do (a fit-test ratio within
+    ``RETRY_MAX_RATIO``); else None (the refusal stands). Not tried when ``robust`` was asked for already: a
+    stream with a few bad poses (a station seen wrongly, a tracking glitch) gives a verified result, a wrong
+    convention or streams that are not rigidly attached do not."""
+    from .analysis.robust import RETRY_MAX_RATIO, RETRY_MIN_INLIERS, consensus_share
 
     if opts.analysis.robust:
         return None
@@ -633,7 +633,7 @@ def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inp
                              inputs=inputs, scale_by_fit=scale_by_fit, noise_of=noise_of)
     except HandEyeError:
         return None
-    if (cal.robust is None or cal.robust.inliers.mean() < RETRY_MIN_INLIERS
+    if (cal.robust is None or consensus_share(cal.robust.inliers, cal.pairs.i, cal.pairs.j) < RETRY_MIN_INLIERS
             or not cal.diagnostics["fit_test"]["ratio"] <= RETRY_MAX_RATIO):
         return None
     n, kept = len(cal.robust.inliers), int(cal.robust.inliers.sum())
