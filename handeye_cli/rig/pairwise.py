@@ -67,15 +67,15 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
                   max_offset_s: float | None = None) -> list[ClockOffset]:
     """Each stream's clock offset to the reference: ``given[k]`` seconds, or estimated (``'auto'``,
     the default) from the angular velocities of stream k and the reference."""
-    from ..stages.timeoffset import estimate_time_offset
+    from ..stages.timeoffset import GridMemo, estimate_time_offset
 
-    out = []
+    out, grid = [], GridMemo()                                # the reference's grid once, not once per stream
     for k, stream in enumerate(streams):
         value = given.get(k, "auto")
         if k == reference:
             out.append(ClockOffset(0, None, "reference"))
         elif isinstance(value, str) and value.strip().lower() == "auto":
-            est = estimate_time_offset(streams[reference], stream, max_offset_s=max_offset_s)
+            est = estimate_time_offset(streams[reference], stream, max_offset_s=max_offset_s, grid=grid)
             out.append(ClockOffset(est.offset_ns, est.std_ns, est.method, tuple(est.warnings)))
         else:
             try:
