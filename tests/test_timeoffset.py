@@ -118,8 +118,8 @@ def test_repetitive_motion_is_flagged_as_ambiguous() -> None:
 
 
 def test_a_shared_grid_changes_no_estimate(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A rig's estimates against one reference share its grid (:class:`GridMemo`): each stream's grid is
-    computed once, and every estimate is the one without the memo, to the nanosecond."""
+    """A rig's estimates against one reference share its grid (a StreamMemo of grid_of): each stream's grid
+    is computed once, and every estimate is the one without the memo, to the nanosecond."""
     from handeye_cli.stages import timeoffset as to
 
     offsets = (15_000_000, -40_000_000)
@@ -131,7 +131,9 @@ def test_a_shared_grid_changes_no_estimate(monkeypatch: pytest.MonkeyPatch) -> N
     made: list[int] = []
     grid_of = to.grid_of
     monkeypatch.setattr(to, "grid_of", lambda stream: made.append(id(stream)) or grid_of(stream))
-    memo = to.GridMemo()
+    from handeye_cli.streams import StreamMemo
+
+    memo = StreamMemo(to.grid_of)
     shared = [to.estimate_time_offset(ref, b, grid=memo) for _, b in rigs]
     assert [(e.offset_ns, e.std_ns) for e in shared] == [(e.offset_ns, e.std_ns) for e in alone]
     assert made.count(id(ref)) == 1 and len(made) == 3           # the reference's grid once, each other once

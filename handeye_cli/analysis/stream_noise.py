@@ -30,7 +30,7 @@ from .._typing import FloatArray
 from ..geometry import dualquat as dq
 from ..streams import PoseStream
 
-__all__ = ["StreamNoise", "StreamNoiseMemo", "stream_noise"]
+__all__ = ["StreamNoise", "stream_noise"]
 
 _MAX_GAP_STEPS = 3.0        # a window spanning a longer gap (in median steps) is not used
 _MAX_TURN_RAD = 0.5         # ... nor one that turns more than this (the cubic would not follow it)
@@ -107,17 +107,3 @@ def stream_noise(stream: PoseStream) -> StreamNoise | None:
     med = [float(np.median(np.abs(v))) for v in (e_rot, e_pos, step_rot, step_pos, bend_rot, bend_pos)]
     return StreamNoise(_MAD * med[0], _MAD * med[1], int(np.count_nonzero(use)), *med[2:])
 
-
-class StreamNoiseMemo:
-    """:func:`stream_noise` of each stream computed once: a rig's stream is in several pairs, each of
-    which judges its fit by it. Streams are told apart by identity; the memo holds them, so no two of
-    them share an ``id`` while it lives."""
-
-    def __init__(self) -> None:
-        self._seen: dict[int, tuple[PoseStream, StreamNoise | None]] = {}
-
-    def __call__(self, stream: PoseStream) -> StreamNoise | None:
-        hit = self._seen.get(id(stream))
-        if hit is None or hit[0] is not stream:
-            hit = self._seen[id(stream)] = (stream, stream_noise(stream))
-        return hit[1]

@@ -16,12 +16,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..analysis.stream_noise import StreamNoiseMemo
+from ..analysis.stream_noise import StreamNoise, stream_noise
 from ..errors import ConfigError, HandEyeError
 from ..options import Options
 from ..pipeline import Calibration, calibrate_read
 from ..solvers.problem import split_forms
-from ..streams import PoseStream
+from ..streams import PoseStream, StreamMemo
 
 __all__ = ["ClockOffset", "Edge", "clock_offsets", "solve_edges"]
 
@@ -67,9 +67,9 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
                   max_offset_s: float | None = None) -> list[ClockOffset]:
     """Each stream's clock offset to the reference: ``given[k]`` seconds, or estimated (``'auto'``,
     the default) from the angular velocities of stream k and the reference."""
-    from ..stages.timeoffset import GridMemo, estimate_time_offset
+    from ..stages.timeoffset import estimate_time_offset, grid_of
 
-    out, grid = [], GridMemo()                                # the reference's grid once, not once per stream
+    out, grid = [], StreamMemo(grid_of)                # the reference's ω grid once, not once per stream
     for k, stream in enumerate(streams):
         value = given.get(k, "auto")
         if k == reference:
@@ -87,7 +87,7 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
 
 
 def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset], options: Options,
-          noise: StreamNoiseMemo) -> Edge:
+          noise: StreamMemo[StreamNoise | None]) -> Edge:
     # the rig's bootstrap resamples all pairs at once; a prior is of one T_a_b, not of every pair
     opts = Options.from_flat(options, time_offset=(offsets[k].offset_ns - offsets[j].offset_ns) / 1e9,
                              bootstrap=0, prior=None)
@@ -103,7 +103,7 @@ def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[Clock
     is the pair's, from ``offsets``); a pair that cannot be calibrated is left out with a warning. Returns the edges and
     the warnings (each pair's own warnings prefixed with its names)."""
     edges, warnings = [], []
-    noise = StreamNoiseMemo()                                 # each stream's jitter once, not once per pair
+    noise = StreamMemo(stream_noise)                          # each stream's jitter once, not once per pair
     for j in range(len(streams)):
         for k in range(j + 1, len(streams)):
             try:

@@ -54,7 +54,7 @@ from ..geometry.lie import nearest_rotation
 from ..numeric.minimize import minimize_bounded
 from ..streams import PoseStream
 
-__all__ = ["TimeOffset", "estimate_time_offset", "angular_velocity", "Grid", "GridMemo", "grid_of", "MIN_CORRELATION",
+__all__ = ["TimeOffset", "estimate_time_offset", "angular_velocity", "Grid", "grid_of", "MIN_CORRELATION",
            "SIGNIFICANT_SIGMA", "CONFIRMING_GAIN", "CONFIRMING_MIN_GAIN", "CONFIRMING_COVERAGE"]
 
 _GRID_NS = 5_000_000          # grid step of the ω signals [ns]
@@ -202,21 +202,6 @@ def grid_of(stream: PoseStream) -> Grid:
     stamps = stream.stamps_ns
     points = stamps[0] + np.arange((int(stamps[-1]) - int(stamps[0])) // _GRID_NS + 1, dtype=np.int64) * _GRID_NS
     return Grid(stream.sample(points).quat_xyzw, np.concatenate([[0], np.cumsum(_bad_steps(stream))]))
-
-
-class GridMemo:
-    """:func:`grid_of` of each stream computed once: a rig estimates every stream's offset to one reference,
-    whose grid is the same for each window. Streams are told apart by identity; the memo holds them, so no
-    two of them share an ``id`` while it lives."""
-
-    def __init__(self) -> None:
-        self._seen: dict[int, tuple[PoseStream, Grid]] = {}
-
-    def __call__(self, stream: PoseStream) -> Grid:
-        hit = self._seen.get(id(stream))
-        if hit is None or hit[0] is not stream:
-            hit = self._seen[id(stream)] = (stream, grid_of(stream))
-        return hit[1]
 
 
 def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float,
@@ -538,8 +523,9 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
     ----------
     a, b: pose streams of two rigidly attached sensors (any frames; the extrinsic is not needed).
     max_offset_s: optional bound [s] on |offset|; ``None`` searches every lag.
-    grid: each stream's orientations on the ω grid (:func:`grid_of`, or a :class:`GridMemo` that a rig
-        shares between the estimates against its reference).
+    grid: each stream's orientations on the ω grid (:func:`grid_of`, or a
+        :class:`~handeye_cli.streams.StreamMemo` of it that a rig shares between the estimates against its
+        reference).
 
     Raises
     ------
