@@ -15,7 +15,7 @@ Examples
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -38,6 +38,7 @@ from .analysis.fit_test import fit_test, sample_noise
 from .analysis.inversion import InversionVerdict, check_inversion
 from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit, scale_reading
 from .analysis.selection import Selection, select_pairs
+from .analysis.stream_noise import StreamNoise, stream_noise
 from .analysis.subspace import observable_subspace
 from .config import load_options
 from .errors import ConfigError, DataError, HandEyeError
@@ -531,7 +532,8 @@ def check_samples(stream: PoseStream, label: str) -> None:
 
 
 def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
-                   inputs: dict[str, Any] | None = None, scale_by_fit: bool = True) -> Calibration:
+                   inputs: dict[str, Any] | None = None, scale_by_fit: bool = True,
+                   noise_of: Callable[[PoseStream], StreamNoise | None] = stream_noise) -> Calibration:
     """:func:`calibrate` streams as a reader produced them with ``opts.read`` (parsed, not yet inverted: the
     file-only read options are recorded in the settings, not applied again), e.g. by :func:`read_streams`
     or a rig's reader (which inverts its streams itself and sets no ``invert_a``/``invert_b``).
@@ -543,6 +545,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     the streams' own noise unless ``accept_poor_fit``; see :mod:`~handeye_cli.analysis.fit_test`)
     → [bootstrap]. After the solve, b's translations found in other units by the fit are estimated with
     ``T_a_b`` (``scale_by_fit``; ``handeye rig`` passes False: its consistency test names such a stream).
+    ``noise_of``: each stream's jitter for the fit test (a rig passes a memo: its streams are in several pairs).
     """
     check_samples(stream_a, "stream a")
     check_samples(stream_b, "stream b")
@@ -606,12 +609,12 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
             warnings.append(check.warning())
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    fit = fit_test(pairs, res, solution.matrix, sample_noise(stream_a, stream_b, kept, stations, opts.sync.sync),
-                   mask=None if weights is None else weights > 0)        # refuses what no rigid rig gives
-    diagnostics["fit_test"] = fit.as_dict()
+    noise = sample_noise(stream_a, stream_b, kept, stations, opts.sync.sync, noise_of)
+    fit = fit_test(pairs, res, solution.matrix, noise, mask=None if weights is None else weights > 0)   # refuses
+    diagnostics["fit_test"] = fit.as_dict()                                         # what no rigid rig gives
     rejected = fit.refusal(opts, stations is not None, inverted=verdict is not None)
     if rejected and not opts.analysis.accept_poor_fit:
-        recovered = _robust_retry(*given, opts, inputs, scale_by_fit, fit.summary())
+        recovered = _robust_retry(*given, opts, inputs, scale_by_fit, fit.summary(), noise_of)
         if recovered is None:
             raise rejected
         return recovered
@@ -632,7 +635,8 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
 
 
 def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inputs: dict[str, Any] | None,
-                  scale_by_fit: bool, refused: str) -> Calibration | None:
+                  scale_by_fit: bool, refused: str, noise_of: Callable[[PoseStream], StreamNoise | None]
+                  ) -> Calibration | None:
     """A fit the fit test refused (``refused``: its figures), solved again with outliers rejected, as ``--robust``
     does (RANSAC on minimal sets, then the weighted optimal solve on the inliers): kept, with the settings saying
     ``robust`` and a first warning naming what was dropped, when at least ``RETRY_MIN_INLIERS`` of the samples
@@ -653,7 +657,7 @@ def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inp
         return None
     try:
         cal = calibrate_read(stream_a, stream_b, replace(opts, analysis=replace(opts.analysis, robust=True)),
-                             inputs=inputs, scale_by_fit=scale_by_fit)
+                             inputs=inputs, scale_by_fit=scale_by_fit, noise_of=noise_of)
     except HandEyeError:
         return None
     if (cal.robust is None or consensus_share(cal.robust.inliers, cal.pairs.i, cal.pairs.j) < RETRY_MIN_INLIERS

@@ -1,8 +1,9 @@
 """The pose stream: what every reader returns and every later stage consumes."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -11,7 +12,7 @@ from .errors import DataError
 from .geometry import dualquat as dq
 from .geometry import se3
 
-__all__ = ["PoseStream", "Samples", "SAMPLING", "bracket"]
+__all__ = ["PoseStream", "Samples", "SAMPLING", "StreamMemo", "bracket"]
 
 SAMPLING = ("interpolate", "nearest")
 """How :meth:`PoseStream.sample` reads a stream between its samples."""
@@ -191,3 +192,23 @@ class PoseStream:
     def shifted(self, offset_ns: int) -> PoseStream:
         """The same stream with ``offset_ns`` added to every stamp."""
         return replace(self, stamps_ns=self.stamps_ns + np.int64(offset_ns))
+
+
+Value = TypeVar("Value")
+
+
+class StreamMemo(Generic[Value]):
+    """``compute(stream)`` of each stream computed once: a rig's stream is in several pairs (its jitter
+    for their fit tests) and its reference in every clock offset (its orientations on the ω grid).
+    Streams are told apart by identity; the memo holds them, so no two of them share an ``id`` while it
+    lives."""
+
+    def __init__(self, compute: Callable[[PoseStream], Value]) -> None:
+        self._compute = compute
+        self._seen: dict[int, tuple[PoseStream, Value]] = {}
+
+    def __call__(self, stream: PoseStream) -> Value:
+        hit = self._seen.get(id(stream))
+        if hit is None or hit[0] is not stream:
+            hit = self._seen[id(stream)] = (stream, self._compute(stream))
+        return hit[1]

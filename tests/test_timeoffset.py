@@ -115,3 +115,26 @@ def test_repetitive_motion_is_flagged_as_ambiguous() -> None:
     assert any("ambiguous" in w for w in est.warnings)
     periods = (est.offset_ns - 5_000_000_000) / 2e9
     assert abs(periods - round(periods)) * 2e9 < MS          # right, or off by whole 2 s periods
+
+
+def test_a_shared_grid_changes_no_estimate(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A rig's estimates against one reference share its grid (a StreamMemo of grid_of): each stream's grid
+    is computed once, and every estimate is the one without the memo, to the nanosecond."""
+    from handeye_cli.stages import timeoffset as to
+
+    offsets = (15_000_000, -40_000_000)
+    rigs = [simulate_rig(Rig(random_transform(np.random.default_rng(k), 0.3), offset), duration_s=12, rate_a=30,
+                         rate_b=rate, sigma_r=np.deg2rad(0.2), sigma_t=0.002, seed=5)
+            for k, (offset, rate) in enumerate(zip(offsets, (20, 10), strict=True))]
+    ref = rigs[0][0]                                          # seed 5: one trajectory, one reference stream
+    alone = [to.estimate_time_offset(ref, b) for _, b in rigs]
+    made: list[int] = []
+    grid_of = to.grid_of
+    monkeypatch.setattr(to, "grid_of", lambda stream: made.append(id(stream)) or grid_of(stream))
+    from handeye_cli.streams import StreamMemo
+
+    memo = StreamMemo(to.grid_of)
+    shared = [to.estimate_time_offset(ref, b, grid=memo) for _, b in rigs]
+    assert [(e.offset_ns, e.std_ns) for e in shared] == [(e.offset_ns, e.std_ns) for e in alone]
+    assert made.count(id(ref)) == 1 and len(made) == 3           # the reference's grid once, each other once
+    assert all(abs(e.offset_ns - off) < 2_000_000 for e, off in zip(shared, offsets, strict=True))

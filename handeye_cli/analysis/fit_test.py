@@ -33,6 +33,7 @@ that tests it.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -180,15 +181,17 @@ def _stream_sigmas(stream: PoseStream, noise: StreamNoise | None, interpolated: 
 
 
 def sample_noise(stream_a: PoseStream, stream_b: PoseStream, synced: Synced, stations: Stations | None,
-                 sync_method: str) -> SampleNoise:
-    """Per-axis σ of every synced sample of both streams, from the streams alone (module docstring, 1)."""
+                 sync_method: str, noise_of: Callable[[PoseStream], StreamNoise | None] = stream_noise
+                 ) -> SampleNoise:
+    """Per-axis σ of every synced sample of both streams, from the streams alone (module docstring, 1);
+    ``noise_of``: a stream's jitter (:func:`stream_noise`, or a memo of it that a rig shares between pairs)."""
     n = len(synced)
     if stations is not None:
         out: list[FloatArray] = []
         streams: dict[str, Any] = {}
         for name, spread, inliers, raw in (("a", stations.spread_a, stations.inliers_a, stream_a),
                                            ("b", stations.spread_b, stations.inliers_b, stream_b)):
-            jitter = stream_noise(raw)
+            jitter = noise_of(raw)
             known = (inliers > 1) & (spread[:, 0] > 0)
             per = spread / np.sqrt(3.0) / np.sqrt(np.maximum(inliers, 1))[:, None]     # 3D RMS → per axis, /√n
             if not known.any():
@@ -203,8 +206,8 @@ def sample_noise(stream_a: PoseStream, stream_b: PoseStream, synced: Synced, sta
         source = "station scatter" if all(streams[k].get("from") for k in "ab") else "mixed"
         return SampleNoise(out[0], out[1], out[2], out[3], source, streams)
     method = "nearest" if sync_method == "nearest" else "interpolate"
-    ra, ta, rep_a = _stream_sigmas(stream_a, stream_noise(stream_a), method if synced.reference == "b" else None, n)
-    rb, tb, rep_b = _stream_sigmas(stream_b, stream_noise(stream_b), method if synced.reference == "a" else None, n)
+    ra, ta, rep_a = _stream_sigmas(stream_a, noise_of(stream_a), method if synced.reference == "b" else None, n)
+    rb, tb, rep_b = _stream_sigmas(stream_b, noise_of(stream_b), method if synced.reference == "a" else None, n)
     assumed = rep_a.get("assumed") or rep_b.get("assumed")
     return SampleNoise(ra, ta, rb, tb, "assumed (sparse poses)" if assumed else "stream jitter",
                        {"a": rep_a, "b": rep_b})

@@ -106,3 +106,4 @@ def stream_noise(stream: PoseStream) -> StreamNoise | None:
     step_pos, bend_pos = xyz[:, 3] - xyz[:, 2], xyz[:, 3] - 2 * xyz[:, 2] + xyz[:, 1]
     med = [float(np.median(np.abs(v))) for v in (e_rot, e_pos, step_rot, step_pos, bend_rot, bend_pos)]
     return StreamNoise(_MAD * med[0], _MAD * med[1], int(np.count_nonzero(use)), *med[2:])
+

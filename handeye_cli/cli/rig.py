@@ -14,9 +14,9 @@ from typing import Any
 
 import click
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..analysis.verdict import Verdict
+from ..geometry import dualquat as dq
 from ..io.nominal import read_nominal
 from .check import verdict_options
 from .common import CONTEXT, emit, finish, result_format
@@ -36,7 +36,7 @@ __all__ = ["rig"]
 def _summary(doc: dict[str, Any]) -> str:
     lines = [f"rig of {len(doc['transforms']) + 1} sensors, reference {doc['reference']}:"]
     for t in doc["transforms"]:
-        angle = np.linalg.norm(Rotation.from_quat(t["quaternion_xyzw"]).as_rotvec(degrees=True))
+        angle = np.rad2deg(np.linalg.norm(dq.to_rotvec(np.asarray(t["quaternion_xyzw"], dtype=float))))
         x, y, z = t["translation"]
         lines.append(f"  T_{t['parent']}_{t['child']}: translation [{x:.4f}, {y:.4f}, {z:.4f}] m, "
                      f"rotation {angle:.3f}°")

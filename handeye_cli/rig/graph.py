@@ -19,7 +19,6 @@ from itertools import combinations, pairwise, permutations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg import eigh
 
 from ..errors import DataError
 from ..geometry import se3
@@ -59,9 +58,9 @@ def _rotations(n: int, pairs: list[tuple[int, int]], X: Array, w: Array, referen
     for (j, k), Xe, we in zip(pairs, X, w, strict=True):
         H[3 * j:3 * j + 3, 3 * k:3 * k + 3] = we * Xe[:3, :3]
         H[3 * k:3 * k + 3, 3 * j:3 * j + 3] = we * Xe[:3, :3].T
-    degree = np.diag(np.repeat(np.bincount(np.ravel(pairs), weights=np.repeat(w, 2), minlength=n), 3))
-    _, vecs = eigh(H, degree)                          # consistent data: H V = D V, the top eigenvalue
-    V = vecs[:, -3:].reshape(n, 3, 3)                   # V_k ≈ R_kᵀ Q, one Q for all
+    scale = 1.0 / np.sqrt(np.repeat(np.bincount(np.ravel(pairs), weights=np.repeat(w, 2), minlength=n), 3))
+    _, vecs = np.linalg.eigh(scale[:, None] * H * scale)  # H V = D V (consistent data: the top eigenvalue) as
+    V = (scale[:, None] * vecs[:, -3:]).reshape(n, 3, 3)  # D^-½ H D^-½ U = U Λ, V = D^-½ U; V_k ≈ R_kᵀ Q, one Q
     if np.sum(np.linalg.det(V)) < 0:
         V = -V
     R = nearest_rotation(np.swapaxes(V, 1, 2), up_to_sign=True)

@@ -37,12 +37,12 @@ from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import chdtrc, gammaln  # the χ² survival function: scipy.stats costs 1 s to import
 
 from ..analysis.covariance import constrained_hessian
 from ..geometry import dualquat as dq
 from ..geometry import se3
 from ..geometry.lie import log_errors
+from ..numeric.chi2 import chi2_log_sf, chi2_sf
 from ..solvers.classical import _skew
 from ..solvers.problem import split_forms
 from .graph import connected
@@ -261,18 +261,6 @@ class Consistency:
         return self.p_value < CONSISTENCY_P_VALUE
 
 
-def _log_sf(x: float, dof: int) -> float:
-    """``log P(χ²_dof > x)``, finite far into the tail (where the survival function underflows: the leading
-    terms of the upper incomplete gamma function's asymptotic series), so that improbable
-    reductions still rank."""
-    with np.errstate(divide="ignore"):
-        out = float(np.log(chdtrc(dof, x)))
-    if np.isfinite(out):
-        return out
-    a, y = dof / 2, x / 2
-    return float((a - 1) * np.log(y) - y - gammaln(a) + np.log1p((a - 1) / y + (a - 1) * (a - 2) / y ** 2))
-
-
 def consistency(problem: JointProblem, T0: Array) -> Consistency:
     """The χ² test of ``problem`` (without exclusion) from the rig estimate ``T0`` (see :class:`Consistency`)."""
     n, E = problem.n, len(problem.pairs)
@@ -295,12 +283,12 @@ def consistency(problem: JointProblem, T0: Array) -> Consistency:
         T, _ = _solve(problem, T0, others & (np.arange(n) != gauge), edges, None)
         red.append(J - problem.cost(T, edges))
         red_dof.append(d)
-        log_p.append(_log_sf(red[-1], d))
+        log_p.append(chi2_log_sf(d, red[-1]))      # finite far into the tail: improbable reductions still rank
     suspect = None
     ranked = np.argsort(np.where(np.isnan(log_p), np.inf, log_p))
     best = log_p[ranked[0]] if n else float("nan")
     tie = n > 1 and np.isclose(log_p[ranked[1]], best, rtol=1e-9, atol=0.0)
-    p_value = float(chdtrc(dof, J)) if dof > 0 else float("nan")     # no degrees of freedom: nothing to test
+    p_value = chi2_sf(dof, J) if dof > 0 else float("nan")     # no degrees of freedom: nothing to test
     if p_value < CONSISTENCY_P_VALUE and best < np.log(CONSISTENCY_P_VALUE) and not tie:
         suspect = int(ranked[0])
     return Consistency(J, dof, p_value, tuple(red), tuple(red_dof),

@@ -16,11 +16,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..analysis.stream_noise import StreamNoise, stream_noise
 from ..errors import ConfigError, HandEyeError
 from ..options import Options
 from ..pipeline import Calibration, calibrate_read
 from ..solvers.problem import split_forms
-from ..streams import PoseStream
+from ..streams import PoseStream, StreamMemo
 
 __all__ = ["ClockOffset", "Edge", "clock_offsets", "solve_edges"]
 
@@ -66,15 +67,15 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
                   max_offset_s: float | None = None) -> list[ClockOffset]:
     """Each stream's clock offset to the reference: ``given[k]`` seconds, or estimated (``'auto'``,
     the default) from the angular velocities of stream k and the reference."""
-    from ..stages.timeoffset import estimate_time_offset
+    from ..stages.timeoffset import estimate_time_offset, grid_of
 
-    out = []
+    out, grid = [], StreamMemo(grid_of)                # the reference's ω grid once, not once per stream
     for k, stream in enumerate(streams):
         value = given.get(k, "auto")
         if k == reference:
             out.append(ClockOffset(0, None, "reference"))
         elif isinstance(value, str) and value.strip().lower() == "auto":
-            est = estimate_time_offset(streams[reference], stream, max_offset_s=max_offset_s)
+            est = estimate_time_offset(streams[reference], stream, max_offset_s=max_offset_s, grid=grid)
             out.append(ClockOffset(est.offset_ns, est.std_ns, est.method, tuple(est.warnings)))
         else:
             try:
@@ -86,15 +87,15 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
 
 
 def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset], options: Options,
-          chosen: list[bool]) -> Edge:
+          chosen: list[bool], noise: StreamMemo[StreamNoise | None]) -> Edge:
     # the rig's bootstrap resamples all pairs at once; a prior is of one T_a_b, not of every pair. A stream
     # whose inversion the user gave (inverted by the rig already, or said not to be) is "not inverted (again),
     # by the user's word": the inversion check then refuses in those words, as calibrate's --no-invert-a does
     said: dict[str, Any] = {key: False for key, c in (("invert_a", chosen[j]), ("invert_b", chosen[k])) if c}
     opts = Options.from_flat(options, time_offset=(offsets[k].offset_ns - offsets[j].offset_ns) / 1e9,
                              bootstrap=0, prior=None, **said)
-    cal = calibrate_read(streams[j], streams[k], opts, scale_by_fit=False)   # the rig's reader applied the read
-    #                                                         options; a badly scaled stream is named by the rig
+    cal = calibrate_read(streams[j], streams[k], opts, scale_by_fit=False,   # the rig's reader applied the read
+                         noise_of=noise)                      # options; a badly scaled stream is named by the rig
     A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
     return Edge(j, k, cal, split_forms(A, B, np.ones((1, len(A))) if w is None else w[None], cal.solution.alpha)[0])
 
@@ -106,10 +107,11 @@ def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[Clock
     pair that cannot be calibrated is left out with a warning.
     Returns the edges and the warnings (each pair's own warnings prefixed with its names)."""
     edges, warnings = [], []
+    noise = StreamMemo(stream_noise)                          # each stream's jitter once, not once per pair
     for j in range(len(streams)):
         for k in range(j + 1, len(streams)):
             try:
-                edge = _edge(streams, j, k, offsets, options, chosen or [False] * len(streams))
+                edge = _edge(streams, j, k, offsets, options, chosen or [False] * len(streams), noise)
             except HandEyeError as e:
                 warnings.append(f"pair {names[j]}-{names[k]} left out: {e}")
                 continue

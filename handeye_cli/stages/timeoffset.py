@@ -42,6 +42,7 @@ a second of every estimate's start-up.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,8 +54,8 @@ from ..geometry.lie import nearest_rotation
 from ..numeric.minimize import minimize_bounded
 from ..streams import PoseStream
 
-__all__ = ["TimeOffset", "estimate_time_offset", "angular_velocity", "MIN_CORRELATION", "SIGNIFICANT_SIGMA",
-           "CONFIRMING_GAIN", "CONFIRMING_MIN_GAIN", "CONFIRMING_COVERAGE"]
+__all__ = ["TimeOffset", "estimate_time_offset", "angular_velocity", "Grid", "grid_of", "MIN_CORRELATION",
+           "SIGNIFICANT_SIGMA", "CONFIRMING_GAIN", "CONFIRMING_MIN_GAIN", "CONFIRMING_COVERAGE"]
 
 _GRID_NS = 5_000_000          # grid step of the ω signals [ns]
 _MIN_WINDOW_NS = 100_000_000  # smallest differentiation window [ns]
@@ -186,7 +187,25 @@ def _bad_steps(stream: PoseStream) -> np.ndarray:
     return bad
 
 
-def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float) -> _Signal:
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """What ω needs of a stream whatever the window: its orientations SLERPed at ``stamps[0] + k·_GRID_NS``
+    (x-y-z-w, (K, 4), every grid point within its span) and the cumulative count of its bad steps
+    (:func:`_bad_steps`) before each sample."""
+
+    quat_xyzw: np.ndarray
+    bad_before: np.ndarray
+
+
+def grid_of(stream: PoseStream) -> Grid:
+    """:class:`Grid` of ``stream``."""
+    stamps = stream.stamps_ns
+    points = stamps[0] + np.arange((int(stamps[-1]) - int(stamps[0])) // _GRID_NS + 1, dtype=np.int64) * _GRID_NS
+    return Grid(stream.sample(points).quat_xyzw, np.concatenate([[0], np.cumsum(_bad_steps(stream))]))
+
+
+def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float,
+                     grid: Callable[[PoseStream], Grid] = grid_of) -> _Signal:
     """Body angular velocity [rad/s] of ``stream`` on its uniform grid (see the module docstring),
     smoothed by a Gaussian of σ = ``smooth_ns``; ``window_ns`` is a multiple of two grid steps, so
     that the orientations at ``t ± w/2`` are those of one interpolation on the grid, ``w`` apart."""
@@ -200,12 +219,13 @@ def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float) -> _S
     if len(centres) < 2:
         raise DataError("pose stream too short for its sample rate to estimate a time offset", stream.source,
                            "record more samples while rotating, or give a fixed --time-offset")
-    q = stream.sample((t0 - half) + np.arange(len(centres) + 2 * steps, dtype=np.int64) * _GRID_NS).quat_xyzw
+    on_grid = grid(stream)                              # grid point k at t0 - half + k·_GRID_NS = stamps[0] + …
+    q = on_grid.quat_xyzw[:len(centres) + 2 * steps]
     omega = dq.to_rotvec(dq.relative(q[:-2 * steps], q[2 * steps:]))     # within [stamps[0], stamps[-1]]: all inside
     omega /= 2 * half / 1e9
     sigma = smooth_ns / _GRID_NS
     omega = _gaussian_filter(omega, sigma)
-    bad = np.concatenate([[0], np.cumsum(_bad_steps(stream))])
+    bad = on_grid.bad_before
     first = np.searchsorted(stamps, centres - half, side="right") - 1
     last = np.searchsorted(stamps, centres + half, side="left")
     reach = 2 * int(np.ceil(_TRUNCATE * sigma)) + 1       # a smoothed point mixes this many grid points
@@ -495,13 +515,17 @@ def _on_steps(a: PoseStream, b: PoseStream, max_offset_ns: int | None) -> TimeOf
                       method="scan + refinement on the slower stream's step rotations", warnings=warnings)
 
 
-def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | None = None) -> TimeOffset:
+def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | None = None,
+                         grid: Callable[[PoseStream], Grid] = grid_of) -> TimeOffset:
     """Estimate how far b's clock is ahead of a's (see the module docstring for the method).
 
     Parameters
     ----------
     a, b: pose streams of two rigidly attached sensors (any frames; the extrinsic is not needed).
     max_offset_s: optional bound [s] on |offset|; ``None`` searches every lag.
+    grid: each stream's orientations on the ω grid (:func:`grid_of`, or a
+        :class:`~handeye_cli.streams.StreamMemo` of it that a rig shares between the estimates against its
+        reference).
 
     Raises
     ------
@@ -521,7 +545,7 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
     window = int(max(_MIN_WINDOW_NS, 3 * max(intervals)))
     window -= window % (2 * _GRID_NS)
     smooth = float(max(intervals))
-    sa, sb = angular_velocity(a, window, smooth), angular_velocity(b, window, smooth)
+    sa, sb = angular_velocity(a, window, smooth, grid), angular_velocity(b, window, smooth, grid)
     coarse_ns, corr, warnings = _coarse(sa, sb, max_ns)
 
     ref = _Refiner(sa, sb, coarse_ns)
