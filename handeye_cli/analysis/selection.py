@@ -45,6 +45,7 @@ from ..stages.sync import Synced
 from .alpha import blocked_alpha, time_blocks
 from .covariance import tangent_basis
 from .noise_model import NoiseModel, PairFeatures, cost_residuals, fit_noise_model, pair_features
+from .observability import common_axis
 
 __all__ = ["Selection", "select_pairs", "ladder"]
 
@@ -161,18 +162,35 @@ def _ml_weights(model: NoiseModel, f: PairFeatures) -> tuple[NDArray[np.float64]
 
 
 def _level_errors(A: NDArray[np.float64], B: NDArray[np.float64], w: NDArray[np.float64], alpha: float,
-                  X: NDArray[np.float64], level: NDArray[np.int64], scale: NDArray[np.float64]) -> NDArray[np.float64]:
+                  X: NDArray[np.float64], level: NDArray[np.int64], scale: NDArray[np.float64],
+                  axis: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
     """(L, 2) predicted RMS rotation [rad] and translation [m] error of X from each level's pairs
     (motions ``A``, ``B``, weights ``w``, ladder index ``level``; α [1/m]), level l's ``scale[l]``
     times over: ``tr`` of the blocks of ``H⁻¹``, with ``H = Dᵀ Q D`` the curvature of cost (8) on the
-    level's pairs in the tangent ``δ = (ω, v)``."""
+    level's pairs in the tangent ``δ = (ω, v)``.
+
+    ``axis`` (unit, frame a): the common rotation axis of planar motion; the translation along it is
+    held fixed (``H`` restricted to the other five directions), as the reduced in-plane solve holds it
+    (:mod:`.subspace`). The data do not determine it: what curvature ``H`` has there is the noise's
+    tilt of the rotation axes, and its inverse (metres to tens of metres, varying from level to level
+    by chance) would otherwise decide the levels, keeping one long stride whose few spans starve the
+    yaw the translations alone carry."""
     member = (level[None, :] == np.arange(len(scale))[:, None]) * w
     Q = split_forms(A, B, member, alpha).sum(axis=1)          # each level's cost form, [q'; q] order
-    D = tangent_basis(*dq.from_transforms(X))[_Q_PRIME_FIRST]   # dx/dδ with x = [q'; q]
-    cov = np.linalg.pinv(scale[:, None, None] * (D.T @ Q @ D), hermitian=True)
+    P = np.eye(6) if axis is None else _without_translation_along(axis)     # δ = P η
+    D = tangent_basis(*dq.from_transforms(X))[_Q_PRIME_FIRST] @ P      # dx/dη with x = [q'; q]
+    cov = P @ np.linalg.pinv(scale[:, None, None] * (D.T @ Q @ D), hermitian=True) @ P.T
     traces = np.stack([np.trace(cov[:, :3, :3], axis1=1, axis2=2), np.trace(cov[:, 3:, 3:], axis1=1, axis2=2)], 1)
     errors: NDArray[np.float64] = np.sqrt(np.maximum(traces, 0.0))
     return errors
+
+
+def _without_translation_along(axis: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(6, 5) orthonormal basis of the tangent ``δ = (ω, v)`` without translation along the unit ``axis``."""
+    P = np.zeros((6, 5))
+    P[:3, :3] = np.eye(3)
+    P[3:, 3:] = np.linalg.svd(np.eye(3) - np.outer(axis, axis))[0][:, :2]
+    return P
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,8 +221,9 @@ def _overlap(stride: int, available: int, used: int, drift_share: float) -> floa
 
 
 def _choose_levels(probe: _Probe, w: NDArray[np.float64], alpha: float, share: NDArray[np.float64],
-                   X: NDArray[np.float64], max_pairs: int) -> NDArray[np.int64]:
-    """Ladder indices of the levels to keep (see the module docstring, step 4–5)."""
+                   X: NDArray[np.float64], max_pairs: int, axis: NDArray[np.float64] | None) -> NDArray[np.int64]:
+    """Ladder indices of the levels to keep (see the module docstring, step 4–5); ``axis``: the common
+    rotation axis of planar motion (frame a), along which the errors are not judged."""
     counts = np.bincount(probe.level, minlength=len(probe.strides))
     budget = max(max_pairs // 4, _MIN_LEVEL_PAIRS)       # what one level would get when a few are kept
     used = np.minimum(probe.available, budget)
@@ -212,7 +231,7 @@ def _choose_levels(probe: _Probe, w: NDArray[np.float64], alpha: float, share: N
     overlap = [_overlap(int(k), int(a), int(u), float(s))
                for k, a, u, s in zip(probe.strides, probe.available, used, level_share, strict=True)]
     errors = _level_errors(probe.pairs.A, probe.pairs.B, w, alpha, X, probe.level,
-                           used / np.maximum(counts, 1) / np.asarray(overlap))
+                           used / np.maximum(counts, 1) / np.asarray(overlap), axis)
     errors[counts < _MIN_LEVEL_PAIRS] = np.inf
     if not np.isfinite(errors).any():
         return np.arange(len(probe.strides))
@@ -270,13 +289,14 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
     path = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(synced.T_a[:, :3, 3], axis=0), axis=1))]
     count = np.bincount(pr.level, minlength=len(pr.strides)).astype(float)
     X = solve(pr.pairs.A, pr.pairs.B, method=method, prior=prior, weights=1.0 / count[pr.level]).matrix
+    axis = common_axis(pr.pairs.A, pr.pairs.B)          # planar: translation along it is not the data's
     kept, done = np.zeros(0, dtype=np.int64), 0
     while done < rounds:
         done += 1
         f = pair_features(synced.stamps_ns, path, pr.pairs.i, pr.pairs.j, pr.pairs.B, X)
         model = fit_noise_model(*cost_residuals(pr.pairs.A, pr.pairs.B, X), f)
         w, alpha = _ml_weights(model, f)
-        levels = _choose_levels(pr, w, alpha, model.drift_share(f), X, max_pairs)
+        levels = _choose_levels(pr, w, alpha, model.drift_share(f), X, max_pairs, axis)
         if np.array_equal(levels, kept):
             break
         kept = levels
