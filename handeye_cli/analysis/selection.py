@@ -29,8 +29,9 @@ the number of samples: no candidate pair is enumerated beyond the probes and the
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,6 +54,7 @@ _KEEP_RATIO = 1.5           # levels within this factor of the best predicted er
 _ABSOLUTE_SHARE = 0.5       # ... and every longer level whose variance is mostly the absolute floor
 _MIN_LEVEL_PAIRS = 8
 _Q_PRIME_FIRST = np.r_[4:8, 0:4]   # rows of the tangent basis (x = [q; q']) in the cost forms' [q'; q] order
+_T = TypeVar("_T")
 _SPREAD_SEED = 0            # the jitter of the evenly spread pairs (fixed: a recording always gives one answer)
 
 
@@ -259,19 +261,34 @@ def _kept_pairs(synced: Synced, segs: _Segments, strides: NDArray[np.int64], max
     return _pairs(synced, i, i + np.repeat(strides, sizes)), crowding
 
 
-def _blocked(pairs: Pairs, cap: float, weights: NDArray[np.float64], prior: Prior | None) -> float:
-    """:func:`~.alpha.blocked_alpha` of the pairs, judged on the data alone where they determine the extrinsic: a
-    prior's term counts as exact information in the predicted errors (its own error is no part of them), so with it
-    every smaller α looks better, and the translations that alone determine a ground vehicle's yaw lose their weight
-    to a prior that may be wrong (a car with a prior 1° off in yaw: yaw 0.0005–0.005° without it, 0.012–0.067°
-    with it). A prior is used only when the pairs cannot be solved without one."""
-    blocks = time_blocks(pairs.t_i_ns, pairs.t_j_ns)
+def _without_prior_first(fit: Callable[[Prior | None], _T], prior: Prior | None) -> _T:
+    """``fit(None)``, or ``fit(prior)`` when the pairs cannot be solved without the prior (a
+    :class:`~handeye_cli.errors.HandEyeError`). The selection judges the data alone where they determine the
+    extrinsic: along what they leave open the residuals do not change, and where they determine it a wrong
+    prior's term (eq 26) pulls ``X``, inflating the residuals the noise model is fitted to (a diff-drive
+    with a prior wrong by yaw +1°, pitch +1°, y +2 cm moved its pair weights and with them the estimated yaw
+    by 1.3e-4°), and counts as exact information in the predicted errors of :func:`_blocked`."""
     try:
-        return blocked_alpha(pairs.A, pairs.B, cap, blocks, weights=weights).alpha
+        return fit(None)
     except HandEyeError:
         if prior is None:
             raise
-        return blocked_alpha(pairs.A, pairs.B, cap, blocks, prior=prior, weights=weights).alpha
+        return fit(prior)
+
+
+def _blocked(pairs: Pairs, cap: float, weights: NDArray[np.float64], prior: Prior | None) -> float:
+    """:func:`~.alpha.blocked_alpha` of the pairs (see :func:`_without_prior_first`): with a prior's term in the
+    predicted errors every smaller α looks better, and the translations that alone determine a ground vehicle's
+    yaw lose their weight to a prior that may be wrong (a car with a prior 1° off in yaw: yaw 0.0005–0.005°
+    without it, 0.012–0.067° with it)."""
+    blocks = time_blocks(pairs.t_i_ns, pairs.t_j_ns)
+    return _without_prior_first(
+        lambda p: blocked_alpha(pairs.A, pairs.B, cap, blocks, prior=p, weights=weights).alpha, prior)
+
+
+def _solved(A: NDArray[np.float64], B: NDArray[np.float64], prior: Prior | None, **options: Any) -> NDArray[np.float64]:
+    """``X`` of :func:`~handeye_cli.solvers.solve` on the pairs (see :func:`_without_prior_first`)."""
+    return _without_prior_first(lambda p: solve(A, B, prior=p, **options).matrix, prior)
 
 
 def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt", prior: Prior | None = None,
@@ -288,7 +305,7 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
                          len(pr.pairs))
     path = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(synced.T_a[:, :3, 3], axis=0), axis=1))]
     count = np.bincount(pr.level, minlength=len(pr.strides)).astype(float)
-    X = solve(pr.pairs.A, pr.pairs.B, method=method, prior=prior, weights=1.0 / count[pr.level]).matrix
+    X = _solved(pr.pairs.A, pr.pairs.B, prior, method=method, weights=1.0 / count[pr.level])
     axis = common_axis(pr.pairs.A, pr.pairs.B)          # planar: translation along it is not the data's
     kept, done = np.zeros(0, dtype=np.int64), 0
     while done < rounds:
@@ -305,7 +322,7 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
         fk = pair_features(synced.stamps_ns, path, pairs.i, pairs.j, pairs.B, X)
         weights, alpha = _ml_weights(model, fk)
         weights = weights / (1.0 + model.drift_share(fk) * np.clip(crowding - 1.0, 0.0, None))
-        X = solve(pairs.A, pairs.B, method=method, alpha=alpha, prior=prior, weights=weights).matrix
+        X = _solved(pairs.A, pairs.B, prior, method=method, alpha=alpha, weights=weights)
     if model.kind == "drifting":       # errors shared across time: the ML α is an upper bound (analysis.alpha)
         alpha = _blocked(pairs, alpha, weights, prior)
     return Selection(pairs, weights / weights.mean(), alpha, model, tuple(int(k) for k in pr.strides[kept]), done,
