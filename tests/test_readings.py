@@ -115,8 +115,6 @@ def test_orders_that_fit_alike_with_other_extrinsics_are_refused(monkeypatch, tm
 def test_monocular_units_are_found_by_the_fit(units):
     """b's translations in other units (monocular odometry): they fit far better scaled, so the scale is
     estimated with T_a_b and said in a warning; metric streams get no scale reading."""
-    from dataclasses import replace
-
     X = random_transform(np.random.default_rng(8), 0.3)
     a, b = simulate_rig(Rig(X), duration_s=20, rate_a=100, rate_b=30, sigma_r=np.deg2rad(0.1), sigma_t=0.002,
                         seed=8)
