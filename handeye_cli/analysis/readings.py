@@ -63,13 +63,14 @@ class MedianFit:
         return self.rotation_deg, self.translation_m
 
     @property
-    def rank(self) -> float:
-        """Rotation times translation median (floored): the order in which readings are ranked. Both count: on
-        planar motion a stream read inverted fits the rotations as well as the right reading (the common axis
-        only turns over), so the rotation alone picked an inversion whose translations were metres off, and a
-        wrong quaternion order then looked decisively better (a 60-s diff-drive base's TUM files read as w-x-y-z).
-        A fit decisively better than another ranks lower: its two gains multiply to at least BETTER / NOT_WORSE."""
-        return max(self.rotation_deg, _TINY[0]) * max(self.translation_m, _TINY[1])
+    def rank(self) -> tuple[float, float]:
+        """The order in which readings are ranked: rotation times translation median (floored), then the rotation
+        median (noise-free fits tie at the floors). Both count: on planar motion a stream read inverted fits the
+        rotations as well as the right reading (the common axis only turns over), so the rotation alone picked an
+        inversion whose translations were metres off, and a wrong quaternion order then looked decisively better
+        (a 60-s diff-drive base's TUM files read as w-x-y-z). A fit decisively better than another ranks lower:
+        its two gains multiply to at least BETTER / NOT_WORSE."""
+        return max(self.rotation_deg, _TINY[0]) * max(self.translation_m, _TINY[1]), self.rotation_deg
 
     def gains_over(self, other: MedianFit) -> tuple[float, float]:
         """How many times lower this fit's medians are than ``other``'s (> 1: this one fits better)."""
