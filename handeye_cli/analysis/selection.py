@@ -293,7 +293,8 @@ def _solved(A: NDArray[np.float64], B: NDArray[np.float64], prior: Prior | None,
 
 def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt", prior: Prior | None = None,
                  probe: int = 200, rounds: int = 3) -> Selection:
-    """The ``auto`` strategy (module docstring): pairs, weights, α and noise model for ``synced``.
+    """The ``auto`` strategy (module docstring): pairs, weights, α and noise model for ``synced``. ``prior``
+    enters a solve only where the pairs cannot be solved without it (:func:`_without_prior_first`).
 
     Raises :class:`~handeye_cli.errors.HandEyeError` when the probe cannot be solved (too few
     samples or motions that cannot determine the extrinsic; the solver's message says which).
