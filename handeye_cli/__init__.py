@@ -19,6 +19,8 @@ quaternions are x-y-z-w; time is int64 nanoseconds; metres and radians.
 """
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
@@ -61,9 +63,29 @@ def document(result: Calibration | RigResult) -> dict[str, Any]:
     return calibration_document(result) if isinstance(result, Calibration) else result.document()
 
 
+# the functions of the Python API: their errors name keywords where the command line's name flags
+_FUNCTIONS = {"solve", "calibrate", "calibrate_files", "calibrate_rig", "calibrate_rig_files", "compare_methods",
+              "load_options"}
+
+
+def _in_keywords(f: Callable[..., Any]) -> Callable[..., Any]:
+    """``f`` raising its :class:`HandEyeError` in the Python API's words (:func:`.errors.in_keywords`)."""
+    from .errors import HandEyeError, in_keywords
+
+    @functools.wraps(f)
+    def api(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return f(*args, **kwargs)
+        except HandEyeError as e:
+            raise in_keywords(e) from None
+    return api
+
+
 def __getattr__(name: str) -> Any:
     if name in _HOMES:
         value = getattr(import_module(f".{_HOMES[name]}", __name__), name)
+        if name in _FUNCTIONS:
+            value = _in_keywords(value)
         globals()[name] = value
         return value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

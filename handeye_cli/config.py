@@ -60,7 +60,7 @@ def read_config(path: str | Path) -> dict[str, Any]:
 
 def _preset(name: str) -> dict[str, Any]:
     if name not in presets():
-        raise ConfigError(f"unknown preset {name!r}", "--preset", f"choose one of {', '.join(presets())}")
+        raise ConfigError(f"unknown preset {name!r}", "preset", f"choose one of {', '.join(presets())}")
     text = (resources.files("handeye_cli") / "presets" / f"{name}.yaml").read_text(encoding="utf-8")
     return _parse_yaml(text, f"preset {name}")
 

@@ -15,7 +15,9 @@ escape, :func:`one_line`). Callers that fall back on a failure catch the precise
 """
 from __future__ import annotations
 
-__all__ = ["one_line", "HandEyeError", "ConfigError", "ReadError", "DataError", "TooFewPairsError",
+import re
+
+__all__ = ["one_line", "in_keywords", "HandEyeError", "ConfigError", "ReadError", "DataError", "TooFewPairsError",
            "UnderdeterminedError", "FitRejectedError", "WriteError"]
 
 
@@ -87,3 +89,42 @@ class FitRejectedError(DataError):
 
 class WriteError(HandEyeError):
     """A result, report or other output could not be written."""
+
+
+# flags whose Python keyword is not the flag's name without dashes
+_KEYWORD_OF = {"config": "config_file", "format": "fmt", "stream": "streams", "output": "output_file"}
+_WORDS = {"to", "or", "and", "for", "with", "is", "the", "a", "an", "given", "instead", "first", "then", "on", "in",
+          "if", "when", "as", "of", "that", "it", "at", "by", "from", "each", "too", "also", "alone", "only"}
+_VALUE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.|*:/-]*$")
+_FLAG = re.compile(r"--(no-)?([a-z][a-z0-9-]*)((?: (?![-])[^\s,;:)]+){0,2})")
+
+
+def _keyword(m: re.Match[str]) -> str:
+    negated, name, rest = m.group(1), m.group(2), m.group(3)
+    key = _KEYWORD_OF.get(name, name.replace("-", "_"))
+    values: list[str] = []
+    for token in rest.split()[:2 if name.startswith("frames-") else 1]:     # --frames-a PARENT CHILD: two
+        if token.lower() in _WORDS or not _VALUE.match(token):
+            break
+        values.append(token)
+    tail = rest.split()[len(values):]
+    if negated or not values:
+        text = f"{key}={'False' if negated else 'True'}"
+    else:
+        shown = [v if v.isupper() or v.replace(".", "", 1).lstrip("-").isdigit() else repr(v) for v in values]
+        text = f"{key}={shown[0]}" if len(shown) == 1 else f"{key}=({', '.join(shown)})"
+    return " ".join([text, *tail])
+
+
+def in_keywords(error: HandEyeError) -> HandEyeError:
+    """``error`` in the Python API's words: each flag its fix names (``--gate paper``, ``--no-invert-b``,
+    ``--frames-a PARENT CHILD``) written as the keyword argument (``gate='paper'``, ``invert_b=False``,
+    ``frames_a=(PARENT, CHILD)``). The one place the library turns the command line's words into its own; the
+    ``where`` part already names the option by its key."""
+    fix = _FLAG.sub(_keyword, error.fix)
+    if fix == error.fix:
+        return error
+    out = type(error).__new__(type(error))
+    HandEyeError.__init__(out, error.what, error.where, fix)
+    out.__dict__.update({k: v for k, v in error.__dict__.items() if k not in ("what", "where", "fix")})
+    return out

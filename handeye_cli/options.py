@@ -210,21 +210,35 @@ def storage_options(value: Any, where: str) -> tuple[tuple[str, str], ...]:
     return tuple(items)
 
 
+# Which commands take an option (its scope): the commands' flags are generated from it (handeye_cli/cli/params.py).
+PAIR = ("calibrate", "batch", "compare")        # the options of one pair of streams a, b
+EVERY_PAIR = (*PAIR, "rig")                      # ... that also apply to every pair of a rig
+REMOTE = (*EVERY_PAIR, "inspect")                # reading URLs
+SOLVER = (*EVERY_PAIR, "solve")                  # the solver on pairs (also handeye solve's file of pairs)
+
+
 @dataclass(frozen=True)
 class OptionInfo:
     """How an option is parsed and shown: its parser, help text and command-line metavar; a
-    ``secret`` option's values are shown as ``***`` in settings (:meth:`Options.flat`), and its flag repeats."""
+    ``secret`` option's values are shown as ``***`` in settings (:meth:`Options.flat`), and its flag repeats.
+
+    ``commands``: the commands that take it as a flag of its own name (its scope). ``per_stream``: the
+    flag by which ``handeye rig`` takes an option of stream a or b for any named stream (``invert_a`` →
+    ``--invert NAME``/``--no-invert NAME``, ``scale`` → ``--scale NAME=VALUE``), parsed by the same parser."""
 
     parse: Parser
     help: str
     metavar: str | None = None
     choices: tuple[str, ...] = ()
     secret: bool = False
+    commands: tuple[str, ...] = EVERY_PAIR
+    per_stream: str | None = None
 
 
-def option(default: Any, parse: Parser, help: str, metavar: str | None = None, secret: bool = False) -> Any:
+def option(default: Any, parse: Parser, help: str, metavar: str | None = None, secret: bool = False, *,
+           commands: tuple[str, ...] = EVERY_PAIR, per_stream: str | None = None) -> Any:
     """A dataclass field carrying its :class:`OptionInfo` (a :func:`choice` parser gives the choices)."""
-    info = OptionInfo(parse, help, metavar, tuple(getattr(parse, "names", ())), secret)
+    info = OptionInfo(parse, help, metavar, tuple(getattr(parse, "names", ())), secret, commands, per_stream)
     return field(default=default, metadata={"info": info})
 
 
@@ -236,12 +250,14 @@ class ReadOptions:
                               "Stamps: header (header.stamp) or log (the recorder's log time).")
     invert_a: bool | None = option(None, optional_flag, "Invert stream a first: it records T_sensor_world (e.g. "
                                    "a camera observing a fixed target). Unset: not inverted, and a stream that "
-                                   "clearly fits only inverted refuses the result.")
-    invert_b: bool | None = option(None, optional_flag, "Invert stream b first.")
+                                   "clearly fits only inverted refuses the result.", commands=PAIR, per_stream="invert")
+    invert_b: bool | None = option(None, optional_flag, "Invert stream b first.", commands=PAIR, per_stream="invert")
     wxyz_a: bool | None = option(None, optional_flag, "Stream a's text file stores quaternions w first: w x y z "
                                  "(--no-wxyz-a: x y z w). Unset: the format's order (TUM and CSV x y z w, EuRoC "
-                                 "w first), unless the other fits decisively better (the result's interpretation).")
-    wxyz_b: bool | None = option(None, optional_flag, "Stream b's text file stores quaternions w first.")
+                                 "w first), unless the other fits decisively better (the result's interpretation).",
+                                 commands=PAIR, per_stream="wxyz")
+    wxyz_b: bool | None = option(None, optional_flag, "Stream b's text file stores quaternions w first.",
+                                 commands=PAIR, per_stream="wxyz")
     time_unit: str = option("auto", choice("auto", "s", "ms", "us", "ns"), "Unit of the stamps in TUM/CSV files: "
                             "auto picks epoch stamps by magnitude; time since start is seconds in TUM (as the "
                             "format defines) and read by the median step in a CSV, with a warning.")
@@ -251,11 +267,11 @@ class ReadOptions:
         (), storage_options, "For inputs given as URLs (s3://, gs://, https://): a keyword of the fsspec file "
         "system, KEY=VALUE, repeatable (e.g. endpoint_url=…, profile=…, anon=true). Credentials otherwise come "
         "from the environment (AWS_ENDPOINT_URL, AWS_ACCESS_KEY_ID, AWS_PROFILE …); none is ever printed.",
-        "KEY=VALUE", secret=True)
+        "KEY=VALUE", secret=True, commands=REMOTE)
     remote_timeout: float = option(REMOTE_TIMEOUT_S, number(unit="seconds"), "For URL inputs: how long one "
-                                   "request may take [s] before it is tried again.", "SECONDS")
+                                   "request may take [s] before it is tried again.", "SECONDS", commands=REMOTE)
     remote_retries: int = option(REMOTE_RETRIES, integer(low=1), "For URL inputs: how many times a request is "
-                                 "tried before the input fails.", "N")
+                                 "tried before the input fails.", "N", commands=REMOTE)
 
 
 @dataclass(frozen=True)
@@ -273,7 +289,7 @@ class SyncOptions:
                                       "How far b's clock is ahead of a's [s]; auto: estimated from the angular "
                                       "velocities and applied when it is significant against its own uncertainty "
                                       "(else 0; both reported in the result's time_offset); 0 forces none.",
-                                      "SECONDS|auto")
+                                      "SECONDS|auto", commands=PAIR, per_stream="time_offset")
     max_time_offset: float | None = option(None, number(unit="seconds", word="off"),
                                            "With --time-offset auto (the default), search only ±this [s] (off: any).",
                                            "SECONDS|off")
@@ -326,19 +342,22 @@ class PairOptions:
 class SolverOptions:
     """The solver and its cost (paper eqs 8, 26)."""
 
-    method: str = option("dqopt", choice(*METHODS), "Solver: dqopt is the global optimum (paper §3.2.1); the others "
-                         "are the paper's approximations and Daniilidis' method.")
+    method: str = option("dqopt", choice(*METHODS), "Solver: dqopt is the global optimum (paper §3.2.1); dq2steps, "
+                         "dqconvrlx, dq2ndord and dqitr the paper's approximations; daniilidis the dual-quaternion "
+                         "SVD; tsai, park, horaud and andreff the classical methods (rotation, then translation).",
+                         commands=SOLVER)
     alpha: float | str = option("auto", number(unit="1/m", word="auto"),
                                 "Weight of translational residuals [1/m] (eq 8), or auto (maximum likelihood "
-                                "under the recording's noise model).", "NUMBER|auto")
+                                "under the recording's noise model).", "NUMBER|auto", commands=SOLVER)
     scale: float | str = option(1.0, number(unit="metres per unit of stream b", word="auto"),
                                 "Scale of stream b's translations [m per unit] (monocular odometry), or auto to "
-                                "estimate it with T_a_b.", "NUMBER|auto")
+                                "estimate it with T_a_b.", "NUMBER|auto", commands=PAIR, per_stream="scale")
     prior: str | None = option(None, path, "Nominal T_a_b (a URDF, launch file, static_transform_publisher "
                                "line, Kalibr YAML or handeye result; frames a, b as the result names them): fixes "
-                               "what the motion cannot observe.", "FILE")
+                               "what the motion cannot observe.", "FILE", commands=(*PAIR, "solve"))
     prior_weights: tuple[float, float] = option((1.0, 1.0), weight_pair,
-                                                "Weights a,b of the prior's rotation and translation terms.", "A,B")
+                                                "Weights a,b of the prior's rotation and translation terms.", "A,B",
+                                                commands=(*PAIR, "solve"))
     min_pairs: int = option(3, integer(low=2), "Fewer motion pairs than this is an error.", "N")
 
 
@@ -360,8 +379,9 @@ class OutputOptions:
     """How the result names the frames."""
 
     name_a: str | None = option(None, frame_name, "Name of frame a in the result and the ROS snippet [default: "
-                                "the stream's child frame, else its topic].", "FRAME")
-    name_b: str | None = option(None, frame_name, "Name of frame b in the result.", "FRAME")
+                                "the stream's child frame, else its topic].", "FRAME", commands=PAIR, per_stream="name")
+    name_b: str | None = option(None, frame_name, "Name of frame b in the result.", "FRAME",
+                                commands=PAIR, per_stream="name")
 
 
 SECTIONS: dict[str, type] = {"read": ReadOptions, "sync": SyncOptions, "gates": GateOptions,

@@ -40,7 +40,7 @@ from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit,
 from .analysis.selection import Selection, select_pairs
 from .analysis.subspace import observable_subspace
 from .config import load_options
-from .errors import ConfigError, HandEyeError
+from .errors import ConfigError, DataError, HandEyeError
 from .geometry import se3
 from .io.nominal import read_nominal
 from .io.spec import StreamSpec
@@ -55,7 +55,7 @@ from .stages.sync import Synced, default_max_dt_ns
 from .streams import PoseStream
 
 __all__ = ["Calibration", "StreamSpec", "Uncertainty", "calibrate", "calibrate_files", "calibrate_read",
-           "inverted_as_read", "read_streams", "refuse_unread"]
+           "check_samples", "inverted_as_read", "read_streams", "refuse_unread"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,18 +193,20 @@ def _spec(source: Source, topic: str | None, frames: tuple[str, str] | None) -> 
 
 
 def read_streams(specs: Sequence[StreamSpec | PoseStream], options: Options | None = None, *,
-                 quiet: bool = True) -> list[PoseStream]:
+                 quiet: bool = True, quaternion_orders: Sequence[str] | None = None) -> list[PoseStream]:
     """The streams of ``specs`` (a PoseStream is taken as it is), as the files hold them: the one read path of
     calibrate, rig and batch. Each input is detected once and every stream of one log read in one pass
     (:func:`~handeye_cli.io.read_specs`); ``options.read`` sets the time source, CSV columns and time unit of
     every file, ``wxyz_a`` / ``wxyz_b`` the quaternion order of the first / second stream (a rig's others: the
-    format's, open to the fit). :func:`calibrate_read` inverts them where the options say so."""
+    format's, open to the fit), or ``quaternion_orders`` per spec (``auto``, ``xyzw``, ``wxyz``: a rig's, by stream
+    name). :func:`calibrate_read` inverts them where the options say so."""
     from .io import read_specs  # mcap/rosbags: import only when reading
 
     read = (options or Options()).read
     wxyz = (read.wxyz_a, read.wxyz_b)
     files = [(k, s) for k, s in enumerate(specs) if isinstance(s, StreamSpec)]
-    orders = ["auto" if k > 1 or wxyz[k] is None else "wxyz" if wxyz[k] else "xyzw" for k, _ in files]
+    orders = [quaternion_orders[k] if quaternion_orders else "auto" if k > 1 or wxyz[k] is None
+              else "wxyz" if wxyz[k] else "xyzw" for k, _ in files]
     read_now = read_specs([s for _, s in files], time_source=read.time_source,
                           columns=dict(read.csv_columns) if read.csv_columns else None, quaternion_orders=orders,
                           time_unit=read.time_unit, quiet=quiet)
@@ -512,6 +514,22 @@ def _inversion_inputs(read: ReadOptions) -> dict[str, bool]:
     return {key: True for key in ("invert_a", "invert_b") if getattr(read, key)}
 
 
+def check_samples(stream: PoseStream, label: str) -> None:
+    """A stream built in memory whose samples hold a NaN or infinite value or a zero-norm quaternion is
+    refused naming the first as the user indexes the arrays (``label``, e.g. ``stream b``, then ``sample 10``,
+    0-based), not as a
+    motion later (``motions_b[401]``). Streams read from files have such samples dropped already
+    (with a warning), so this is quiet for them."""
+    quat = stream.quat_xyzw
+    bad = ~(np.isfinite(stream.xyz).all(axis=1) & np.isfinite(quat).all(axis=1)) | ~(np.abs(quat) > 0).any(axis=1)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{label}, sample {k} (0-based: xyz[{k}] {stream.xyz[k].tolist()}, quat_xyzw[{k}] "
+                        f"{quat[k].tolist()}) has a NaN or infinite value or a zero-norm quaternion; "
+                        f"{int(bad.sum())} such sample(s) in all", stream.source or label,
+                        "remove or repair those samples (a file's are dropped with a warning)")
+
+
 def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
                    inputs: dict[str, Any] | None = None, scale_by_fit: bool = True) -> Calibration:
     """:func:`calibrate` streams as a reader produced them with ``opts.read`` (parsed, not yet inverted: the
@@ -526,6 +544,8 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     → [bootstrap]. After the solve, b's translations found in other units by the fit are estimated with
     ``T_a_b`` (``scale_by_fit``; ``handeye rig`` passes False: its consistency test names such a stream).
     """
+    check_samples(stream_a, "stream a")
+    check_samples(stream_b, "stream b")
     given = stream_a, stream_b                                 # as read: what a second reading starts from
     if opts.solver.scale not in (1.0, "auto"):
         stream_b = replace(stream_b, xyz=stream_b.xyz * float(opts.solver.scale))
@@ -615,12 +635,19 @@ def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inp
                   scale_by_fit: bool, refused: str) -> Calibration | None:
     """A fit the fit test refused (``refused``: its figures), solved again with outliers rejected, as ``--robust``
     does (RANSAC on minimal sets, then the weighted optimal solve on the inliers): kept, with the settings saying
-    ``robust`` and a first warning naming what was dropped, when at least ``RETRY_MIN_INLIERS`` of the pairs are
-    inliers and those fit as clean data do (a fit-test ratio within ``RETRY_MAX_RATIO``); else None (the refusal
-    stands). Not tried when ``robust``
-    was asked for already: a stream with a few bad poses (a station seen wrongly, a tracking glitch) gives a
-    verified result, a wrong convention or streams that are not rigidly attached do not."""
-    from .analysis.robust import RETRY_MAX_RATIO, RETRY_MIN_INLIERS
+    ``robust`` and a first warning naming what was dropped, when at least ``RETRY_MIN_INLIERS`` of the samples
+    agree with the consensus (``consensus_share``), no run of more than ``RETRY_MAX_RUN`` of them disagrees (a
+    sensor that moved) and the inliers fit as clean data do (a fit-test ratio within ``RETRY_MAX_RATIO``); else
+    None (the refusal stands). Not tried when ``robust`` was asked for already: a stream with a few bad poses (a
+    station seen wrongly, a tracking glitch) gives a verified result, a wrong convention or streams that are not
+    rigidly attached do not."""
+    from .analysis.robust import (
+        RETRY_MAX_RATIO,
+        RETRY_MAX_RUN,
+        RETRY_MIN_INLIERS,
+        consensus_share,
+        longest_disagreement,
+    )
 
     if opts.analysis.robust:
         return None
@@ -629,7 +656,8 @@ def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inp
                              inputs=inputs, scale_by_fit=scale_by_fit)
     except HandEyeError:
         return None
-    if (cal.robust is None or cal.robust.inliers.mean() < RETRY_MIN_INLIERS
+    if (cal.robust is None or consensus_share(cal.robust.inliers, cal.pairs.i, cal.pairs.j) < RETRY_MIN_INLIERS
+            or longest_disagreement(cal.robust.inliers, cal.pairs.i, cal.pairs.j) > RETRY_MAX_RUN
             or not cal.diagnostics["fit_test"]["ratio"] <= RETRY_MAX_RATIO):
         return None
     n, kept = len(cal.robust.inliers), int(cal.robust.inliers.sum())

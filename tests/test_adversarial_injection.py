@@ -78,7 +78,7 @@ def _xml_cannot(name: str) -> bool:
 
 
 def _refused(fmt: str, names: list[str]) -> bool:
-    if fmt == "urdf":
+    if fmt in ("urdf", "urdf-joint"):
         return any(_xml_cannot(n) for n in names)
     if fmt == "ros1-launch":        # args are split at whitespace: only names tf2 accepts
         return any(_xml_cannot(n) or re.search(r"[\s'\"`\\]", n) or not n.isprintable() or len(n) > 256
@@ -129,6 +129,15 @@ def _check_urdf(text: str, doc: dict) -> None:
     joints = root.findall("joint")
     assert [(j.find("parent").get("link"), j.find("child").get("link")) for j in joints] == pairs
     assert [link.get("name") for link in root.findall("link")] == list(dict.fromkeys(n for p in pairs for n in p))
+
+
+def _check_urdf_joint(text: str, doc: dict) -> None:
+    """The joints alone: pasted into a <robot>, the same joints as the whole URDF, and no link."""
+    assert "<robot" not in text and "<link" not in text
+    root, comments = _xml(f"<robot>{text}</robot>")
+    assert len(comments) == 1 and "\n" not in comments[0]
+    assert {e.tag for e in root.iter()} == {"robot", "joint", "parent", "child", "origin"}
+    assert [(j.find("parent").get("link"), j.find("child").get("link")) for j in root.findall("joint")] == _pairs(doc)
 
 
 def _check_ros1(text: str, doc: dict) -> None:
@@ -191,6 +200,7 @@ def _check_shell(text: str, doc: dict, tmp_path: Path, marker: Path) -> None:
 
 
 CHECKS = {"yaml": _check_yaml, "json": _check_json, "kalibr": _check_kalibr, "urdf": _check_urdf,
+          "urdf-joint": _check_urdf_joint,
           "ros1-launch": _check_ros1}
 
 

@@ -168,3 +168,40 @@ def test_solve_has_the_command_lines_defaults_and_values(tmp_path, capsys):
         assert np.allclose(doc["matrix"], sol.matrix, atol=1e-12)
     with pytest.raises(ConfigError, match=r"\(alpha\)"):
         handeye_cli.solve(A, B, alpha="fast")
+
+
+def test_a_nan_in_an_in_memory_stream_is_named_as_the_user_indexes_it():
+    """What a new user hit (issue 21): a NaN in stream b was reported as ``motions_b[401]``, an internal
+    index into the motion pairs. It is stream b's sample as the user's arrays index it (0-based)."""
+    from dataclasses import replace
+
+    from handeye_cli.rig import calibrate_rig
+
+    a, b = simulate_rig(Rig(np.eye(4)), duration_s=10.0, seed=1)
+    xyz = b.xyz.copy()
+    xyz[10, 1] = np.nan
+    quat = b.quat_xyzw.copy()
+    quat[12] = 0.0
+    bad = replace(b, xyz=xyz, quat_xyzw=quat)
+    with pytest.raises(DataError, match=r"^stream b, sample 10 \(0-based: xyz\[10\] \[[^]]*nan[^]]*\], quat_xyzw\[10\]"
+                                        r".*; 2 such sample\(s\) in all") as e:
+        calibrate_files(a, bad)
+    assert "motions" not in str(e.value)
+    with pytest.raises(DataError, match=r"^stream 'cam1', sample 10 \(0-based"):
+        calibrate_rig({"cam0": a, "cam1": bad})
+
+
+def test_python_errors_name_keywords_where_the_command_line_names_flags(capsys):
+    """The same refusal in each surface's words: the CLI's fix names flags, the Python API's the keyword
+    arguments (issue 21: the API's errors cited CLI flags)."""
+    from _util import run
+
+    import handeye_cli
+
+    with pytest.raises(handeye_cli.HandEyeError) as info:
+        handeye_cli.calibrate_files("sample_data/rig.mcap", topic_a="/cam0/pose", topic_b="/cam1/pose",
+                                    max_jump=0.01)
+    assert "(max_jump)" in str(info.value) and "gate='paper'" in info.value.fix and "--" not in str(info.value)
+    code, _, err = run(capsys, "calibrate", "sample_data/rig.mcap", "--topic-a", "/cam0/pose", "--topic-b",
+                       "/cam1/pose", "--max-jump", "0.01")
+    assert code == 2 and "(--max-jump)" in err and "--gate paper" in err

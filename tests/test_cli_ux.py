@@ -66,3 +66,42 @@ def test_gate_off_in_a_configuration_file(capsys, tmp_path) -> None:
     options = json.loads(out)["settings"]["options"]
     assert code == 0, err
     assert (options["gate"], options["stations"]) == ("off", "off")
+
+
+def test_a_mistyped_command_gets_did_you_mean(capsys) -> None:
+    """``handeye calibrat`` got no "did you mean", though a mistyped option does."""
+    code, out, err = run(capsys, "calibrat", SAMPLE / "rig_a.tum", SAMPLE / "rig_b.tum")
+    assert code == 2 and out == "" and len(err.splitlines()) == 1
+    assert "No such command 'calibrat'. (Did you mean 'calibrate'?)" in err
+    code, _, err = run(capsys, "xyzzy")
+    assert code == 2 and "No such command 'xyzzy'" in err and "Did you mean" not in err
+
+
+def test_help_names_one_default_and_every_method(capsys) -> None:
+    """``--name-a`` help showed two defaults ("[default: the stream's child frame, else its topic]. [default:
+    off]"); ``--method`` help omitted tsai/park/horaud/andreff."""
+    import re
+
+    from handeye_cli.solvers import METHODS
+
+    code, out, _ = run(capsys, "calibrate", "--help")
+    text = " ".join(out.split())
+    name_a = text.split("--name-a FRAME", 1)[1].split("--name-b", 1)[0]
+    assert code == 0 and name_a.count("[default:") == 1 and "child frame" in name_a
+    method = text.split("Solver:", 1)[1].split(" --", 1)[0]
+    assert all(re.search(rf"\b{m}\b", method) for m in METHODS), method
+
+
+def test_a_missing_optional_package_is_named_as_the_registry_knows_it(capsys, monkeypatch) -> None:
+    """The hint ``pip install 'handeye-cli[report]'`` named a package that is not on the registry, which a user
+    of a checkout cannot install; the hints for URLs and Dask name the packages themselves."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "fsspec", None)          # import fsspec → ImportError
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    code, out, err = run(capsys, "inspect", "s3://bucket/log.mcap")
+    assert code == 2 and out == "" and err.rstrip().endswith("pip install fsspec s3fs (S3)")
+    code, _, err = run(capsys, "batch", SAMPLE / "rig.mcap", "--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose",
+                       "--scheduler", "tcp://127.0.0.1:1")
+    assert code == 2 and "pip install 'dask[distributed]'" in err
+    assert "handeye-cli[" not in err

@@ -161,8 +161,10 @@ def option_rows() -> list[str]:
         for name, (sec, info, default) in FIELDS.items():
             if sec == section:
                 help_text = info.help.replace("|", "\\|")
-                rows.append(f"| `{name}` | `--{name.replace('_', '-')}` | {sec} | `{_default_text(default)}` "
-                            f"| {help_text} |")
+                rig = f", rig `--{info.per_stream.replace('_', '-')} NAME`" if info.per_stream not in (None, "name") \
+                    else ", rig: the stream's NAME" if info.per_stream else ""
+                rows.append(f"| `{name}` | `--{name.replace('_', '-')}` | {sec} | {' '.join(info.commands)}{rig} "
+                            f"| `{_default_text(default)}` | {help_text} |")
     return rows
 
 
@@ -225,3 +227,17 @@ def test_cli_examples_become_code_blocks() -> None:
     assert hooks.fence_examples(lines) == [
         "Intro text:", "  - a list item", "", "Examples:", "", "```shell", "handeye batch logs/*/ \\\\",
         "    --jobs 8", "handeye check r.yaml", "```", "Exit codes: 0 ok,", "  1 drift"]
+
+
+def test_no_page_claims_a_version_the_package_is_not() -> None:
+    """The tutorials said "since 0.2 (unreleased)" while ``handeye --version`` says 0.1.0: a page may name no
+    version newer than the package's, nor date a feature "(unreleased)" (citing the changelog's *Unreleased*
+    section is fine)."""
+    from handeye_cli.version import __version__
+
+    mine = tuple(int(p) for p in __version__.split(".")[:2])
+    for page in PAGES:
+        text = page.read_text(encoding="utf-8")
+        assert "(unreleased)" not in text.lower(), page
+        for major, minor in re.findall(r"\b(?:since|version|v)\s*(\d+)\.(\d+)\b", text, flags=re.I):
+            assert (int(major), int(minor)) <= mine, (page, f"{major}.{minor}")

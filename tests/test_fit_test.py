@@ -108,10 +108,10 @@ def test_refusal_is_a_data_error_naming_the_causes_and_the_override():
         calibrate(rec.a, _w_first_read_as_x_first(rec.b), pairs="stride:6", max_pairs=120, time_offset=0)
     e = info.value
     assert isinstance(e, DataError) and e.where == "fit test"
-    for flag in ("--wxyz-a / --wxyz-b", "--invert-a / --invert-b", "--time-unit", "--frames-a PARENT CHILD",
-                 "--time-offset auto", "--robust", "--accept-poor-fit"):
-        assert flag in e.fix
-    assert e.fix.index("--wxyz") < e.fix.index("--time-unit")     # continuous: the quaternion order first
+    for keyword in ("wxyz_a=True / wxyz_b=True", "invert_a=True / invert_b=True", "time_unit=",   # the API's words
+                    "frames_a=(PARENT, CHILD)", "time_offset='auto'", "robust=True", "accept_poor_fit=True"):
+        assert keyword in e.fix
+    assert e.fix.index("wxyz") < e.fix.index("time_unit")     # continuous: the quaternion order first
 
 
 def test_accept_poor_fit_keeps_the_result_with_a_warning():

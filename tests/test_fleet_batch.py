@@ -182,7 +182,7 @@ def test_dask_cluster_gives_byte_identical_records(fleet, capsys):
     except ImportError:
         if os.environ.get("CI"):
             raise
-        pytest.skip("dask.distributed is not installed (pip install 'handeye-cli[dask]'); CI installs it")
+        pytest.skip("dask.distributed is not installed (pip install 'dask[distributed]'); CI installs it")
     root, _, _ = fleet
     inputs = [str(root / "logs" / "robot0[0-4]"), root / "logs" / "broken", root / "logs" / "robot22"]
     code_local, local, _ = run(capsys, *_args(root, *inputs, "--jobs", "2", "-q"))
@@ -199,6 +199,11 @@ def test_fleet_report_renders_in_headless_chromium(fleet, capsys, tmp_path):
     if not (root / "verdicts.jsonl").exists():
         pytest.fail("test_fleet_records_order_statuses_and_exit_code must run first (it writes the records)")
     code, out, err = run(capsys, "report", root / "verdicts.jsonl", "-o", tmp_path / "fleet.html")
+    statuses = [json.loads(line)["status"] for line in (root / "verdicts.jsonl").read_text().splitlines()]
+    assert code == 0 and out == "" and err == (f"{tmp_path / 'fleet.html'}: {len(statuses)} records ("
+                                               f"{statuses.count('ok')} ok, {statuses.count('drift')} drift, "
+                                               f"{statuses.count('error')} error)\n")
+    code, out, err = run(capsys, "report", root / "verdicts.jsonl", "-o", tmp_path / "fleet.html", "-q")
     assert code == 0 and out == "" and err == ""
     text = (tmp_path / "fleet.html").read_text(encoding="utf-8")
     stamp = re.compile(r"Generated [^<]* by")

@@ -108,7 +108,7 @@ def _svg(html: str) -> str:
 
 def test_the_fleet_report_draws_one_line_per_robot_with_the_legend_off_the_data(capsys, tmp_path):
     _fleet_records(tmp_path / "records.jsonl")
-    code, out, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html")
+    code, out, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html", "-q")
     assert code == 0 and out == err == ""
     html = (tmp_path / "fleet.html").read_text()
     svg = _svg(html)
@@ -116,17 +116,38 @@ def test_the_fleet_report_draws_one_line_per_robot_with_the_legend_off_the_data(
     assert svg.count(f"stroke='{first}'") == svg.count(f"stroke='{second}'") > 0
     assert "fill-opacity='0.8'" not in svg                     # no legend box over the panels
     caption = html.split("<figcaption>", 1)[1].split("</figcaption>", 1)[0]
-    assert "6 log(s) of 2 robot(s)" in caption and "logs//robot01.mcap" in caption and "robot02" in caption
+    assert "6 log(s) of 2 robot(s)" in caption and "logs/robot01.mcap" in caption and "robot02" in caption
     assert "matplotlib" not in html and "image/png" not in html
+
+
+def test_the_fleet_report_draws_each_sensor_pair_apart_one_line_per_robot(capsys, tmp_path):
+    """Two sensor pairs of the same two robots: one chart per pair, in each one line per robot (not all
+    robots' logs of every pair joined into one line)."""
+    _fleet_records(tmp_path / "records.jsonl")
+    cam = (tmp_path / "records.jsonl").read_text().splitlines()
+    lidar = [json.dumps({**json.loads(line), "frames": {"a": "base", "b": "lidar"}}) for line in cam[:4]]
+    (tmp_path / "records.jsonl").write_text("\n".join(cam + lidar) + "\n")
+    code, _, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html")
+    assert code == 0 and err == ""
+    html = (tmp_path / "fleet.html").read_text()
+    svgs = [base64.b64decode(d).decode() for d in re.findall(r"src='data:image/svg\+xml;base64,([^']*)'", html)]
+    captions = re.findall(r"<figcaption>(.*?)</figcaption>", html)
+    assert len(svgs) == 2 and captions[0].startswith("T_base_lidar: 4 log(s) of 2 robot(s)")
+    assert captions[1].startswith("T_cam0_cam1: 6 log(s) of 2 robot(s)")
+    for svg, per_robot in zip(svgs, (2, 3), strict=True):     # logs per robot: lidar 2 nights, cameras 3
+        for color in ("#1f77b4", "#ff7f0e"):          # robot 01, robot 02: one line in each of the six panels
+            lines = re.findall(rf"<path fill='none' stroke='{color}' stroke-width='[^']*' d='M[^ ]+ [^ ]+l([^']*)'/>",
+                               svg)
+            assert len(lines) == 6 and all(len(d.split()) == 2 * (per_robot - 1) for d in lines), lines
 
 
 def test_the_fleet_report_reads_a_records_file_with_a_cut_last_line(capsys, tmp_path):
     _fleet_records(tmp_path / "records.jsonl")
     text = (tmp_path / "records.jsonl").read_text()
     (tmp_path / "records.jsonl").write_text(text[:-40])       # the batch was killed writing its last record
-    code, out, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html")
-    assert code == 0 and out == "" and "records.jsonl:6: the last line is cut" in err
+    code, out, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html", "-q")
+    assert code == 0 and out == "" and "records.jsonl:6: the last line is cut" in err      # warnings stay
     assert "5 log(s) of 2 robot(s)" in (tmp_path / "fleet.html").read_text()
     (tmp_path / "records.jsonl").write_text(text.rstrip("\n"))  # whole, with no final newline: kept
-    code, _, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html")
+    code, _, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html", "-q")
     assert code == 0 and err == "" and "6 log(s)" in (tmp_path / "fleet.html").read_text()

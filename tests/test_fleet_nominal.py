@@ -22,7 +22,8 @@ def _doc(T: np.ndarray, a: str = "cam0_link", b: str = "imu") -> dict:
             "method": "dqopt", "pairs_used": 10, "version": "0.1.0"}
 
 
-SUFFIX = {"yaml": ".yaml", "json": ".json", "urdf": ".urdf", "ros1-launch": ".launch", "ros2-launch": ".launch.py",
+SUFFIX = {"yaml": ".yaml", "json": ".json", "urdf": ".urdf", "urdf-joint": ".urdf",
+          "ros1-launch": ".launch", "ros2-launch": ".launch.py",
           "tf-static": ".sh", "kalibr": ".kalibr.yaml"}
 
 

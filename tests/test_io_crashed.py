@@ -108,6 +108,10 @@ def test_mcap_cut_mid_chunk(tmp_path, streams, compression):
     assert len(s) < len(streams[0]) and s.recovered_truncated == len(s)
     (w,) = s.warnings
     assert re.fullmatch(rf"recovered {len(s)} messages from truncated .*r\.mcap; the rest is lost", w)
+    info = inspect_log(path)                     # inspect says so too, and what is lost (it said nothing)
+    (w,) = info["warnings"]
+    assert w.startswith(f"{path} is cut off") and "whatever was recorded after the cut is lost" in w
+    assert {t["topic"]: t["count"] for t in info["topics"]}["/a"] == len(s)
 
 
 def test_mcap_without_footer(tmp_path, streams):
@@ -168,6 +172,8 @@ def test_rosbag1_cut_inside_its_chunk(tmp_path, streams):
     s = read_stream(path, topic="/a")
     assert_prefix_of(s, streams[0], 100)
     assert s.recovered_truncated == len(s) and any("truncated" in w for w in s.warnings)
+    (note, cut) = inspect_log(path)["warnings"]
+    assert "no usable index" in note and cut.startswith(f"{path} is cut off") and " s of messages are read" in cut
 
 
 def test_rosbag1_with_a_damaged_index(tmp_path, streams):

@@ -215,19 +215,20 @@ def test_tum_round_trip_on_many_blocks(tmp_path, monkeypatch, rig):
 
 
 # --- inspect ----------------------------------------------------------------------------------
-def test_inspect_samples_tf_unless_asked_for_all(tmp_path, rig):
-    """Counts come from the summary; TF edges from the first TF_SAMPLE messages unless all_tf."""
-    from handeye_cli.io import inspect_log
-    from handeye_cli.io.logs import TF_SAMPLE
+def test_inspect_counts_every_tf_message(tmp_path, monkeypatch):
+    """Counts come from the summary; the TF edges from every TF message (they stopped at 2000, and
+    a frame first sent late was missing), by the fast path and the generic reader alike."""
+    from handeye_cli.io import inspect_log, mcap_reader
     a = simulate_rig(Rig(np.eye(4)), duration_s=60.0, rate_a=50.0, seed=4)[0]
     late = (int(a.stamps_ns[-1]), [(int(a.stamps_ns[-1]), "world", "late_frame", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)])
     path = write_mcap(tmp_path / "tf.mcap", [Channel("/tf", TF, [(r[0], [r]) for r in records(a, "world", "base")]
                                                      + [late])])
     n = len(a) + 1
-    assert n > TF_SAMPLE
-    quick, full = inspect_log(path), inspect_log(path, all_tf=True)
-    assert quick["topics"][0]["count"] == full["topics"][0]["count"] == n
-    assert (quick["tf_messages_read"], quick["tf_complete"]) == (TF_SAMPLE, False)
-    assert (full["tf_messages_read"], full["tf_complete"]) == (n, True)
-    assert [e["child"] for e in quick["tf_frames"]] == ["base"]
-    assert [e["child"] for e in full["tf_frames"]] == ["base", "late_frame"]
+    assert n > 2000
+    fast = inspect_log(path)
+    monkeypatch.setattr(mcap_reader.McapSource, "read_fast", lambda self, topics, time_source: {})
+    slow = inspect_log(path)
+    for info in (fast, slow):
+        assert info["topics"][0]["count"] == info["tf_messages"] == n
+        assert info["tf_frames"] == [{"parent": "world", "child": "base", "static": False, "count": len(a)},
+                                     {"parent": "world", "child": "late_frame", "static": False, "count": 1}]

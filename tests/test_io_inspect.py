@@ -22,6 +22,7 @@ from _logs import (
     write_mcap,
     write_tum,
 )
+from _util import run
 
 from handeye_cli.io import inspect_log, read_stream
 from handeye_cli.simulation import Rig, simulate_rig
@@ -57,11 +58,16 @@ def test_inspect_log(tmp_path, streams, kind):
     topics = {t["topic"]: t for t in info["topics"]}
     assert [t["topic"] for t in info["topics"]] == sorted(topics)
     enc = "ros1" if kind in ("mcap_ros1", "bag1") else "cdr"
+    own = int(a.stamps_ns[-1] - a.stamps_ns[0])              # rated over its own span, not the log's
     assert topics["/cam0/pose"] == {"topic": "/cam0/pose", "type": POSE, "encoding": enc, "count": len(a),
-                                    "rate_hz": round(len(a) / (last - first) * 1e9, 3), "pose": True}
+                                    "first_ns": int(a.stamps_ns[0]), "last_ns": int(a.stamps_ns[-1]),
+                                    "rate_hz": round((len(a) - 1) / own * 1e9, 3), "rate_over": "topic", "pose": True}
     assert topics["/odom"]["count"] == len(b) and topics["/odom"]["pose"]
+    assert topics["/odom"]["rate_hz"] == round((len(b) - 1) / int(b.stamps_ns[-1] - b.stamps_ns[0]) * 1e9, 3)
     assert topics["/tf"]["type"] == TF and not topics["/tf"]["pose"]           # two frame pairs
     assert topics["/tf_static"]["type"] == TF and topics["/tf_static"]["pose"]  # one pair
+    assert (topics["/tf_static"]["rate_hz"], topics["/tf_static"]["rate_over"]) == (None, "latched")
+    assert info["warnings"] == [] and info["tf_messages"] == len(b) + 1
     assert topics["/notes"]["type"] == "std_msgs/msg/String" and not topics["/notes"]["pose"]
     assert info["tf_frames"] == [{"parent": "base", "child": "cam1", "static": False, "count": len(b)},
                                  {"parent": "cam1", "child": "lens", "static": True, "count": 1},
@@ -109,3 +115,49 @@ def test_progress_bar_only_on_a_terminal_and_not_quiet(big_log, monkeypatch, tty
     assert len(read_stream(big_log, topic="/p", quiet=quiet)) == 12_000
     assert ("reading /p" in err.getvalue() and "100%" in err.getvalue()) == shown
     assert shown or err.getvalue() == ""
+
+
+def test_inspect_text_rates_tf_tree_and_a_cut_file_as_the_user_reads_them(capsys, tmp_path):
+    """What a new user hit (issue 21): rates over the whole log's span (99.651 Hz for 100 Hz, 0.007 Hz for a
+    latched /tf_static), TF edge counts stopping at 2000, a flat edge list where a tree was promised, and
+    nothing said of a file cut off."""
+    a, b = simulate_rig(Rig(np.eye(4)), duration_s=30.0, rate_a=100.0, rate_b=10.0, seed=3)
+    late = [(int(t) + 10**9, [(int(t) + 10**9, "odom", "base", *r[3:])]) for t, r in
+            zip(b.stamps_ns, records(b, "odom", "base"), strict=True)]        # 10 Hz, ends 1 s after a
+    t0 = int(a.stamps_ns[0])
+    path = write_mcap(tmp_path / "log.mcap", [
+        pose_channel("/cam0/pose", POSE, records(a, "world", "")),
+        Channel("/tf", TF, [(r[0], [r]) for r in records(a, "world", "odom")] + late),
+        Channel("/tf_static", TF, [(t0, [(t0, "base", "cam1", 0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0)])], static=True)],
+        chunk_size=30_000)
+    code, out, err = run(capsys, "inspect", path)
+    assert code == 0 and err == ""
+    rows = {line.split()[1]: line for line in out.splitlines() if line.startswith("  * ") or line.startswith("    /")}
+    own = (len(a) - 1) / (a.stamps_ns[-1] - a.stamps_ns[0]) * 1e9
+    assert rows["/cam0/pose"].endswith(f"{len(a)} msgs  {round(own, 3)} Hz") and abs(own - 100.0) < 0.05
+    assert rows["/tf_static"].endswith("1 msgs  latched (static)")
+    n_tf = len(a) + len(b) + 1
+    assert n_tf > 2000 and f"TF tree, from all {n_tf} TF messages" in out
+    tree = out.split("PARENT CHILD):\n", 1)[1].splitlines()
+    assert tree == ["    world", f"      odom  {len(a)} msgs", f"        base  {len(b)} msgs", "          cam1  static"]
+    data = path.read_bytes()
+    path.write_bytes(data[:len(data) * 2 // 3])                       # the recorder was killed
+    code, out, err = run(capsys, "inspect", path)
+    warning = out.splitlines()[1]
+    assert code == 0 and warning.startswith(f"  warning: {path} is cut off") and "is lost" in warning
+
+
+def test_a_topic_whose_span_the_log_does_not_tell_is_rated_over_the_logs(tmp_path, streams, monkeypatch):
+    """A storage the readers cannot ask for a topic's span (several MCAP files of a ROS 2 bag, a compressed
+    .db3): its rate is over the log's span, and says so."""
+    from handeye_cli.cli.inspect import _rate
+    from handeye_cli.io import mcap_reader
+
+    a, b = streams
+    path = write_mcap(tmp_path / "log.mcap", log_channels(a, b))
+    monkeypatch.setattr(mcap_reader.McapSource, "topic_spans", lambda self: {})
+    info = inspect_log(path)
+    cam = next(t for t in info["topics"] if t["topic"] == "/cam0/pose")
+    assert (cam["first_ns"], cam["last_ns"], cam["rate_over"]) == (None, None, "log")
+    assert cam["rate_hz"] == round(len(a) / info["duration_ns"] * 1e9, 3)
+    assert _rate(cam) == f"{cam['rate_hz']} Hz (over the log's span)"

@@ -170,7 +170,8 @@ def _document(X: np.ndarray) -> dict:
             "ros2_static_transform": _static_transform_command(t, q, frames)}
 
 
-SUFFIX = {"yaml": ".yaml", "json": ".json", "urdf": ".urdf", "ros1-launch": ".launch", "ros2-launch": ".launch.py",
+SUFFIX = {"yaml": ".yaml", "json": ".json", "urdf": ".urdf", "urdf-joint": ".urdf", "ros1-launch": ".launch",
+          "ros2-launch": ".launch.py",
           "tf-static": ".sh", "kalibr": ".yaml"}
 
 

@@ -82,8 +82,7 @@ def test_calibrate_from_s3_equals_the_local_result_and_reports_bytes(s3, capsys)
     assert b["inputs"]["a"]["file"] == f"s3://{BUCKET}/logs/rig.mcap"
 
 
-@pytest.mark.parametrize(("name", "topics"), [("rig_ros1.bag", ("/cam0/odom", "/cam1/pose")),
-                                              ("rig_ros2", ("/cam0/transform", "/cam1/odom"))])
+@pytest.mark.parametrize(("name", "topics"), [("rig_ros2", ("/cam0/transform", "/cam1/odom"))])
 def test_logs_read_from_the_cache_say_so_and_equal_local(s3, capsys, name, topics):
     flags = ("--topic-a", topics[0], "--topic-b", topics[1], "-q")
     code, local, _ = run(capsys, "calibrate", SAMPLES / name, *flags)
@@ -103,6 +102,9 @@ def test_text_pair_and_inspect(s3, capsys):
     info = json.loads(out)
     assert code == 0 and info["path"] == f"s3://{BUCKET}/logs/rig.mcap"
     assert {t["topic"] for t in info["topics"]} >= {"/cam0/pose", "/cam1/pose"}
+    _, local_out, _ = run(capsys, "inspect", SAMPLES / "rig.mcap", "--format", "json")
+    local_info = json.loads(local_out)           # each topic's span from its message indexes, read by range
+    assert info["topics"] == local_info["topics"] and info["tf_frames"] == local_info["tf_frames"]
 
 
 def test_remote_and_local_mcap_streams_are_identical(s3):
@@ -298,3 +300,101 @@ def test_the_readme_nightly_job_reads_s3_directly(s3, capsys, tmp_path, monkeypa
     records = [json.loads(line) for line in out.splitlines()]
     assert len(records) == 3 and all(r["status"] == "ok" and r["inputs"]["bytes_fetched"] > 0 for r in records)
     assert (tmp_path / "fleet.html").is_file() and redirect.strip() == "verdicts.jsonl"
+
+
+def _image_bag(tmp_path, key: str):
+    """A small image-heavy ROS 1 bag with every second of poses in a chunk of its own, uploaded as
+    ``key``; (its path, its lower bound by its own index)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from remote import lower_bound_bag, write_image_bag
+
+    path = write_image_bag(tmp_path / "img.bag", seconds=4, image_bytes=200_000, own_chunks=True)
+    boto3.client("s3").upload_file(str(path), BUCKET, key)
+    return path, lower_bound_bag(path)
+
+
+def test_an_indexed_ros1_bag_is_read_by_range(s3, tmp_path):
+    """The bag header, the index, then only the pose chunks: fetched ≤ 1.2 × that lower bound, a few
+    per cent of the object, and the streams equal the local read (rosbags)."""
+    import numpy as np
+
+    from handeye_cli.io import read_log_streams
+    from handeye_cli.io.remote import session
+
+    path, bound = _image_bag(tmp_path, "bags/img.bag")
+    requests = [("/cam0/pose", None), ("/cam1/pose", None)]
+    local = read_log_streams(path, requests)
+    with session((), 10.0, 2) as s:
+        remote = read_log_streams(f"s3://{BUCKET}/bags/img.bag", requests)
+    assert not s.notes and bound < 0.05 * path.stat().st_size
+    assert bound <= s.bytes_fetched <= 1.2 * bound
+    for x, y in zip(local, remote, strict=True):
+        assert len(x) == 200 and not y.warnings
+        assert np.array_equal(x.stamps_ns, y.stamps_ns) and np.array_equal(x.xyz, y.xyz)
+        assert np.array_equal(x.quat_xyzw, y.quat_xyzw)
+
+
+def test_ros1_bag_by_range_with_tf_equals_local(s3, capsys):
+    """The sample bag (TF, odometry, covariance poses) by range: the calibration and inspect equal the local ones."""
+    flags = ("--topic-a", "/cam0/odom", "--topic-b", "/cam1/pose", "-q")
+    code, local, _ = run(capsys, "calibrate", SAMPLES / "rig_ros1.bag", *flags)
+    code_r, remote, err = run(capsys, "calibrate", f"s3://{BUCKET}/bags/rig_ros1.bag", *flags)
+    assert code == code_r == 0, err
+    _same_result(_doc(local), _doc(remote))
+    assert not any("cache" in w for w in _doc(remote)["warnings"])
+    frames = ("--frames-a", "world", "cam0", "--frames-b", "world", "cam1")
+    texts = [run(capsys, "calibrate", p, *frames, "-q")[1] for p in (SAMPLES / "rig_ros1.bag",
+                                                                     f"s3://{BUCKET}/bags/rig_ros1.bag")]
+    _same_result(*map(_doc, texts))
+    info = [json.loads(run(capsys, "inspect", p, "--format", "json")[1])
+            for p in (SAMPLES / "rig_ros1.bag", f"s3://{BUCKET}/bags/rig_ros1.bag")]
+    assert info[0]["topics"] == info[1]["topics"] and info[0]["start_ns"] == info[1]["start_ns"]
+
+
+@pytest.mark.parametrize("damage", ["never indexed", "cut short"])
+def test_a_ros1_bag_without_a_usable_index_is_downloaded_once(s3, tmp_path, damage):
+    import struct
+
+    import numpy as np
+
+    from handeye_cli.io import read_log_streams
+    from handeye_cli.io.remote import session
+
+    data = bytearray((SAMPLES / "rig_ros1.bag").read_bytes())
+    at = data.index(b"index_pos=") + len(b"index_pos=")
+    (index_pos,) = struct.unpack_from("<Q", data, at)
+    if damage == "never indexed":
+        data[at:at + 8] = bytes(8)
+    data = data[:index_pos]
+    (tmp_path / "bad.bag").write_bytes(bytes(data))
+    boto3.client("s3").put_object(Bucket=BUCKET, Key="bags/bad.bag", Body=bytes(data))
+    requests = [("/cam0/odom", None), ("/cam1/pose", None)]
+    local = read_log_streams(tmp_path / "bad.bag", requests)
+    with session((), 10.0, 2) as s:
+        remote = read_log_streams(f"s3://{BUCKET}/bags/bad.bag", requests)
+    assert s.bytes_fetched >= len(data)
+    why = "it was never indexed" if damage == "never indexed" else "past the end of the object"
+    assert any(why in w and "downloaded it whole" in w for w in remote[0].warnings), remote[0].warnings
+    assert any("linear scan" in w for w in remote[0].warnings)
+    for x, y in zip(local, remote, strict=True):
+        assert np.array_equal(x.stamps_ns, y.stamps_ns) and np.array_equal(x.xyz, y.xyz)
+
+
+def test_planned_ranges_near_ones_joined_far_ones_apart_and_asked_ahead():
+    """Ranges ≤ 64 KiB apart are one request (the gap counted), a far one its own; the views hold the
+    object's bytes whichever request brought them, and the requests ahead are all answered by the end."""
+    import fsspec
+
+    from handeye_cli.io.remote import _GAP, session
+
+    data = bytes(range(256)) * (1 << 13)                  # 2 MiB
+    with fsspec.open("memory://ranges/obj.bin", "wb") as f:
+        f.write(data)
+    planned = [(1000, 100), (1100 + _GAP, 50), (1 << 20, 4000), ((1 << 21) - 10, 10)]
+    with session((), 10.0, 2) as s:
+        obj = s.open("memory://ranges/obj.bin")
+        with obj.ranges(planned) as ranges:
+            views = [bytes(ranges.view(a, n)) for a, n in planned]
+        assert views == [data[a:a + n] for a, n in planned]
+        assert s.requests == 3 and s.bytes_fetched == (100 + _GAP + 50) + 4000 + 10
+        assert bytes(obj.ranges([]).view(5, 3)) == data[5:8] and s.requests == 4     # outside a plan: alone

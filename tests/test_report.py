@@ -77,7 +77,7 @@ def test_report_is_self_contained_and_states_the_result(report, full_doc, rig):
     assert "dqopt" in text and str(full_doc["pairs_used"]) in text
     assert "2 warning(s)" in text and "second warning" in text
     assert "spread &lt; 0.4° &amp; more" in text                      # escaped, not raw HTML
-    for section in ("Time offset", "Uncertainty", "Residual summary", "Outlier rejection", "Other diagnostics"):
+    for section in ("Time offset", "Uncertainty", "Residual summary", "Outlier rejection", "Observability"):
         assert section in text
     images = _images(text)
     assert len(images) == 4 == text.count("<img")                     # trajectories, residuals, samples, bootstrap
@@ -170,3 +170,53 @@ def test_report_renders_in_headless_chromium(report, tmp_path):
     for rgb in ((0x1f, 0x77, 0xb4), (0xff, 0x7f, 0x0e)):
         close = np.abs(flat - np.array(rgb) / 255.0).max(axis=1) < 0.06
         assert close.sum() > 200, f"colour {rgb} barely appears in the screenshot"
+
+
+def _svgs(text: str) -> dict[str, str]:
+    return {alt: base64.b64decode(data).decode() for alt, data in
+            re.findall(r"<img alt='([^']*)' src='data:image/svg\+xml;base64,([^']*)'", text)}
+
+
+def _bar_widths(svg: str, color: str) -> list[float]:
+    return [float(w) for w in re.findall(rf"<rect x='[^']*' y='[^']*' width='([^']*)' height='[^']*' fill='{color}'/>",
+                                         svg)]
+
+
+def test_sample_bars_show_zero_as_nothing_and_one_drop_as_small(rig):
+    """What a new user hit (issue 21): on the log scale a count of 0 drew a visible bar, and one dropped
+    sample filled most of the linear drop panel in red. Both panels now share one log scale, 0 has no bar,
+    and the drop panel is exactly SampleCounts.losses()."""
+    from dataclasses import replace
+
+    from handeye_cli.output.report import COLOR_A, COLOR_BAD
+    from handeye_cli.stages.counts import SampleCounts
+
+    counts = SampleCounts(read_a=3000, read_b=3000, synced=2999, dropped_outside_span=1, synced_kept=2999,
+                          keyframes=2999, candidate_pairs=2998, pairs=1000)
+    cal = replace(rig[2], samples=counts)
+    svg = _svgs(render_report(cal, document(cal)))["samples per stage"]
+    kept, drops = _bar_widths(svg, COLOR_A), _bar_widths(svg, COLOR_BAD)
+    losses = counts.losses()
+    assert len(drops) == len(losses) and len(kept) == len(counts.as_dict()) - len(losses)
+    assert sorted(drops)[:-1] == [0.0] * (len(losses) - 1)                   # every zero: no bar
+    assert kept.count(0.0) == sum(v == 0 for k, v in counts.as_dict().items() if k not in losses)
+    assert 0 < max(drops) < 0.15 * max(kept)                                # 1 of 3000: a short bar
+
+
+def test_the_diagnostics_are_titled_tables_without_empty_values(capsys, tmp_path):
+    """The report ended in a raw-key dump ("Other diagnostics": every option, ``rms_deg None``). Each block
+    of the result has a title, values not computed are left out, and the settings are the changed options."""
+    from _util import ROOT, run
+
+    code, _, err = run(capsys, "calibrate", ROOT / "sample_data" / "rig_a.tum", ROOT / "sample_data" / "rig_b.tum",
+                       "--pairs", "consecutive", "--report", tmp_path / "r.html", "-q", "-o", tmp_path / "r.json")
+    assert code == 0, err
+    text = (tmp_path / "r.html").read_text()
+    tables = text.split("<h2>Diagnostics</h2>", 1)[1]
+    cells = re.findall(r"<td class='num'>([^<]*)</td>", tables)
+    assert cells and "None" not in cells and "[]" not in cells and "{}" not in cells
+    assert "Other diagnostics" not in text
+    for title in ("Fit test", "Solver", "Synchronisation", "Settings"):
+        assert f"<h2>{title}</h2>" in tables
+    settings = tables.split("<h2>Settings</h2>", 1)[1].split("</div>", 1)[0]
+    assert "the defaults, except:" in settings and re.findall(r"<th>([^<]*)</th>", settings) == ["pairs"]

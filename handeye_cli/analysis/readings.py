@@ -13,8 +13,11 @@ that also need ``--invert-*`` must not hide the order), and keeps
   residual lower at least ``BETTER``-fold (3, as the inversion check of :mod:`.inversion`) and neither
   higher by more than ``NOT_WORSE``;
 * and refuses (:class:`~handeye_cli.errors.DataError`) when another reading fits **alike** (both medians
-  within ``NOT_WORSE``) but gives another extrinsic (beyond ``ALIKE_DEG`` / ``ALIKE_M``): the data cannot
-  decide, and the flag can.
+  within ``NOT_WORSE``) but gives another extrinsic (beyond ``ALIKE_DEG`` / ``ALIKE_M``, and beyond the
+  fits' own median residuals): the data cannot decide, and the flag can. Two fits that are both far from any
+  rigid rig (bad stations: medians of 84° and 86°) give extrinsics apart by less than their residuals, which
+  says nothing about the order; the format's reading then stands and the fit test, with its outlier retry,
+  judges it.
 
 The comparison runs on nearest-sample association (no interpolation, so a reading's synced poses are
 the raw ones reordered) at the given clock offset, on at most ``MAX_PAIRS`` sample pairs drawn with a
@@ -205,7 +208,8 @@ def choose_quaternion_order(a: PoseStream, b: PoseStream, *, time_offset_ns: int
         return chosen[0], chosen[1], OrderChoice(best_orders, "fit", best.medians, base.medians, given_orders)
     if all(1 / NOT_WORSE <= g <= NOT_WORSE for g in gains):
         rot_deg, trans_m = extrinsic_error(best.matrix, base.matrix)
-        if rot_deg > ALIKE_DEG or trans_m > ALIKE_M:
+        worst = np.maximum(base.medians, best.medians)
+        if rot_deg > max(ALIKE_DEG, worst[0]) or trans_m > max(ALIKE_M, worst[1]):
             flags = " and ".join(f"{_FLAGS[g].format(name)} or {_FLAGS[o].format(name)}" for name, o, g
                                  in zip("ab", best_orders, given_orders, strict=True) if o and g and o != g)
             raise DataError("the quaternion order of the text input cannot be told from the data: the other order "

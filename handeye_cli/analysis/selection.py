@@ -4,7 +4,9 @@ Conventions: synced poses ``T_wa_a(t)``, ``T_wb_b(t)``; motions ``A_k = T_a(t_i)
 ``B_k`` likewise, ``A_k X = X B_k`` with ``X = T_a_b``; stamps int64 ns; metres, radians.
 
 Candidate pairs are ``(i, i + K)`` for strides K on a ladder of factor √2 (1, 2, 3, 4, 6, 8, …,
-up to the longest segment), each stride a *level*. Per round:
+up to the longest segment), each stride a *level*. First, the gate's segment boundaries across which the world
+did not move (pairs spanning them fit the probe's ``X`` as its noise model predicts) are joined up
+(:func:`_rejoined`): a gap or a glitch is no re-localisation. Per round:
 
 1. a probe of every level (at most ``probe`` pairs each, evenly spread) is solved for ``X``;
 2. the probe's residuals at ``X`` fit the :class:`~handeye_cli.analysis.noise_model.NoiseModel`
@@ -56,6 +58,8 @@ _MIN_LEVEL_PAIRS = 8
 _Q_PRIME_FIRST = np.r_[4:8, 0:4]   # rows of the tangent basis (x = [q; q']) in the cost forms' [q'; q] order
 _T = TypeVar("_T")
 _SPREAD_SEED = 0            # the jitter of the evenly spread pairs (fixed: a recording always gives one answer)
+_CROSSING = 5               # pairs across a segment boundary that test whether the world stayed the same
+_SAME_WORLD = 6.0           # ... when their median residual is within this many predicted variances (the model's trim)
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +73,7 @@ class Selection:
     strides: tuple[int, ...]
     rounds: int
     candidate_pairs: int
+    rejoined: int = 0
 
     def as_dict(self) -> dict[str, Any]:
         """The result's ``noise_model`` entry: the model (None: too few pairs to fit one) plus what the
@@ -76,7 +81,7 @@ class Selection:
         spans = (self.pairs.t_j_ns - self.pairs.t_i_ns) / 1e9
         return {**(self.model.as_dict() if self.model else {"kind": None}), "strides": list(self.strides),
                 "span_s": [float(spans.min()), float(spans.max())] if len(spans) else [],
-                "alpha": self.alpha, "rounds": self.rounds}
+                "alpha": self.alpha, "rounds": self.rounds, "segments_rejoined": self.rejoined}
 
     def counts(self, samples: int) -> dict[str, int]:
         """Counts in the form :func:`~handeye_cli.stages.pairs.make_pairs` returns them."""
@@ -291,6 +296,42 @@ def _solved(A: NDArray[np.float64], B: NDArray[np.float64], prior: Prior | None,
     return _without_prior_first(lambda p: solve(A, B, prior=p, **options).matrix, prior)
 
 
+def _rejoined(synced: Synced, segs: _Segments, path: NDArray[np.float64], X: NDArray[np.float64],
+              model: NoiseModel) -> NDArray[np.int64] | None:
+    """The synced samples' segments with every boundary across which the world stayed the same joined up, or
+    None when none did.
+
+    The pose-jump gate starts a segment where the motion over dropped samples breaks its per-step scale: a real
+    re-localisation (a SLAM map that jumped) moves every later pose, but so does no glitch, and a gap of a
+    camera losing its target for half a second breaks the scale of 30 Hz steps as well (the ETH PrimeSense
+    recording: 21 segments, the longest 159 of 1486 samples, and pairs only inside them: 98 mm where the
+    same pairs across the gaps give 8 mm). With the probe's ``X`` and noise model, up to ``_CROSSING`` pairs
+    ``(l - k, f + k)`` span each boundary (``l`` the last sample before it, ``f`` the first after): where their
+    median residual, over the variance the model predicts for their span, stays within ``_SAME_WORLD`` in
+    rotation and translation, the world did not move and the segments are one. Only for a model judged
+    absolute: drift's variance at the span of a gap hides a re-localisation's jump of centimetres (and a
+    mount's slip), so on drifting data the test has no power and the gate's segments stand."""
+    ends = segs.start[1:] - 1                                 # last sample of each segment but the last
+    k = np.arange(_CROSSING)
+    before = np.repeat(segs.length[:-1], _CROSSING) > np.tile(k, len(ends))
+    after = np.repeat(segs.length[1:], _CROSSING) > np.tile(k, len(ends))
+    i = (np.repeat(ends, _CROSSING) - np.tile(k, len(ends)))
+    j = (np.repeat(ends + 1, _CROSSING) + np.tile(k, len(ends)))
+    ok = before & after
+    boundary = np.repeat(np.arange(len(ends)), _CROSSING)[ok]
+    pairs = _pairs(synced, i[ok], j[ok])
+    f = pair_features(synced.stamps_ns, path, pairs.i, pairs.j, pairs.B, X)
+    r_rot, r_dual = cost_residuals(pairs.A, pairs.B, X)
+    z = np.maximum(r_rot ** 2 / model.rot_variance(f), r_dual ** 2 / model.dual_variance(f))
+    same = np.array([bool(np.any(boundary == b)) and float(np.median(z[boundary == b])) <= _SAME_WORLD
+                     for b in range(len(ends))])
+    if not same.any():
+        return None
+    new = np.zeros(len(synced), dtype=np.int64)
+    new[segs.start[1:][~same]] = 1
+    return np.cumsum(new)
+
+
 def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt", prior: Prior | None = None,
                  probe: int = 200, rounds: int = 3) -> Selection:
     """The ``auto`` strategy (module docstring): pairs, weights, α and noise model for ``synced``. ``prior``
@@ -307,6 +348,17 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
     path = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(synced.T_a[:, :3, 3], axis=0), axis=1))]
     count = np.bincount(pr.level, minlength=len(pr.strides)).astype(float)
     X = _solved(pr.pairs.A, pr.pairs.B, prior, method=method, weights=1.0 / count[pr.level])
+    rejoined = 0
+    if len(segs.length) > 1:          # segments the gate split where the world did not move are one
+        f = pair_features(synced.stamps_ns, path, pr.pairs.i, pr.pairs.j, pr.pairs.B, X)
+        first = fit_noise_model(*cost_residuals(pr.pairs.A, pr.pairs.B, X), f)
+        joined = _rejoined(synced, segs, path, X, first) if first.kind == "absolute" else None
+        if joined is not None:
+            rejoined = len(segs.length) - int(joined[-1]) - 1
+            segs = _Segments.of(joined)
+            pr = _probe(synced, segs, probe)
+            count = np.bincount(pr.level, minlength=len(pr.strides)).astype(float)
+            X = _solved(pr.pairs.A, pr.pairs.B, prior, method=method, weights=1.0 / count[pr.level])
     axis = common_axis(pr.pairs.A, pr.pairs.B)          # planar: translation along it is not the data's
     kept, done = np.zeros(0, dtype=np.int64), 0
     while done < rounds:
@@ -327,4 +379,4 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
     if model.kind == "drifting":       # errors shared across time: the ML α is an upper bound (analysis.alpha)
         alpha = _blocked(pairs, alpha, weights, prior)
     return Selection(pairs, weights / weights.mean(), alpha, model, tuple(int(k) for k in pr.strides[kept]), done,
-                     int(pr.available[kept].sum()))
+                     int(pr.available[kept].sum()), rejoined)

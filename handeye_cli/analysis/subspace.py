@@ -36,15 +36,17 @@ from typing import Any
 import numpy as np
 
 from .._typing import FloatArray
+from ..errors import UnderdeterminedError
 from ..geometry import dualquat as dq
 from .covariance import LinearCovariance
-from .observability import Observability
+from .observability import Observability, describe_direction
 
 __all__ = ["DOF_NAMES", "Dof", "Subspace", "observable_subspace", "all_estimated", "dof_values", "from_values",
            "with_values_of", "ESTIMATED", "ADVICE"]
 
 DOF_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 ESTIMATED, FROM_PRIOR, UNOBSERVABLE = "estimated", "from_prior", "unobservable"
+AXIS_Z_TOLERANCE_DEG = 15.0     # a common rotation axis this close to z of frame a is the ground robot's
 ADVICE = {
     "z": "tilt the sensor head or drive over a ramp (rotation about a horizontal axis) to determine z",
     "roll": "turn in place for longer, both directions, so the rotation axes are measured well",
@@ -222,6 +224,71 @@ def _in_plane(A: FloatArray, B: FloatArray, w: FloatArray, n_a: FloatArray, R_ti
     return yaw, t, full
 
 
+def _reduced(A: FloatArray, B: FloatArray, w: FloatArray, X: FloatArray,
+             axes: tuple[FloatArray, FloatArray, FloatArray, FloatArray], nominal: FloatArray | None,
+             yaw_fixed: bool, max_tilt_std_deg: float) -> tuple[FloatArray, float, bool, FloatArray]:
+    """The reduced solve about the common axis ``n_a`` (``axes``: :func:`_axes`' ``n_a, n_b, ra, rb``): the tilt
+    from the axes' alignment when they are measured well (else the nominal's), the translation along ``n_a``
+    (and, on a fixed rotation line, the angle about it) from the nominal, failing that from the full solve
+    ``X``; yaw and the translation across ``n_a`` from eq 4's rows. Returns ``(T_a_b, tilt std [rad], tilt
+    estimated, covariance of yaw and the in-plane translation)``."""
+    n_a, n_b, ra, rb = axes
+    R_meas = _align(n_b, n_a)
+    tilt_std = _tilt_std(ra, rb, _rot(n_a, _yaw_about(X[:3, :3], R_meas, n_a)) @ R_meas, n_a)
+    tilt_ok = bool(np.rad2deg(tilt_std) <= max_tilt_std_deg)
+    R_tilt = R_meas if tilt_ok or nominal is None else _align(nominal[:3, :3].T @ n_a, n_a)
+    src = nominal if nominal is not None else X
+    along = float(src[:3, 3] @ n_a)
+    yaw0 = _yaw_about(src[:3, :3], R_tilt, n_a) if yaw_fixed else None
+    yaw, t_perp, cov = _in_plane(A, B, w, n_a, R_tilt, along, yaw0)
+    out = np.eye(4)
+    out[:3, :3] = _rot(n_a, yaw) @ R_tilt
+    out[:3, 3] = t_perp + along * n_a
+    return out, tilt_std, tilt_ok, cov
+
+
+def _oblique(A: FloatArray, B: FloatArray, w: FloatArray, X: FloatArray, obs: Observability, axis_a: FloatArray,
+             nominal: FloatArray | None, max_tilt_std_deg: float) -> Subspace:
+    """One rotation axis ``n_a`` that is not z of frame a (an arm turned about one joint).
+
+    The translation along ``n_a`` is open, and ``n_a`` is oblique to the result's axes, so every one
+    of x, y, z holds part of it: none could be labelled as measured, and unlike a ground robot's z
+    (one named coordinate the user fixes by a tape measure or ``--prior``) no coordinate of the
+    result would be right. Without a nominal this is refused naming the direction and the fix; with
+    one, the reduced solve about ``n_a`` takes the translation along it (and, where the axes do not
+    determine them, the tilt; on a fixed rotation line also the angle about it) from the nominal, and
+    the coordinates that hold more than ``sin(AXIS_Z_TOLERANCE_DEG)`` of a prior direction are marked
+    ``from_prior``.
+    """
+    finding = next(f for f in obs.warnings if f.code in ("planar", "single_axis"))
+    if nominal is None:
+        raise UnderdeterminedError(finding.message.replace("is unobservable", "is not determined by the motion"),
+                                   "observability", finding.remedy)
+    n_a, n_b, ra, rb = _axes(A, B, w)
+    if n_a @ axis_a < 0:                                        # the finding's sign (signs stay paired)
+        n_a, n_b = -n_a, -n_b
+    yaw_fixed = "fixed_rotation_line" in set(obs.codes)
+    out, tilt_std, tilt_ok, cov = _reduced(A, B, w, X, (n_a, n_b, ra, rb), nominal, yaw_fixed, max_tilt_std_deg)
+    v = dof_values(out)
+    mixed = np.abs(n_a) > np.sin(np.deg2rad(AXIS_Z_TOLERANCE_DEG))
+    name = describe_direction(n_a, "a")
+    t_why = f"its part along the common rotation axis ({name}) is the prior's: the motion rotates about it only"
+    u1 = np.cross(np.cross(n_a, [1.0, 0.0, 0.0] if abs(n_a[0]) < 0.9 else [0.0, 1.0, 0.0]), n_a)
+    u1 /= np.linalg.norm(u1)
+    basis = np.stack([u1, np.cross(n_a, u1)], axis=1)               # translation across n_a: t = basis @ p
+    t_std = np.sqrt(np.clip(np.diag(basis @ cov[:2, :2] @ basis.T), 0, None))
+    dofs = [Dof(n, FROM_PRIOR, float(v[k]), reason=t_why) if mixed[k] else Dof(n, ESTIMATED, float(v[k]),
+                                                                               float(t_std[k]))
+            for k, n in enumerate(DOF_NAMES[:3])]
+    r_std = float(np.rad2deg(np.hypot(tilt_std, np.sqrt(max(cov[2, 2], 0.0)))))
+    r_open = not tilt_ok or yaw_fixed
+    r_why = ("the rotation axes are not measured well enough" if not tilt_ok else
+             "every motion is a rotation about one fixed line") + ": part of the rotation is the prior's"
+    dofs += [Dof(n, FROM_PRIOR, float(v[k]), reason=r_why) if r_open else Dof(n, ESTIMATED, float(v[k]), r_std)
+             for k, n in ((3, "roll"), (4, "pitch"), (5, "yaw"))]
+    return Subspace(out, tuple(dofs), n_a, ())
+
+
 def observable_subspace(A: FloatArray, B: FloatArray, X: FloatArray, obs: Observability, *,
                         weights: FloatArray | None = None, nominal: FloatArray | None = None,
                         max_tilt_std_deg: float = 0.1) -> Subspace:
@@ -229,29 +296,22 @@ def observable_subspace(A: FloatArray, B: FloatArray, X: FloatArray, obs: Observ
 
     ``X`` is the full solve, ``obs`` its observability (:func:`.assess_observability`); ``nominal``
     a 4x4 ``T_a_b`` for what the data leave open. Without a ``planar`` / ``single_axis`` finding,
-    or when the common axis is not z of frame a (within 15°), every degree of freedom is estimated
-    (:func:`all_estimated`). Otherwise the reduced in-plane solve of the module docstring.
+    every degree of freedom is estimated (:func:`all_estimated`). About z of frame a (within
+    ``AXIS_Z_TOLERANCE_DEG``): the reduced in-plane solve of the module docstring. About another axis,
+    :func:`_oblique`: with a nominal the same solve about that axis; without one the motion is
+    refused (:class:`~handeye_cli.errors.UnderdeterminedError`).
     """
     codes = set(obs.codes)
     w = np.ones(len(A)) if weights is None else np.asarray(weights, dtype=np.float64)
     keep = w > 0
     A, B, w = A[keep], B[keep], w[keep]
-    if not codes & {"planar", "single_axis"} or obs.axis_a is None or abs(obs.axis_a[2]) < np.cos(np.deg2rad(15)):
+    if not codes & {"planar", "single_axis"} or obs.axis_a is None:
         return all_estimated(X, obs.covariance)
+    if abs(obs.axis_a[2]) < np.cos(np.deg2rad(AXIS_Z_TOLERANCE_DEG)):
+        return _oblique(A, B, w, X, obs, obs.axis_a, nominal, max_tilt_std_deg)
     n_a, n_b, ra, rb = _axes(A, B, w)
-    R_meas = _align(n_b, n_a)
-    tilt_std = _tilt_std(ra, rb, _rot(n_a, _yaw_about(X[:3, :3], R_meas, n_a))
-                         @ R_meas, n_a)
-    tilt_ok = np.rad2deg(tilt_std) <= max_tilt_std_deg
-    R_tilt = R_meas if tilt_ok or nominal is None else _align(nominal[:3, :3].T @ n_a, n_a)
-    z_src = nominal if nominal is not None else X
-    z = float(z_src[:3, 3] @ n_a)
     yaw_fixed = "fixed_rotation_line" in codes
-    yaw0 = _yaw_about(z_src[:3, :3], R_tilt, n_a) if yaw_fixed else None
-    yaw, t_perp, cov = _in_plane(A, B, w, n_a, R_tilt, z, yaw0)
-    out = np.eye(4)
-    out[:3, :3] = _rot(n_a, yaw) @ R_tilt
-    out[:3, 3] = t_perp + z * n_a
+    out, tilt_std, tilt_ok, cov = _reduced(A, B, w, X, (n_a, n_b, ra, rb), nominal, yaw_fixed, max_tilt_std_deg)
     v = dof_values(out)
     open_status = FROM_PRIOR if nominal is not None else UNOBSERVABLE
     why_z = "the motion rotates about one axis only (z of frame a): translation along it does not change the fit"

@@ -112,7 +112,7 @@ def compare(X: NDArray[np.float64], N: NDArray[np.float64], max_rotation_deg: fl
             uncertainty: dict[str, Any] | None = None, nominal: dict[str, Any] | None = None) -> Verdict:
     """The verdict on the result ``X`` against the nominal ``N`` (both 4x4 ``T_a_b``)."""
     if max_rotation_deg < 0 or max_translation_m < 0:
-        raise DataError("negative tolerance", "--max-rotation-deg/--max-translation-m", "give limits ≥ 0")
+        raise DataError("negative tolerance", "max_rotation_deg/max_translation_m", "give limits ≥ 0")
     X, N = np.asarray(X, dtype=float), np.asarray(N, dtype=float)
     t, q = se3.to_xyz_quat(N)
     rot_sig, trans_sig = _significance(X, N, uncertainty)
@@ -126,12 +126,18 @@ def compare(X: NDArray[np.float64], N: NDArray[np.float64], max_rotation_deg: fl
 def verdict_for(doc: dict[str, Any], nominal: Nominal, max_rotation_deg: float = DEFAULT_MAX_ROTATION_DEG,
                 max_translation_m: float = DEFAULT_MAX_TRANSLATION_M) -> Verdict:
     """The verdict on a result document (``matrix``, ``frames``, optional ``uncertainty``) against the
-    nominal's transform between the result's frames a and b."""
+    nominal's transform between the result's frames a and b — or, for a frame the nominal does not name, the
+    frame its stream's topic names (:meth:`~handeye_cli.io.nominal.Nominal.frames_for`; the verdict's
+    ``nominal.frames`` says which were compared)."""
     frames = doc.get("frames") or {}
-    N = nominal.transform(frames.get("a"), frames.get("b"))
+    inputs = doc.get("inputs") or {}
+    topics = tuple((inputs.get(k) or {}).get("topic") if isinstance(inputs.get(k), dict) else None for k in "ab")
+    a, b = nominal.frames_for(frames.get("a"), frames.get("b"), (topics[0], topics[1]))
+    N = nominal.transform(a, b)
     X = np.asarray(doc["matrix"], dtype=float)
     skipped = {name: f"{d.get('status')}: {d.get('reason', '')}".rstrip(": ")
                for name, d in (doc.get("degrees_of_freedom") or {}).items() if d.get("status") != ESTIMATED}
     v = compare(X, with_values_of(N, X, skipped), max_rotation_deg, max_translation_m,
-                uncertainty=doc.get("uncertainty"), nominal={"source": nominal.source, "kind": nominal.kind})
+                uncertainty=doc.get("uncertainty"), nominal={"source": nominal.source, "kind": nominal.kind,
+                                                             **({"frames": [a, b]} if a and b else {})})
     return replace(v, skipped=skipped)

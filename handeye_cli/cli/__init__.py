@@ -14,6 +14,7 @@ runs one process per core.
 """
 from __future__ import annotations
 
+import difflib
 import os
 import sys
 import traceback
@@ -43,6 +44,15 @@ class LazyGroup(click.Group):
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted(COMMANDS)
+
+    def resolve_command(self, ctx: click.Context,
+                        args: list[str]) -> tuple[str | None, click.Command | None, list[str]]:
+        """As click's, with "did you mean" for a mistyped command (click offers it for options only)."""
+        if args and args[0] not in COMMANDS and not args[0].startswith("-"):
+            close = difflib.get_close_matches(args[0], COMMANDS, n=1, cutoff=0.6)
+            if close:
+                ctx.fail(f"No such command {args[0]!r}. (Did you mean {close[0]!r}?)")
+        return super().resolve_command(ctx, args)
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         if cmd_name not in COMMANDS:
@@ -100,15 +110,27 @@ def main(argv: list[str] | None = None) -> None:
     sys.exit(code if isinstance(code, int) else 0)
 
 
+# the library's keywords that are no option of options.py, and their flags
+_KEYWORDS = {"preset": "--preset", "config_file": "--config", "fmt": "--format", "streams": "--stream",
+             "max_rotation_deg": "--max-rotation-deg", "max_translation_m": "--max-translation-m"}
+
+
 def _as_flags(error: HandEyeError) -> HandEyeError:
     """The command line's words for an error: the library names an option by its key (``(max_jump)``, the
-    Python keyword); given on the command line, that is its flag (``(--max-jump)``). A key in a file
-    (``c.yaml: max_jump``) stays the file's key. The one place the CLI translates."""
-    from ..options import FIELDS
+    Python keyword; a rig's ``(scales)``, RigOptions' field; ``a/b`` for two keys); given on the command line,
+    that is its flag (``(--max-jump)``, ``(--scale)``). A key in a file (``c.yaml: max_jump``) stays the file's
+    key. The one place the CLI translates; the Python API keeps the keys."""
+    from dataclasses import fields
 
-    if error.where not in FIELDS:
+    from ..options import FIELDS
+    from ..rig import RigOptions
+
+    flags = {**_KEYWORDS, **{k: "--" + k.replace("_", "-") for k in FIELDS},
+             **{f.name: f.metadata["flag"] for f in fields(RigOptions) if "flag" in f.metadata}}
+    keys = error.where.split("/") if error.where else []
+    if not keys or not all(k in flags for k in keys):
         return error
-    return type(error)(error.what, "--" + error.where.replace("_", "-"), error.fix)
+    return type(error)(error.what, "/".join(flags[k] for k in keys), error.fix)
 
 
 def _fail(line: str, code: int, debug: bool) -> NoReturn:

@@ -23,7 +23,7 @@ from ..output.formats import ALL_FORMATS
 from ..output.writers import check_writable, write_stdout
 from .check import verdict_options
 from .common import CONTEXT, warn
-from .params import calibrate_options, options_from_cli, stream_options
+from .params import command_options, options_from_cli, quiet_option, refused_report, report_option, stream_options
 
 __all__ = ["batch", "report"]
 
@@ -38,7 +38,7 @@ def _timeout(ctx: click.Context, param: click.Parameter, value: str) -> float | 
 @click.command(context_settings=CONTEXT)
 @click.argument("inputs", nargs=-1, required=True)
 @stream_options
-@calibrate_options
+@command_options("batch")
 @verdict_options
 @click.option("--per-input", "per_input", type=click.Path(dir_okay=False), help="YAML mapping glob patterns of "
               "input paths (or, without '/', of a path component: robot07*) to the options and streams that differ "
@@ -49,7 +49,7 @@ def _timeout(ctx: click.Context, param: click.Parameter, value: str) -> float | 
               "writes, a hung file system) is an error record; off: no limit.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), help="Local worker processes [default: one per core].")
 @click.option("--scheduler", metavar="ADDRESS", help="Run on this Dask distributed scheduler (e.g. tcp://host:8786) "
-              "instead of local processes; needs pip install 'handeye-cli[dask]'.")
+              "instead of local processes; needs pip install 'dask[distributed]'.")
 @click.option("-o", "--output", "records_file", type=click.Path(dir_okay=False), help="Append the JSON Lines "
               "records to this file instead of stdout, each made durable (fsync) as it is written; with --skip-done "
               "a resumed batch keeps the records there and runs only the inputs they lack.")
@@ -59,9 +59,8 @@ def _timeout(ctx: click.Context, param: click.Parameter, value: str) -> float | 
               help="Format of the result files in --output-dir (the records are always JSON Lines).")
 @click.option("--skip-done", is_flag=True, help="Resume: with -o, keep the records already in that file; with "
               "--output-dir, reuse results computed from the same file content, options and handeye version.")
-@click.option("--report", "report_file", type=click.Path(dir_okay=False), help="Also write the fleet-trend HTML "
-              "report of the records.")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
+@report_option
+@quiet_option
 @click.pass_context
 def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
     """Calibrate many logs with one set of options (every calibrate option applies to every input):
@@ -131,15 +130,21 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
 @click.command(context_settings=CONTEXT)
 @click.argument("records_file", type=click.Path())
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="The HTML file to write.")
-def report(records_file: str, output: str) -> None:
+@refused_report("handeye report writes the report itself: give its file with -o")
+@quiet_option
+def report(records_file: str, output: str, quiet: bool) -> None:
     """Write the fleet-trend report of batch records (JSON Lines): per sensor pair, the extrinsic's
     rotation and translation over log time against the nominal and its tolerance band, and the
     table of drifted and failed logs. One self-contained HTML file.
 
     \b
     Example:
-      handeye report verdicts.jsonl -o fleet.html
+      handeye report verdicts.jsonl -o fleet.html -q
     """
     from ..output.fleet_report import read_records, write_fleet_report
 
-    write_fleet_report(output, read_records(records_file, warn))
+    records = read_records(records_file, warn)
+    write_fleet_report(output, records)
+    if not quiet:
+        counts = {s: sum(r.get("status") == s for r in records) for s in ("ok", "drift", "error")}
+        click.echo(f"{output}: {len(records)} records ({', '.join(f'{n} {s}' for s, n in counts.items())})", err=True)

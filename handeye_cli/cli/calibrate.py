@@ -11,11 +11,11 @@ from ..errors import ConfigError, HandEyeError
 from ..geometry import dualquat as dq
 from ..io.nominal import read_nominal
 from ..output.document import calibration_document
-from ..output.writers import check_writable, output_format
+from ..output.writers import check_writable
 from ..pipeline import Calibration, StreamSpec, calibrate_files
 from .check import verdict_options
-from .common import CONTEXT, emit, finish
-from .params import calibrate_options, options_from_cli, output_options, stream_options
+from .common import CONTEXT, emit, finish, result_format
+from .params import command_options, options_from_cli, output_options, quiet_option, report_option, stream_options
 
 
 def stream_specs(inputs: tuple[str, ...], p: dict[str, Any]) -> tuple[StreamSpec, StreamSpec]:
@@ -33,7 +33,7 @@ def stream_specs(inputs: tuple[str, ...], p: dict[str, Any]) -> tuple[StreamSpec
             StreamSpec(inputs[-1], p["topic_b"], p["frames_b"] or None))
 
 
-def _summary(doc: dict[str, Any]) -> str:
+def summary_line(doc: dict[str, Any]) -> str:
     rotvec = np.rad2deg(dq.to_rotvec(np.asarray(doc["quaternion_xyzw"], dtype=np.float64)))
     t = doc["translation"]
     angle = float((rotvec @ rotvec) ** 0.5)
@@ -42,7 +42,7 @@ def _summary(doc: dict[str, Any]) -> str:
             f"{doc['method']} on {doc['pairs_used']} pairs")
 
 
-def _report(path: str, result: Calibration) -> HandEyeError | None:
+def write_run_report(path: str, result: Calibration) -> HandEyeError | None:
     """Write the HTML report; a failure is returned, not raised, so the result is still written."""
     from ..output.report import write_report
 
@@ -56,12 +56,11 @@ def _report(path: str, result: Calibration) -> HandEyeError | None:
 @click.command("calibrate", context_settings=CONTEXT)
 @click.argument("inputs", nargs=-1, required=True)
 @stream_options
-@calibrate_options
-@click.option("--report", "report_file", metavar="FILE", help="Write a self-contained HTML report (trajectories, "
-              "residuals, gates, uncertainty, warnings).")
+@command_options("calibrate")
+@report_option
 @verdict_options
 @output_options
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
+@quiet_option
 def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
     """Calibrate T_a_b from a log (MCAP, ROS 1 bag, ROS 2 bag) or two pose files (TUM, EuRoC, CSV).
 
@@ -77,12 +76,12 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
       cat a.tum | handeye calibrate - b.tum --robust --alpha auto --bootstrap 1000 --report report.html
       handeye calibrate log.mcap --topic-a /cam0/pose --topic-b /cam1/pose --against robot.urdf  # exit 1: moved
       handeye calibrate log.mcap --topic-a /cam0/pose --topic-b /cam1/pose --format urdf -o cam1.urdf
+      handeye calibrate log.mcap --topic-a /cam0/pose --topic-b /cam1/pose --format urdf-joint  # paste into a URDF
     """
     config_file, preset = p.get("config_file"), p.get("preset")
     options = options_from_cli(p)
     spec_a, spec_b = stream_specs(inputs, p)
-    check_writable(p["output"], "-o")
-    fmt = output_format(p["output"], p["fmt"])
+    fmt = result_format(p["output"], p["fmt"])
     if p["report_file"]:
         check_writable(p["report_file"], "--report")
     nominal = read_nominal(p["against"]) if p["against"] else None      # a bad nominal fails before the work
@@ -92,10 +91,10 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
     verdict = None if nominal is None else verdict_for(doc, nominal, p["max_rotation_deg"], p["max_translation_m"])
     if verdict is not None:
         doc["verdict"] = verdict.as_dict()
-    report_error = _report(p["report_file"], result) if p["report_file"] else None
+    report_error = write_run_report(p["report_file"], result) if p["report_file"] else None
     emit(doc, p["output"], fmt)
     if not p["quiet"]:
-        click.echo(_summary(doc), err=True)
+        click.echo(summary_line(doc), err=True)
     late = None if report_error is None else type(report_error)(
         f"the result was written, but not the report: {report_error.what}", report_error.where, report_error.fix)
     finish(doc, strict=options.analysis.strict, quiet=p["quiet"],

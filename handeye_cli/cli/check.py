@@ -12,8 +12,10 @@ import click
 from ..analysis.verdict import DEFAULT_MAX_ROTATION_DEG, DEFAULT_MAX_TRANSLATION_M, verdict_for
 from ..io.nominal import read_nominal, read_result
 from ..output.document import render
+from ..output.formats import SUMMARY_FORMATS
 from ..output.writers import write_stdout
 from .common import CONTEXT
+from .params import refused_quiet, refused_report
 
 __all__ = ["check", "verdict_options"]
 
@@ -37,8 +39,10 @@ def verdict_options(f: Callable[..., Any]) -> Callable[..., Any]:
 @click.command(context_settings=CONTEXT)
 @click.argument("result_file", type=click.Path())
 @verdict_options
-@click.option("--format", "fmt", type=click.Choice(["text", "yaml", "json"]), default="text", show_default=True,
+@click.option("--format", "fmt", type=click.Choice(SUMMARY_FORMATS), default="text", show_default=True,
               help="A one-line verdict, or the verdict as YAML/JSON.")
+@refused_report("check reads a result, not the streams: run 'handeye calibrate --report FILE' on the log")
+@refused_quiet("check prints only its verdict, on stdout: redirect it (> /dev/null) and read the exit code")
 @click.pass_context
 def check(ctx: click.Context, result_file: str, against: str | None, max_rotation_deg: float,
           max_translation_m: float, fmt: str) -> None:

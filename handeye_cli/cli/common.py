@@ -7,9 +7,9 @@ import click
 
 from ..errors import HandEyeError, one_line
 from ..output.formats import render_format
-from ..output.writers import output_format, write_output
+from ..output.writers import check_writable, format_mismatch, output_format, write_output
 
-__all__ = ["CONTEXT", "Drifted", "StrictFailure", "emit", "finish", "warn"]
+__all__ = ["CONTEXT", "Drifted", "StrictFailure", "emit", "finish", "result_format", "warn"]
 
 CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 
@@ -25,6 +25,16 @@ class Drifted(Exception):
 def emit(doc: dict[str, Any], output: str | None, fmt: str | None) -> None:
     """Print the result to stdout (no ``-o`` or ``-o -``) or write it to ``output``."""
     write_output(output, render_format(doc, output_format(output, fmt)))
+
+
+def result_format(output: str | None, fmt: str | None) -> str:
+    """The format of the result ``-o``/``--format`` ask for, checked before any work: the file can be written,
+    and a name that says another format than ``--format`` is one warning line."""
+    check_writable(output, "-o")
+    mismatch = format_mismatch(output, fmt)
+    if mismatch:
+        warn(mismatch)
+    return output_format(output, fmt)
 
 
 def warn(message: str) -> None:

@@ -18,9 +18,9 @@ from ..comparison import MethodResult, compare_methods
 from ..output.document import plain, render
 from ..output.writers import check_writable, output_format, write_output
 from ..pipeline import calibrate_files
-from .calibrate import stream_specs
+from .calibrate import stream_specs, write_run_report
 from .common import CONTEXT
-from .params import calibrate_options, options_from_cli, stream_options
+from .params import command_options, options_from_cli, quiet_option, report_option, stream_options, summary_format
 
 __all__ = ["compare"]
 
@@ -41,11 +41,11 @@ def _table(rows: list[MethodResult]) -> str:
 @click.command("compare", context_settings=CONTEXT)
 @click.argument("inputs", nargs=-1, required=True)
 @stream_options
-@calibrate_options
+@command_options("compare")
+@report_option
 @click.option("-o", "--output", metavar="FILE", help="Write the table here instead of stdout.")
-@click.option("--format", "fmt", type=click.Choice(["text", "yaml", "json"]), help="text (a table), or the rows "
-              "as YAML/JSON [default: text, or from the -o suffix].")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+@summary_format("text (a table), or the rows as YAML/JSON.")
+@quiet_option
 def compare(inputs: tuple[str, ...], **p: Any) -> None:
     """Compare every method on the same motion pairs: result, cost, residuals, time.
 
@@ -54,12 +54,17 @@ def compare(inputs: tuple[str, ...], **p: Any) -> None:
     including Tsai–Lenz, Park–Martin, Horaud–Dornaika, Andreff and the robot-world forms.
 
     \b
-    Example:
+    Examples:
       handeye compare sample_data/rig.mcap --topic-a /cam0/pose --topic-b /cam1/pose
+      handeye compare a.tum b.tum --format json -o methods.json --report pairs.html -q
+
+    --report FILE is calibrate's page of the pairs every method solved (the --method row's result).
     """
     options = options_from_cli(p)
     spec_a, spec_b = stream_specs(inputs, p)
     check_writable(p["output"], "-o")
+    if p["report_file"]:
+        check_writable(p["report_file"], "--report")
     fmt = p["fmt"] or ("text" if not p["output"] or p["output"] == "-" or not p["output"].endswith(
         (".json", ".yaml", ".yml")) else output_format(p["output"], None))
     cal = calibrate_files(spec_a, spec_b, options=options, quiet=p["quiet"])
@@ -68,3 +73,6 @@ def compare(inputs: tuple[str, ...], **p: Any) -> None:
                                                             "alpha": cal.solution.alpha,
                                                             "methods": [r.as_dict() for r in rows]}), fmt)
     write_output(p["output"], text)
+    late = write_run_report(p["report_file"], cal) if p["report_file"] else None
+    if late is not None:
+        raise late

@@ -1,8 +1,10 @@
 """``handeye rig``: every sensor of a rig from one log, jointly consistent.
 
 A separate command rather than ``calibrate`` with more streams: its inputs are a set of *named*
-streams (any number, one of them the reference) with per-stream clock offsets and inversion,
-where calibrate's are exactly a and b (``--topic-a``, ``--invert-b``, ``--name-a``…); and its
+streams (any number, one of them the reference), and calibrate's options of stream a or b take the
+stream's name instead (``--invert-b`` → ``--invert NAME``, ``--no-invert-b`` → ``--no-invert NAME``,
+``--scale auto`` → ``--scale NAME=auto``, ``--name-a`` → the NAME of ``--stream NAME=…``; generated from
+the options' ``per_stream`` field, same values and parsers); and its
 result is a different document — a list of transforms, the pairwise table, loop closures and the
 consistency diagnostic — not the single ``T_a_b`` of the result schema (docs/design.md) that scripts read.
 """
@@ -15,33 +17,21 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..analysis.verdict import Verdict
-from ..config import presets
-from ..errors import ConfigError
 from ..io.nominal import read_nominal
-from ..output.writers import check_writable, output_format
 from .check import verdict_options
-from .common import CONTEXT, emit, finish
-from .params import apply, flags, options_from_cli, output_options
+from .common import CONTEXT, emit, finish, result_format
+from .params import (
+    command_options,
+    options_from_cli,
+    output_options,
+    per_stream_options,
+    per_stream_values,
+    quiet_option,
+    refused,
+    refused_report,
+)
 
 __all__ = ["rig"]
-
-# The calibrate options that apply to every pair of a rig (the a/b-specific ones do not).
-RIG_OPTIONS = ("time_source", "time_unit", "csv_columns", "sync", "max_dt", "max_time_offset", "gate", "max_jump",
-               "max_jump_deg", "stations",
-               "pairs", "min_rotation", "keyframe_rotation", "keyframe_translation", "max_pairs", "seed",
-               "method", "alpha", "min_pairs", "robust", "bootstrap", "strict", "accept_poor_fit",
-               "storage_option", "remote_timeout", "remote_retries")
-
-
-def _named(values: tuple[str, ...], flag: str) -> dict[str, str]:
-    out = {}
-    for text in values:
-        name, sep, value = text.partition("=")
-        if not sep or not name.strip() or not value.strip():
-            raise ConfigError(f"bad value {text!r}", flag, "write NAME=SECONDS or NAME=auto")
-        out[name.strip()] = value.strip()
-    return out
-
 
 def _summary(doc: dict[str, Any]) -> str:
     lines = [f"rig of {len(doc['transforms']) + 1} sensors, reference {doc['reference']}:"]
@@ -68,18 +58,16 @@ def _drift_message(verdicts: dict[str, Verdict]) -> str:
               help="A sensor: NAME=/topic or NAME=tf:PARENT,CHILD of LOG, or NAME=FILE (TUM, EuRoC, CSV). "
               "Repeat for every sensor (at least two).")
 @click.option("--reference", metavar="NAME", help="The sensor every T_ref_k is expressed in [default: the first].")
-@click.option("--time-offset", "offsets", multiple=True, metavar="NAME=SECONDS|auto",
-              help="How far NAME's clock is ahead of the reference's [default: auto for every stream].")
-@click.option("--invert", multiple=True, metavar="NAME", help="Invert stream NAME first (it records "
-              "T_sensor_world). Repeatable.")
+@per_stream_options
 @click.option("--block", "block_s", type=float, default=2.0, show_default=True, metavar="SECONDS",
               help="Block length of the bootstrap over the shared samples.")
-@apply(flags(*RIG_OPTIONS),
-       click.option("--config", "config_file", type=click.Path(), help="YAML file of options applied to every pair."),
-       click.option("--preset", type=click.Choice(presets()), help="Preset of options applied to every pair."))
+@command_options("rig")
 @verdict_options
 @output_options
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary on stderr.")
+@refused_report("handeye rig has no report page: run 'handeye calibrate --report FILE' on a pair of its streams")
+@refused(("--prior",), "takes no prior", "a prior is of one T_a_b, and the rig combines its pairs by their data's "
+         "covariance, which a prior on one pair would not enter: calibrate that pair with 'handeye calibrate --prior'")
+@quiet_option
 def rig(log: str | None, **p: Any) -> None:
     """Calibrate every sensor of a rig from one log: T_ref_k for each stream k, jointly.
 
@@ -97,6 +85,8 @@ def rig(log: str | None, **p: Any) -> None:
           --stream lidar=/lidar/odom --stream imu=tf:odom,imu_link
       handeye rig log.mcap --stream cam0=/cam0/pose --stream wheels=wheels.tum --reference cam0 \\
           --time-offset wheels=0.05 --bootstrap 200 -o rig.yaml
+      handeye rig log.mcap --stream cam0=/cam0/pose --stream mono=/orb/pose --scale mono=auto \\
+          --stream board=board.tum --invert board --wxyz board --no-invert cam0
       handeye rig log.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose --format urdf -o rig.urdf
       handeye rig log.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose --against robot.urdf  # exit 1: moved
 
@@ -110,13 +100,15 @@ def rig(log: str | None, **p: Any) -> None:
 
     options = options_from_cli(p)
     specs = [parse_stream(s) for s in p["streams"]]
-    check_writable(p["output"], "-o")
-    fmt = output_format(p["output"], p["fmt"])
+    fmt = result_format(p["output"], p["fmt"])
     nominal = read_nominal(p["against"]) if p["against"] else None      # a bad nominal fails before the work
     if nominal is not None:
         check_sensor_names([str(s.name) for s in specs], nominal)
-    opts = RigOptions(reference=p["reference"], time_offsets=_named(p["offsets"], "--time-offset"),
-                      invert=tuple(p["invert"]), block_s=p["block_s"], options=options)
+    inverted = per_stream_values(p, "invert")
+    opts = RigOptions(reference=p["reference"], time_offsets=per_stream_values(p, "time_offset"),
+                      invert=tuple(n for n, v in inverted.items() if v),
+                      not_inverted=tuple(n for n, v in inverted.items() if not v), wxyz=per_stream_values(p, "wxyz"),
+                      scales=per_stream_values(p, "scale"), block_s=p["block_s"], options=options)
     result = calibrate_rig_files(log, specs, opts, quiet=p["quiet"])
     doc = result.document()
     verdicts = {} if nominal is None else rig_verdicts(doc, nominal, p["max_rotation_deg"], p["max_translation_m"])

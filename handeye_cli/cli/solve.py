@@ -9,17 +9,20 @@ from ..analysis.motions import solve as solve_pairs
 from ..config import load_options
 from ..io.pairfile import read_pairs
 from ..output.document import result_document
-from ..output.writers import check_writable, output_format
 from ..pipeline import read_prior
-from .common import CONTEXT, emit
-from .params import flags, output_options
+from .calibrate import summary_line
+from .common import CONTEXT, emit, result_format, warn
+from .params import command_options, output_options, quiet_option, refused_report
 
 
 @click.command("solve", context_settings=CONTEXT)
 @click.argument("pairs_file", type=click.Path())
-@flags("method", "alpha", "prior", "prior_weights")
+@command_options("solve")
 @output_options
-def solve(pairs_file: str, output: str | None, fmt: str | None, **given: Any) -> None:
+@refused_report("solve has motion pairs only, no streams to plot: run 'handeye calibrate --report FILE' on the "
+                "streams")
+@quiet_option
+def solve(pairs_file: str, output: str | None, fmt: str | None, quiet: bool, **given: Any) -> None:
     """Solve A_i X = X B_i for X = T_a_b from a file of relative motion pairs.
 
     PAIRS_FILE is a CSV with the header
@@ -28,15 +31,20 @@ def solve(pairs_file: str, output: str | None, fmt: str | None, **given: Any) ->
     (N, 4, 4) and optionally weights (N,).
 
     \b
-    Example:
+    Examples:
       handeye solve sample_data/pairs.csv --method dqopt --alpha 1
+      handeye solve pairs.npz --alpha auto --format urdf-joint -o cam.urdf -q
     """
     options = load_options(**given)
     s = options.solver
-    check_writable(output, "-o")
-    fmt = output_format(output, fmt)
+    fmt = result_format(output, fmt)
     A, B, weights = read_pairs(pairs_file)
     prior = read_prior(options)
     sol = solve_pairs(A, B, method=s.method, alpha=s.alpha, prior=prior, weights=weights)
-    emit(result_document(sol, inputs={"pairs_file": pairs_file}, samples={"pairs": len(A)},
-                         warnings=list(sol.warnings)), output, fmt)     # a failed optimality certificate
+    doc = result_document(sol, inputs={"pairs_file": pairs_file}, samples={"pairs": len(A)},
+                          warnings=list(sol.warnings))      # a failed optimality certificate
+    emit(doc, output, fmt)
+    if not quiet:
+        click.echo(summary_line(doc), err=True)
+    for w in doc["warnings"]:
+        warn(w)

@@ -33,7 +33,8 @@ from .engine import Job
 __all__ = ["job_key", "result_path", "load_done", "store"]
 
 _CHUNK = 1 << 20
-_SUFFIX = {fmt: suffix for suffix, fmt in reversed(SUFFIXES.items())} | {"kalibr": ".kalibr.yaml"}
+_SUFFIX = {fmt: suffix for suffix, fmt in reversed(SUFFIXES.items())} | {"kalibr": ".kalibr.yaml",
+                                                                                 "urdf-joint": ".joint.urdf"}
 _SIDECAR = ".handeye.json"      # the result document and its batch key, beside a file of another format
 
 

@@ -157,13 +157,15 @@ def _read_log(plist: list[Path | RemoteObject], fmts: list[str], requests: Seque
         return [_noted(s, names) for s in read_requests(src, requests, time_source=time_source, quiet=quiet)]
 
 
-def inspect_log(path: str | Path, *, quiet: bool = True, all_tf: bool = False) -> dict[str, Any]:
+def inspect_log(path: str | Path, *, quiet: bool = True) -> dict[str, Any]:
     """A JSON-able overview of one file.
 
     Logs: ``format``, ``path``, ``start_ns``/``end_ns``/``duration_ns`` (log time),
-    ``topics`` [{topic, type, encoding, count, rate_hz (mean over the log), pose}],
-    ``tf_frames`` [{parent, child, static, count}] from the first 2000 TF messages unless ``all_tf``
-    (``tf_messages_read``, ``tf_complete`` say which; counts of a sample are the sample's).
+    ``topics`` [{topic, type, encoding, count, first_ns, last_ns, rate_hz, rate_over, pose}] (each
+    topic rated over its own span; ``rate_over``: ``topic``, ``log`` when the file does not tell
+    the topic's span, ``latched`` for ``/tf_static``, whose rate is None), ``tf_frames``
+    [{parent, child, static, count}] from every TF message (``tf_messages``), ``warnings``
+    (the file cut off or damaged: what was lost; read without an index).
     Text files: ``format``, ``path``, ``rows``, ``start_ns``, ``end_ns``, ``duration_ns``, ``rate_hz``.
     """
     (p,), (fmt,) = _inputs(path)
@@ -176,4 +178,4 @@ def inspect_log(path: str | Path, *, quiet: bool = True, all_tf: bool = False) -
                 "rate_hz": round((len(s) - 1) / span * 1e9, 3) if span else 0.0}
     with open_log([p], [fmt]) as src:
         src.name = shown
-        return {"format": fmt, "path": shown, **inspect_source(src, quiet, all_tf=all_tf)}
+        return {"format": fmt, "path": shown, **inspect_source(src, quiet)}

@@ -98,13 +98,46 @@ def _topic_stream(src: LogSource, topic: str, buf: PoseBuffer | FastPoses, time_
                        recovered_truncated=len(buf) if truncated else 0)
 
 
+def _read_topics(src: LogSource, infos: list[TopicInfo], wanted: set[str], tf_topics: set[str], time_source: str,
+                 quiet: bool) -> tuple[dict[str, PoseBuffer | FastPoses], TfTree, int, dict[str, set[tuple[str, str]]]]:
+    """One pass over the ``wanted`` pose topics and the ``tf_topics``: (the poses of each wanted
+    topic, the TF tree, how many TF messages were read, the (parent, child) pairs each TF topic
+    carries). Topics the source's fast path decodes (``read_fast``, MCAP) come as arrays; the
+    rest message by message."""
+    label = "reading " + ", ".join(sorted(wanted) + (["TF"] if tf_topics else []))
+    fast: dict[str, FastPoses] = {}
+    if hasattr(src, "read_fast") and wanted | tf_topics:
+        todo = [t for t in infos if t.topic in wanted | tf_topics]
+        with progress(sum(t.count for t in todo), label, quiet=quiet) as bar:
+            fast = src.read_fast(sorted(wanted | tf_topics), time_source)
+            bar.update(sum(t.count for t in todo if t.topic in fast))
+    poses: dict[str, PoseBuffer | FastPoses] = {t: fast[t] for t in wanted & fast.keys()}
+    buffers = {topic: PoseBuffer() for topic in wanted - fast.keys()}
+    tree = TfTree(src.name)
+    pairs: dict[str, set[tuple[str, str]]] = {t: set() for t in tf_topics}
+    tf_messages = 0
+    for topic in tf_topics & fast.keys():
+        pairs[topic].update(fast[topic].pair_names)
+        tf_messages += len(fast[topic])
+        for k, (parent, child) in enumerate(fast[topic].pair_names):
+            tree.add_arrays(parent, child, *fast[topic].of_pair(k), static=is_static_topic(topic))
+    slow = [t for t in infos if t.topic in (wanted | tf_topics) - fast.keys()]
+    for topic, recs in _records(src, slow, label, time_source, quiet):
+        if topic in buffers:
+            buffers[topic].add(recs)
+        if topic in tf_topics:
+            tf_messages += 1
+            tree.add(recs, static=is_static_topic(topic))
+            pairs[topic].update((r[1], r[2]) for r in recs)
+    return {**poses, **buffers}, tree, tf_messages, pairs
+
+
 def read_requests(src: LogSource, requests: Sequence[Request], *, time_source: str = "header",
                   quiet: bool = True) -> list[PoseStream]:
     """Several pose streams of one log in a single pass over it, one per request: ``(topic, None)``
     reads the poses ``T_frame_child`` on a pose topic (child = child_frame_id, else the topic
     name as a valid frame id); ``(None, (parent, child))`` resolves ``T_parent_child(t)`` through
-    the TF topics (TFMessage, Foxglove FrameTransform(s)). Topics the source's fast path decodes
-    (``read_fast``, MCAP) come as arrays; the rest message by message."""
+    the TF topics (TFMessage, Foxglove FrameTransform(s))."""
     infos = src.topics()
     wanted = {topic for topic, _ in requests if topic is not None}
     for topic in wanted:
@@ -115,77 +148,68 @@ def read_requests(src: LogSource, requests: Sequence[Request], *, time_source: s
         if not tf_topics:
             raise DataError("no TF topics (/tf, /tf_static) in this file", src.name,
                             f"read a pose topic instead; pose topics: {_pose_topics(infos)}")
-    label = "reading " + ", ".join(sorted(wanted) + (["TF"] if tf_topics else []))
-    fast: dict[str, FastPoses] = {}
-    if hasattr(src, "read_fast"):
-        todo = [t for t in infos if t.topic in wanted | tf_topics]
-        with progress(sum(t.count for t in todo), label, quiet=quiet) as bar:
-            fast = src.read_fast(sorted(wanted | tf_topics), time_source)
-            bar.update(sum(t.count for t in todo if t.topic in fast))
-    buffers = {topic: PoseBuffer() for topic in wanted - fast.keys()}
-    tree = TfTree(src.name)
-    tf_messages = 0
-    for topic in tf_topics & fast.keys():
-        for k, (parent, child) in enumerate(fast[topic].pair_names):
-            tree.add_arrays(parent, child, *fast[topic].of_pair(k), static=is_static_topic(topic))
-    slow = [t for t in infos if t.topic in (wanted | tf_topics) - fast.keys()]
-    for topic, recs in _records(src, slow, label, time_source, quiet):
-        if topic in buffers:
-            buffers[topic].add(recs)
-        if topic in tf_topics:
-            tf_messages += 1
-            tree.add(recs, static=is_static_topic(topic))
+    poses, tree, tf_messages, _ = _read_topics(src, infos, wanted, tf_topics, time_source, quiet)
     streams = []
     for name, frames in requests:
         if name is not None:
-            streams.append(_topic_stream(src, name, fast.get(name) or buffers[name], time_source))
+            streams.append(_topic_stream(src, name, poses[name], time_source))
             continue
         assert frames is not None
         s = tree.lookup(*frames, time_source=time_source)
-        n = tf_messages + sum(len(fast[t]) for t in tf_topics & fast.keys())
-        streams.append(replace(s, warnings=(*_truncation(src, n), *s.warnings),
-                               recovered_truncated=n if getattr(src, "truncated", False) else 0))
+        streams.append(replace(s, warnings=(*_truncation(src, tf_messages), *s.warnings),
+                               recovered_truncated=tf_messages if getattr(src, "truncated", False) else 0))
     return streams
 
 
-TF_SAMPLE = 2000
-"""Messages of the TF topics ``inspect`` reads (from the start of the file) unless asked for all."""
+def _rate(info: TopicInfo, span: tuple[int, int] | None, log_span_ns: int) -> tuple[float | None, str]:
+    """(mean rate [Hz], over what): over the topic's own span from its first to its last message,
+    ``(count − 1) / (last − first)``; None for a ``/tf_static`` topic (latched: its messages are
+    published once, the rate means nothing) or a topic of one message or all at one stamp;
+    over the log's span (``count / span``) when the log does not tell the topic's own."""
+    if is_static_topic(info.topic):
+        return None, "latched"
+    if span is None:
+        return (round(info.count / log_span_ns * 1e9, 3) if log_span_ns else None), "log"
+    return (round((info.count - 1) / (span[1] - span[0]) * 1e9, 3) if span[1] > span[0] else None), "topic"
 
 
-def _tf_tree(src: LogSource, infos: list[TopicInfo], quiet: bool,
-             limit: int | None) -> tuple[TfTree, dict[str, set[tuple[str, str]]], int]:
-    """The TF tree of the first ``limit`` (None: all) TF messages, the (parent, child) pairs each TF
-    topic carries in them, and how many messages were read."""
-    tree = TfTree(src.name)
-    pairs: dict[str, set[tuple[str, str]]] = {t.topic: set() for t in infos if t.msgtype in TF_TYPES}
-    n = 0
-    for topic, recs in _records(src, [t for t in infos if t.topic in pairs], "reading TF", "header", quiet):
-        tree.add(recs, static=is_static_topic(topic))
-        pairs[topic].update((r[1], r[2]) for r in recs)
-        n += 1
-        if limit is not None and n >= limit:
-            break
-    return tree, pairs, n
-
-
-def inspect_source(src: LogSource, quiet: bool = True, *, all_tf: bool = False) -> dict[str, Any]:
-    """Topics (type, encoding, count, mean rate over the log's span — from the summary/index, no
-    message read —, ``pose``: readable as one pose stream with ``read_requests``, for a TF topic
-    only when it carries a single frame pair) and the TF edges, from the first
-    :data:`TF_SAMPLE` TF messages unless ``all_tf`` (then every TF message, exact counts).
-    ``tf_messages_read``: how many TF messages the edges come from; ``tf_complete``: all were read."""
+def inspect_source(src: LogSource, quiet: bool = True) -> dict[str, Any]:
+    """Topics (type, encoding, count; ``first_ns``/``last_ns``, the topic's own span, and
+    ``rate_hz`` over it, as :func:`_rate` says in ``rate_over`` — from the summary/index, no
+    message read —; ``pose``: readable as one pose stream with ``read_requests``, for a TF topic
+    only when it carries a single frame pair), the TF edges with exact counts from every TF
+    message (``tf_messages``), and ``warnings``: what the file lost (cut off, chunks skipped) or
+    how it was read (no index)."""
     infos = src.topics()
     span = src.span()
     duration = span[1] - span[0] if span else 0
-    tree, tf_pairs, n_tf = _tf_tree(src, infos, quiet, None if all_tf else TF_SAMPLE)
+    tf_topics = {t.topic for t in infos if t.msgtype in TF_TYPES}
+    _, tree, _, tf_pairs = _read_topics(src, infos, set(), tf_topics, "header", quiet)
+    own = src.topic_spans()
 
     def one_stream(t: TopicInfo) -> bool:
         return t.msgtype in POSE_TYPES and (t.topic not in tf_pairs or len(tf_pairs[t.topic]) == 1)
 
-    topics = [{"topic": t.topic, "type": t.msgtype, "encoding": t.encoding, "count": t.count,
-               "rate_hz": round(t.count / duration * 1e9, 3) if duration else 0.0,
-               "pose": one_stream(t)} for t in sorted(infos, key=lambda t: t.topic)]
-    total_tf = sum(t.count for t in infos if t.topic in tf_pairs)
+    topics = []
+    for t in sorted(infos, key=lambda t: t.topic):
+        rate, over = _rate(t, own.get(t.topic), duration)
+        first, last = own.get(t.topic, (None, None))
+        topics.append({"topic": t.topic, "type": t.msgtype, "encoding": t.encoding,
+                       "count": t.count, "first_ns": first, "last_ns": last, "rate_hz": rate, "rate_over": over,
+                       "pose": one_stream(t)})
     return {"start_ns": span[0] if span else None, "end_ns": span[1] if span else None,
             "duration_ns": duration, "topics": topics, "tf_frames": tree.edges(),
-            "tf_messages_read": n_tf, "tf_complete": n_tf >= total_tf}
+            "tf_messages": sum(t.count for t in infos if t.topic in tf_topics),
+            "warnings": _losses(src)}
+
+
+def _losses(src: LogSource) -> list[str]:
+    """What an overview of ``src`` must say about the file: its readers' notes (no usable index,
+    chunks skipped and their messages lost) and, for a file cut off, that the rest is lost."""
+    notes = list(getattr(src, "notes", ()))
+    if getattr(src, "truncated", False):
+        span = src.span()
+        read = f"{(span[1] - span[0]) / 1e9:.3f} s of messages are read up to the cut; " if span else ""
+        notes.append(f"{src.name} is cut off (a crashed or interrupted recording): {read}whatever was recorded after "
+                     "the cut is lost, and the counts, spans and rates are of what was read")
+    return notes

@@ -173,7 +173,7 @@ def _names(u: NDArray[np.uint8], start: Ints, length: Ints) -> tuple[NDArray[np.
 
 
 # --- chunks and message indexes ---------------------------------------------------------------
-def _message_index(blob: memoryview, wanted: set[int]) -> list[tuple[int, NDArray[np.uint64]]]:
+def message_index(blob: memoryview, wanted: set[int]) -> list[tuple[int, NDArray[np.uint64]]]:
     """(channel id, (log_time, offset) pairs) of the MessageIndex records in ``blob`` for ``wanted``."""
     out, i = [], 0
     while i + 9 <= len(blob):
@@ -248,7 +248,7 @@ class _Chunks:
         view = self._source.view(index.chunk_start_offset, size)   # the last call's records are used by now
         if len(view) != size:
             raise _Decline("chunk cut off")
-        entries = _message_index(view[index.chunk_length:], wanted)
+        entries = message_index(view[index.chunk_length:], wanted)
         if not entries:
             return [], np.zeros(0, np.uint8)
         if view[0] != 0x06:
@@ -387,9 +387,10 @@ class _Collect:
 @contextlib.contextmanager
 def _views(path: Path | RemoteObject, planned: list[tuple[int, int]]) -> Iterator[Any]:
     """The chunk views of a local file (mapped) or of a remote object (:meth:`.remote.RemoteObject.ranges`:
-    the ``planned`` [(start, length)] ranges fetched in file order, adjacent ones together)."""
+    the ``planned`` [(start, length)] ranges fetched in file order, near ones together, a few at once)."""
     if not isinstance(path, Path):
-        yield path.ranges(planned)
+        with path.ranges(planned) as ranges:
+            yield ranges
         return
     with open(path, "rb") as f:
         yield _Mapped(f)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import io
 import json
 from collections import Counter
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, BinaryIO
@@ -30,10 +30,10 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 
 from ..errors import ReadError
 from .common import CHUNK_LIMIT, ChunkError, decode_errors, inflate, open_clamped, unreadable
-from .mcap_fast import FastTopics, read_fast
+from .mcap_fast import FastTopics, message_index, read_fast
 from .messages import normalize_type, pose_decoder
 from .remote import RemoteObject
-from .source import Decoder, TopicInfo
+from .source import Decoder, TopicInfo, spans_by_topic
 
 if TYPE_CHECKING:
     from .rosbag_reader import BagSource
@@ -60,6 +60,7 @@ class McapSource:
     _channels: dict[int, Channel]
     _counts: dict[int, int]
     _span: tuple[int, int] | None
+    _channel_spans: dict[int, tuple[int, int]]     # of a scanned file (an indexed one reads its message indexes)
 
     def __init__(self, path: Path | RemoteObject, *, fast: bool = True) -> None:
         self.name = path.url if isinstance(path, RemoteObject) else str(path)
@@ -84,6 +85,7 @@ class McapSource:
             self._span = (st.message_start_time, st.message_end_time) if st.message_count else None
             self._chunks = list(summary.chunk_indexes)
             self._indexed = True
+            self._channel_spans = {}
         else:
             self._scan_index()
         self._ros2 = (self._indexed and profile == "ros2" and isinstance(path, Path)
@@ -140,12 +142,13 @@ class McapSource:
         """Schemas, channels, counts and span by a linear scan (no usable summary section)."""
         self._schemas, self._channels = {}, {}
         counts: Counter[int] = Counter()
-        lo, hi = 2**64, -1
+        spans: dict[int, tuple[int, int]] = {}
         with unreadable(self.name, _RECOVER):
             for record in self._records():
                 if isinstance(record, Message):
                     counts[record.channel_id] += 1
-                    lo, hi = min(lo, record.log_time), max(hi, record.log_time)
+                    lo, hi = spans.get(record.channel_id, (record.log_time, record.log_time))
+                    spans[record.channel_id] = (min(lo, record.log_time), max(hi, record.log_time))
                 elif isinstance(record, Schema):
                     self._schemas[record.id] = record
                 elif isinstance(record, Channel):
@@ -156,7 +159,8 @@ class McapSource:
         if self.truncated and not counts:
             raise ReadError("cannot read file: the MCAP is cut off before its first complete message",
                             self.name, _RECOVER)
-        self._counts, self._span, self._chunks, self._indexed = dict(counts), (lo, hi) if counts else None, [], False
+        self._counts, self._chunks, self._indexed, self._channel_spans = dict(counts), [], False, spans
+        self._span = (min(lo for lo, _ in spans.values()), max(hi for _, hi in spans.values())) if spans else None
 
     def __enter__(self) -> McapSource:
         return self
@@ -180,6 +184,36 @@ class McapSource:
 
     def span(self) -> tuple[int, int] | None:
         return self._span
+
+    def topic_spans(self) -> dict[str, tuple[int, int]]:
+        """Of a scanned file, what the scan saw; of an indexed one, from the MessageIndex records of
+        the chunks that hold each channel's first and last messages (one read of a chunk's message
+        indexes, which follow it, serves every channel; no chunk decompressed). A topic with a channel
+        the indexes do not cover is left out."""
+        spans = dict(self._channel_spans)
+        if self._indexed:
+            read: dict[int, dict[int, tuple[int, int]]] = {}
+            with self._open() as f, unreadable(self.name):
+                def times(ix: Any) -> dict[int, tuple[int, int]]:
+                    if ix.chunk_start_offset not in read:
+                        f.seek(ix.chunk_start_offset + ix.chunk_length)
+                        try:
+                            entries = message_index(memoryview(f.read(ix.message_index_length)),
+                                                    set(ix.message_index_offsets))
+                        except ValueError:      # an index record past its section: no times from it
+                            entries = []
+                        read[ix.chunk_start_offset] = {cid: (int(r[:, 0].min()), int(r[:, 0].max()))
+                                                       for cid, r in entries}
+                    return read[ix.chunk_start_offset]
+
+                for cid in self._channels:
+                    chunks = [ix for ix in self._chunks if cid in ix.message_index_offsets]
+                    first, last = _edge_time(chunks, cid, times), _edge_time(chunks, cid, times, last=True)
+                    if first is not None and last is not None:
+                        spans[cid] = (first, -last)
+        out = spans_by_topic((self._channels[cid].topic, span) for cid, span in spans.items() if cid in self._channels)
+        unknown = {ch.topic for cid, ch in self._channels.items() if cid not in spans and self._counts.get(cid)}
+        return {topic: span for topic, span in out.items() if topic not in unknown}
 
     def read_fast(self, topics: Sequence[str], time_source: str) -> FastTopics:
         """Pose arrays of the ``topics`` the numpy fast path can decode (little-endian CDR of the
@@ -249,6 +283,26 @@ class McapSource:
                     continue
                 f.seek(index.chunk_start_offset + 9)
                 yield from self._chunk_records(Chunk.read(ReadDataStream(f)), index.chunk_start_offset)
+
+
+def _edge_time(chunks: list[Any], cid: int, times: Callable[[Any], dict[int, tuple[int, int]]], *,
+               last: bool = False) -> int | None:
+    """The first log time [ns] of channel ``cid`` in ``chunks`` (the chunk indexes holding it), or
+    minus the last one with ``last``: ``times(chunk)`` (the chunk's (first, last) per channel) asked
+    in order of the chunks' start (end) time until no later chunk can hold an earlier (later)
+    message. None when the indexes list none (a damaged index: the topic is then rated over the
+    log's span)."""
+    def bound(ix: Any) -> int:
+        return -int(ix.message_end_time) if last else int(ix.message_start_time)
+
+    best: int | None = None
+    for ix in sorted(chunks, key=bound):
+        if best is not None and bound(ix) > best:
+            break
+        if cid in (got := times(ix)):
+            edge = -got[cid][1] if last else got[cid][0]
+            best = edge if best is None else min(best, edge)
+    return best
 
 
 def _salvage_chunk(f: BinaryIO) -> Iterator[Any]:

@@ -83,9 +83,28 @@ class Nominal:
             return np.array(self.edges[0].matrix, dtype=np.float64)
         for name in (a, b):
             if name not in frames:
-                raise ReadError(f"frame {name!r} is not in the nominal (it names {', '.join(frames)})",
-                                self.source, "name the result's frames as the nominal does with --name-a/--name-b")
+                raise ReadError(f"frame {name!r} is not in the nominal (it names {', '.join(frames)}), and no single "
+                                "one of them is named by the stream's topic", self.source,
+                                "name the result's frames as the nominal does with --name-a/--name-b")
         return self._chain(str(a), str(b))
+
+    def frames_for(self, a: str | None, b: str | None, topics: tuple[str | None, str | None] = (None, None)
+                   ) -> tuple[str | None, str | None]:
+        """The nominal's frames for a result's frames a and b: each as it is where the nominal names it, else the
+        one frame of the nominal its stream's topic names — a '/'-part of the topic or consecutive parts joined by
+        '_' (``/cam0/pose`` → ``cam0``; ``/camera/left/pose`` → ``camera_left``): a PoseStamped names no child
+        frame, so its result frame is named after the topic (``cam0_pose``). Left as given when no frame or more
+        than one matches (:meth:`transform` then names ``--name-a``/``--name-b``)."""
+        frames = set(self.frames)
+        out = []
+        for name, topic in zip((a, b), topics, strict=True):
+            if name in frames or not topic:
+                out.append(name)
+                continue
+            parts = [p for p in topic.split("/") if p]
+            named = {"_".join(parts[i:j]) for i in range(len(parts)) for j in range(i + 1, len(parts) + 1)} & frames
+            out.append(named.pop() if len(named) == 1 else name)
+        return out[0], out[1]
 
     def _chain(self, a: str, b: str) -> NDArray[np.float64]:
         """Breadth-first search from a to b over the edges taken in either direction."""
@@ -354,10 +373,13 @@ def _parse_file(path: Path) -> tuple[str, tuple[Edge, ...]]:
     if text.lstrip().startswith("<"):
         import xml.etree.ElementTree as ET  # 20 ms to import: only for URDF and launch XML
 
+        snippet = re.sub(r"<!--.*?-->", "", text, flags=re.S).lstrip().startswith("<joint")    # urdf-joint
         try:
-            root = ET.fromstring(text)
+            root = ET.fromstring(f"<robot>{text}</robot>" if snippet else text)
         except ET.ParseError as e:
             raise ReadError(f"invalid XML: {e}", where, _FIX) from None
+        if snippet:
+            return "urdf-joint", _urdf(root, where)
         return ("urdf", _urdf(root, where)) if root.tag == "robot" else _launch_xml(root, where)
     try:
         doc, problem = load_yaml(text), None

@@ -3,7 +3,9 @@
 * MCAP → :class:`.mcap_reader.McapSource` (which itself scans files without a usable summary);
 * ROS 1 bags → rosbags' AnyReader, once :func:`.rosbag1_scan.check_lengths` finds every record
   within the file; a single bag it refuses (never indexed, cut off, a record claiming more than the
-  file holds) is scanned linearly (:class:`.rosbag1_scan.Bag1Scan`) with a warning;
+  file holds) is scanned linearly (:class:`.rosbag1_scan.Bag1Scan`) with a warning; one indexed
+  bag named by URL is read by byte range (:class:`.rosbag1_scan.Bag1Index`), any other remote bag
+  from its download (:meth:`.remote.Session.cached`, with a note saying why);
 * ROS 2 bag directories → AnyReader when ``metadata.yaml`` is there and parses; a corrupt one is
   a one-line error; without one the single storage file is read directly (``.mcap`` through
   McapSource, ``.db3`` through AnyReader) with a warning. A directory with one ``.mcap`` storage
@@ -25,7 +27,7 @@ from .remote import RemoteObject
 from .source import LogSource
 
 if TYPE_CHECKING:
-    from .rosbag1_scan import Bag1Scan
+    from .rosbag1_scan import Bag1Index, Bag1Scan
     from .rosbag_reader import BagSource
 
 __all__ = ["open_log"]
@@ -83,15 +85,38 @@ def _open_bag1(paths: list[Path]) -> BagSource | Bag1Scan:
     return Bag1Scan(paths[0], reason)
 
 
+def _remote_bag1(objects: list[RemoteObject]) -> Bag1Index | list[Path]:
+    """One indexed remote ROS 1 bag read by range, else the local copies of the bags (downloaded
+    once, with a note saying why)."""
+    from .rosbag1_scan import indexed
+
+    if len(objects) == 1:
+        bag = indexed(objects[0])
+        if not isinstance(bag, str):
+            return bag
+        why = f"a ROS 1 bag without a usable index ({bag}) cannot be read by range"
+    else:
+        why = "split ROS 1 bags are read as one from files"
+    return [obj.session.cached(obj.url, why) for obj in objects]
+
+
 @contextmanager
 def open_log(paths: list[Path | RemoteObject], fmts: list[str]) -> Iterator[LogSource]:
-    """The open log of ``paths`` (several only for split ROS 1 bags; a remote object is an MCAP)."""
+    """The open log of ``paths`` (several only for split ROS 1 bags; a remote object is an MCAP or a ROS 1 bag)."""
     if len(paths) > 1 and (len(set(fmts)) > 1 or fmts[0] != "rosbag1"):
         raise ReadError("several files are read as one log only when all are ROS 1 .bag files",
                         ", ".join(map(str, paths)), "pass one file, or the split .bag files of one recording")
-    if isinstance(paths[0], RemoteObject):
-        with McapSource(paths[0]) as remote:
-            yield remote
+    remote = [p for p in paths if isinstance(p, RemoteObject)]
+    if remote and fmts[0] == "rosbag1":
+        bag = _remote_bag1(remote)
+        if not isinstance(bag, list):
+            with bag:
+                yield bag
+            return
+        paths = [*bag, *(p for p in paths if isinstance(p, Path))]
+    elif remote:
+        with McapSource(remote[0]) as mcap:
+            yield mcap
         return
     local = [p for p in paths if isinstance(p, Path)]
     path, fmt, note = local[0], fmts[0], ""

@@ -1,7 +1,7 @@
 """Inputs named by URL (``s3://bucket/key.mcap``, ``gs://…``, ``https://…``, ``memory://…``): the one
 home of remote reading — opening through fsspec, bounded retries, byte counting, the download cache.
 
-fsspec (and s3fs for S3: ``pip install 'handeye-cli[remote]'``) is imported only when a URL is
+fsspec (and s3fs for S3: ``pip install fsspec s3fs``, the extra ``remote``) is imported only when a URL is
 read. Credentials and the endpoint come the standard way (``AWS_ENDPOINT_URL``,
 ``AWS_ACCESS_KEY_ID``/``AWS_SECRET_ACCESS_KEY``, ``AWS_PROFILE`` …) or from the storage options
 (``--storage-option KEY=VALUE``: fsspec's keyword arguments of the file system); neither is ever
@@ -11,22 +11,28 @@ credentials (``https://user:pass@host/…``) is refused.
 An object is read by byte range (:class:`RemoteObject`): every request asks for exactly the bytes
 its reader needs (at least :data:`_READAHEAD` for small reads), gets at most
 ``remote_retries`` tries of ``remote_timeout`` seconds each, and adds what it got to the
-session's :attr:`Session.bytes_fetched`. The MCAP reader reads the footer, the summary and then
-only the chunks it needs (:meth:`RemoteObject.ranges`, which joins adjacent chunks into one
-request of at most :data:`_SPAN`, so memory holds a few chunks, never the object). What cannot be
-read by range — text files, ROS bags, an MCAP without a summary (cut short, or written without
-one) — is downloaded once to the session's cache (:meth:`Session.cached`): at most
-:data:`CACHE_LIMIT` bytes, removed when the session ends and at exit, with a one-line note.
+session's :attr:`Session.bytes_fetched` (and one to :attr:`Session.requests`). The MCAP reader
+reads the footer, the summary and then only the chunks it needs; an indexed ROS 1 bag's reader
+(:class:`.rosbag1_scan.Bag1Index`) its header, its index and then only the chunks it needs. Both
+ask for chunks through :meth:`RemoteObject.ranges`, which joins ranges at most :data:`_GAP` apart
+into one request of at most :data:`_SPAN` and keeps :data:`_PARALLEL` requests under way at once,
+so memory holds a few chunks, never the object. What cannot be read by range — text files, ROS 2
+bags, a ROS 1 bag without a usable index, split ROS 1 bags, an MCAP without a summary (cut short,
+or written without one) — is downloaded once to the session's cache (:meth:`Session.cached`): at
+most :data:`CACHE_LIMIT` bytes, removed when the session ends and at exit, with a one-line note.
 """
 from __future__ import annotations
 
 import atexit
+import bisect
+import concurrent.futures
 import contextlib
 import os
 import re
 import shutil
 import struct
 import tempfile
+import threading
 import time
 from collections import OrderedDict
 from collections.abc import Iterator, Sequence
@@ -45,6 +51,8 @@ CACHE_LIMIT = 8 << 30
 """The most bytes [B] one session downloads to its cache (objects that cannot be read by range)."""
 _READAHEAD = 4 << 10        # [B] the least a request asks for (small reads: headers, records of a summary)
 _SPAN = 16 << 20            # [B] the most one request of adjacent chunks asks for
+_GAP = 64 << 10             # [B] planned ranges this close are asked for in one request (the gap's bytes with them)
+_PARALLEL = 4               # requests of one object's planned ranges under way at once
 _HELD = 64 << 20            # [B] the most fetched bytes kept for re-reading (footer, summary, head)
 _PIECE = 16 << 20           # [B] a download's request size
 _CLIENTS = ("botocore", "aiobotocore", "aiohttp", "urllib3", "asyncio", "gcsfs", "google", "fsspec", "s3fs")
@@ -79,12 +87,21 @@ class Session:
     timeout: float              # [s] per request (``remote_timeout``)
     retries: int                # tries per request (``remote_retries``)
     bytes_fetched: int = 0
+    requests: int = 0               # range requests answered (what benchmarks/remote.py reports)
     urls: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     _objects: dict[str, RemoteObject] = field(default_factory=dict)
+    _folders: dict[str, bool] = field(default_factory=dict)
     _cache: Path | None = None
     _cached: dict[str, Path] = field(default_factory=dict)
     _cached_bytes: int = 0
+    _lock: threading.Lock = field(default_factory=threading.Lock)   # the counts, added to from a Ranges pool
+
+    def count(self, n: int) -> None:
+        """Count one request answered with ``n`` bytes [B] (safe from the threads of :class:`Ranges`)."""
+        with self._lock:
+            self.bytes_fetched += n
+            self.requests += 1
 
     def fs(self, url: str) -> tuple[Any, str]:
         """(the fsspec file system of ``url``, its path there), with the timeouts and retries of this session."""
@@ -95,7 +112,7 @@ class Session:
             import fsspec  # type: ignore[import-untyped]
             from fsspec.core import split_protocol  # type: ignore[import-untyped]
         except ImportError as exc:
-            raise ConfigError("reading URLs needs fsspec", url, "pip install 'handeye-cli[remote]'") from exc
+            raise ConfigError("reading URLs needs fsspec", url, "pip install fsspec s3fs (S3)") from exc
         protocol, _ = split_protocol(url)
         options: dict[str, Any] = dict(self.storage_options)
         if protocol in ("s3", "s3a"):
@@ -109,7 +126,7 @@ class Session:
             fs = fsspec.filesystem(protocol, **options)
         except ImportError as exc:
             raise ConfigError(f"no file system for {protocol}:// installed: {exc.name or exc}", url,
-                              "pip install 'handeye-cli[remote]' (S3), gcsfs (gs://) or aiohttp (https://)") from exc
+                              "pip install s3fs (S3), gcsfs (gs://) or aiohttp (https://)") from exc
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"bad storage options for {protocol}://: {type(exc).__name__}",
                               "--storage-option", "pass the keyword arguments of the fsspec file system") from exc
@@ -154,9 +171,12 @@ class Session:
         return self._objects[url]
 
     def is_folder(self, url: str) -> bool:
-        """Whether ``url`` names a folder (a prefix holding objects) rather than an object."""
-        fs, path = self.fs(url)
-        return bool(self.call(url, "listing", fs.isdir, path))
+        """Whether ``url`` names a folder (a prefix holding objects) rather than an object (asked once
+        a session: detecting the format and opening the input share the answer)."""
+        if url not in self._folders:
+            fs, path = self.fs(url)
+            self._folders[url] = bool(self.call(url, "listing", fs.isdir, path))
+        return self._folders[url]
 
     def listing(self, url: str, pattern: bool = False) -> list[tuple[str, bool]]:
         """(URL, whether a folder) of the objects under the folder ``url`` (recursively), or of what
@@ -194,15 +214,18 @@ class Session:
         return target
 
     def opened(self, url: str, fmt: str) -> Path | RemoteObject:
-        """What the reader of format ``fmt`` opens for ``url``: an MCAP with a summary is read by range,
-        anything else from its local copy (:meth:`cached`)."""
+        """What the reader of format ``fmt`` opens for ``url``: an MCAP with a summary and a ROS 1 bag
+        are read by range (the bag's reader downloads it to :meth:`cached` if it has no usable
+        index: see :func:`.opening.open_log`), anything else from its local copy (:meth:`cached`)."""
+        if fmt == "rosbag1":
+            return self.open(url)
         if fmt == "mcap" and not self.is_folder(url):
             obj = self.open(url)
             if obj.prefetch_summary():
                 return obj
             return self.cached(url, "an MCAP without a summary (cut short, or written without one) cannot be "
                                     "read by range")
-        why = {"rosbag1": "a ROS 1 bag is read from a file", "rosbag2": "a ROS 2 bag is read from a file"}
+        why = {"rosbag2": "a ROS 2 bag is read from a file"}
         return self.cached(url, why.get(fmt, "a text file is read whole"))
 
     def _download(self, obj: RemoteObject, target: Path) -> None:
@@ -230,8 +253,6 @@ class _Overran(Exception):
 def _within(seconds: float, fn: Any, *args: Any) -> Any:
     """``fn(*args)``, or :class:`_Overran` after ``seconds`` (the file systems' own timeouts come
     first; this is the bound when one of them does not apply, e.g. a server that accepts and is silent)."""
-    import concurrent.futures
-
     pool = concurrent.futures.ThreadPoolExecutor(1)
     try:
         return pool.submit(fn, *args).result(seconds)
@@ -298,7 +319,7 @@ class RemoteObject:
             return b""
         data: bytes = self.session.call(self.url, f"reading bytes {start}-{stop}",
                                         lambda: self._fs.cat_file(self._path, start=start, end=stop))
-        self.session.bytes_fetched += len(data)
+        self.session.count(len(data))
         return data
 
     def _hold(self, start: int, data: bytes) -> None:
@@ -394,25 +415,58 @@ class RangeFile:
 
 
 class Ranges:
-    """Byte ranges of an object asked for in a planned order: adjacent ones are fetched together, up
-    to :data:`_SPAN` bytes a request, and a span is dropped once the reader moves past it (memory
-    holds one span: a few chunks)."""
+    """Byte ranges of an object asked for in a planned order (use as a context manager): ranges at
+    most :data:`_GAP` apart are fetched together, up to :data:`_SPAN` bytes a request; the next
+    :data:`_PARALLEL` spans are asked for at once, on a small thread pool, while the reader works
+    through the current one; a span is dropped once the reader moves past it (memory holds at most
+    :data:`_PARALLEL` + 1 spans: a few chunks)."""
 
     def __init__(self, obj: RemoteObject, planned: Sequence[tuple[int, int]]) -> None:
         self._obj = obj
         self._spans: list[tuple[int, int]] = []
         for start, n in sorted(planned):
-            if self._spans and self._spans[-1][1] == start and start + n - self._spans[-1][0] <= _SPAN:
-                self._spans[-1] = (self._spans[-1][0], start + n)
+            last = self._spans[-1] if self._spans else None
+            if last and start - last[1] <= _GAP and max(last[1], start + n) - last[0] <= _SPAN:
+                self._spans[-1] = (last[0], max(last[1], start + n))
             else:
                 self._spans.append((start, start + n))
+        self._starts = [a for a, _ in self._spans]
         self._span = (0, b"")
+        self._pool: concurrent.futures.ThreadPoolExecutor | None = None
+        self._asked: dict[int, concurrent.futures.Future[bytes]] = {}    # span number → its bytes
+        self._next = 0                  # the next span to ask for
+
+    def __enter__(self) -> Ranges:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        """Requests not yet sent are dropped; those under way are waited for (each bounded by the
+        session's timeout), so that :attr:`Session.bytes_fetched` is complete."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+        self._asked.clear()
+
+    def _ask(self, k: int) -> None:
+        """Spans ``k`` … ``k + _PARALLEL - 1`` asked for; earlier ones forgotten."""
+        for old in [j for j in self._asked if j < k]:
+            self._asked.pop(old).cancel()
+        self._next = max(self._next, k)
+        while self._next < min(len(self._spans), k + _PARALLEL):
+            if self._pool is None:
+                self._pool = concurrent.futures.ThreadPoolExecutor(_PARALLEL, thread_name_prefix="handeye-range")
+            self._asked[self._next] = self._pool.submit(self._obj.fetch, *self._spans[self._next])
+            self._next += 1
 
     def view(self, start: int, n: int) -> memoryview:
         """The ``n`` bytes from ``start`` (fewer where the object ends)."""
         s, data = self._span
         if not (s <= start and start + n <= s + len(data)):
-            lo, hi = next(((a, b) for a, b in self._spans if a <= start < b), (start, start + n))
             self._span = (0, b"")           # the previous span goes before the next arrives
-            self._span = s, data = lo, self._obj.fetch(lo, max(hi, start + n))
+            k = bisect.bisect_right(self._starts, start) - 1
+            if k >= 0 and start < self._spans[k][1] and start + n <= self._spans[k][1]:
+                self._ask(k)
+                s, data = self._spans[k][0], self._asked.pop(k).result()
+            else:                           # outside the plan: asked for alone
+                s, data = start, self._obj.fetch(start, start + n)
+            self._span = (s, data)
         return memoryview(data)[start - s:start - s + n]

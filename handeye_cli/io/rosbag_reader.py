@@ -13,9 +13,10 @@ rosbags sees it (:func:`.rosbag1_scan.check_lengths`, called by :func:`.opening.
 from __future__ import annotations
 
 import os
+import sqlite3
 import tempfile
 from collections.abc import Iterator, Sequence
-from contextlib import ExitStack
+from contextlib import ExitStack, closing
 from functools import partial
 from pathlib import Path
 
@@ -27,7 +28,7 @@ from rosbags.typesys import Stores, get_typestore
 from ..errors import ReadError
 from .common import CHUNK_LIMIT, inflate, unreadable
 from .messages import normalize_type, pose_decoder
-from .source import Decoder, TopicInfo
+from .source import Decoder, TopicInfo, spans_by_topic
 
 __all__ = ["BagSource"]
 
@@ -44,6 +45,8 @@ class BagSource:
 
     def __init__(self, paths: Sequence[Path], fmt: str) -> None:
         self.name = ", ".join(str(p) for p in paths)
+        self._db3 = ([q for p in paths for q in (sorted(Path(p).glob("*.db3")) if Path(p).is_dir() else [Path(p)])]
+                     if fmt == "rosbag2" else [])
         self._stack = ExitStack()
         with unreadable(self.name):
             try:
@@ -77,6 +80,26 @@ class BagSource:
     def span(self) -> tuple[int, int] | None:
         r = self._reader    # rosbags' end_time is exclusive: last log time + 1
         return (r.start_time, r.end_time - 1) if r.message_count else None
+
+    def topic_spans(self) -> dict[str, tuple[int, int]]:
+        """ROS 1: from rosbags' connection indexes (pinned internals, as :mod:`.rosbag1_scan`'s);
+        ROS 2 sqlite3: one grouped query on each ``.db3`` (read-only); other storage: none known."""
+        spans: list[tuple[str, tuple[int, int]]] = []
+        for reader in self._reader.readers:
+            for conn in reader.connections:
+                times = getattr(reader, "indexes", {}).get(conn.id)
+                if times:
+                    spans.append((conn.topic, (times[0].time, times[-1].time)))
+        for db in self._db3:
+            try:
+                with closing(sqlite3.connect(f"{db.resolve().as_uri()}?mode=ro", uri=True)) as con:
+                    spans += [(topic, (lo, hi)) for topic, lo, hi in con.execute(
+                        "SELECT topics.name, MIN(messages.timestamp), MAX(messages.timestamp) FROM messages "
+                        "JOIN topics ON messages.topic_id = topics.id GROUP BY topics.name")
+                              if isinstance(lo, int) and isinstance(hi, int)]
+            except sqlite3.Error:       # rosbags read it; the spans are only for inspect's rates
+                continue
+        return spans_by_topic(spans)
 
     def _decoder(self, msgtype: str, cdr: bool) -> Decoder:
         reader = self._reader

@@ -137,4 +137,4 @@ def render(doc: dict[str, Any], fmt: str = "yaml") -> str:
         return json.dumps(finite(doc), indent=2, allow_nan=False) + "\n"
     if fmt == "yaml":
         return yaml.dump(finite(doc), Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=10_000)
-    raise ConfigError(f"unknown output format {fmt!r}", "--format", f"use one of {', '.join(FORMATS)}")
+    raise ConfigError(f"unknown output format {fmt!r}", "fmt", f"use one of {', '.join(FORMATS)}")

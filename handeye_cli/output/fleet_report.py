@@ -8,7 +8,7 @@ days since the earliest log, UTC) as its deviation from the nominal — rotation
 and the tolerance as dashed lines; without a verdict the pair's median result is the reference and
 there is no tolerance. One line per robot: a robot is an input's path with its dates and times (runs
 of 6 or more digits and separators, such as ``2026-11-03`` or ``20261103_120000``) taken out, so that
-``logs/2026-11-03/robot42.mcap`` and ``logs/2026-11-04/robot42.mcap`` are one line and
+``logs/2026-11-03/robot42.mcap`` and ``logs/2026-11-04/robot42.mcap`` are one line (``logs/robot42.mcap``) and
 ``logs/robot01/rig.bag`` and ``logs/robot02/rig.bag`` two. Drifted logs are red crosses. The legend
 (robot colours) is HTML below the chart, never over the data. Then the table of drifted logs and the
 table of failed ones.
@@ -65,8 +65,9 @@ def read_records(path: str | Path, warn: Callable[[str], None]) -> list[dict[str
 
 
 def _robot(label: str) -> str:
-    """The robot of an input (see the module docstring)."""
-    return _STAMP.sub("", label)
+    """The robot of an input (see the module docstring); a folder left empty by its date goes too
+    (``logs/2026-11-03/robot42.mcap`` → ``logs/robot42.mcap``)."""
+    return re.sub(r"(?<=/)/+", "", _STAMP.sub("", label))
 
 
 def _deviations(records: list[dict[str, Any]]) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:

@@ -7,7 +7,8 @@ rig result every ``T_ref_k`` (``transforms``). Every writer takes that list (one
 result) and writes the numbers at full precision (``repr``), so reading the output back with
 :func:`handeye_cli.io.nominal.read_nominal` gives the same transforms to 1e-9:
 
-* ``urdf``: one ``<joint type="fixed">`` per transform, ``<origin xyz rpy>`` (rpy: fixed-axis roll x,
+* ``urdf``: a ``<robot>`` with the links and one ``<joint type="fixed">`` per transform (``urdf-joint``: the
+  joints alone, to paste into an existing robot's URDF), ``<origin xyz rpy>`` (rpy: fixed-axis roll x,
   pitch y, yaw z, ``R = Rz·Ry·Rx`` — accurate to ~1e-9 except within ~1e-4 rad of pitch ±90°);
 * ``ros1-launch``: one ``tf2_ros static_transform_publisher`` node per transform, ``args="x y z qx qy qz qw
   parent child"``;
@@ -45,7 +46,7 @@ from ..untrusted import frame_id_problem
 from ..version import __version__
 from .document import render
 
-__all__ = ["ALL_FORMATS", "Frame", "render_format", "transforms_of"]
+__all__ = ["ALL_FORMATS", "SUMMARY_FORMATS", "Frame", "render_format", "transforms_of"]
 
 Array = NDArray[np.float64]
 
@@ -99,7 +100,7 @@ def _refuse(frames: list[Frame], fmt: str, problem: Callable[[str], str | None])
     for name in (n for f in frames for n in (f.parent, f.child)):
         why = problem(name)
         if why:
-            raise ConfigError(f"frame name {name!r} cannot be written as {fmt}: {why}", "--format",
+            raise ConfigError(f"frame name {name!r} cannot be written as {fmt}: {why}", "fmt",
                               "name the frames with --name-a/--name-b (letters, digits, '_', '.', '/', '-')")
 
 
@@ -128,23 +129,37 @@ def _flag_args(f: Frame) -> list[str]:
     return [*args, "--frame-id", f.parent, "--child-frame-id", f.child]
 
 
-def _urdf(doc: dict[str, Any], frames: list[Frame]) -> str:
-    """One fixed joint per transform; the links in order of appearance (a rig's reference is the root)."""
+def _joints(frames: list[Frame]) -> str:
+    """One fixed ``<joint>`` per transform (parent, child, ``<origin xyz rpy>``), every name by ``quoteattr``."""
     from xml.sax.saxutils import quoteattr  # 50 ms of imports (urllib, http, ssl): only for the XML formats
 
     from scipy.spatial.transform import Rotation  # 0.3 s to import: only for URDF's roll, pitch, yaw
 
     _refuse(frames, "a URDF", _xml_problem)
-    links = "".join(f"  <link name={quoteattr(name)}/>\n"
-                    for name in dict.fromkeys(name for f in frames for name in (f.parent, f.child)))
-    joints = "".join(
+    return "".join(
         f"  <joint name={quoteattr(f'{f.parent}_to_{f.child}')} type=\"fixed\">\n"
         f"    <parent link={quoteattr(f.parent)}/>\n    <child link={quoteattr(f.child)}/>\n"
         f'    <origin xyz="{" ".join(_num(f.matrix[:3, 3]))}" '
         f'rpy="{" ".join(_num(Rotation.from_matrix(f.matrix[:3, :3]).as_euler("xyz")))}"/>\n  </joint>\n'
         for f in frames)
+
+
+def _urdf(doc: dict[str, Any], frames: list[Frame]) -> str:
+    """A whole ``<robot>``: the links in order of appearance (a rig's reference is the root), one fixed joint per
+    transform."""
+    from xml.sax.saxutils import quoteattr
+
+    joints = _joints(frames)
+    links = "".join(f"  <link name={quoteattr(name)}/>\n"
+                    for name in dict.fromkeys(name for f in frames for name in (f.parent, f.child)))
     return (f'<?xml version="1.0"?>\n<!-- {_xml_comment(_comment(doc, frames))} -->\n'
             f'<robot name="handeye_extrinsic">\n{links}{joints}</robot>\n')
+
+
+def _urdf_joint(doc: dict[str, Any], frames: list[Frame]) -> str:
+    """The joints alone, without ``<robot>`` or ``<link>``s: pasted into a robot's URDF that has the links
+    already, it adds no duplicate link (a rig's several joints follow each other)."""
+    return f"<!-- {_xml_comment(_comment(doc, frames))} -->\n{_joints(frames)}"
 
 
 def _ros1_launch(doc: dict[str, Any], frames: list[Frame]) -> str:
@@ -193,8 +208,11 @@ def _kalibr(doc: dict[str, Any], frames: list[Frame]) -> str:
 
 
 _WRITERS: dict[str, Callable[[dict[str, Any], list[Frame]], str]] = {
-    "urdf": _urdf, "ros1-launch": _ros1_launch, "ros2-launch": _ros2_launch, "tf-static": _tf_static, "kalibr": _kalibr}
+    "urdf": _urdf, "urdf-joint": _urdf_joint,
+    "ros1-launch": _ros1_launch, "ros2-launch": _ros2_launch, "tf-static": _tf_static, "kalibr": _kalibr}
 ALL_FORMATS = ("yaml", "json", *_WRITERS)
+# the formats of a command's summary (check, compare, inspect): a text table or line, or its data as YAML/JSON
+SUMMARY_FORMATS = ("text", "yaml", "json")
 
 
 def render_format(doc: dict[str, Any], fmt: str) -> str:
@@ -204,5 +222,5 @@ def render_format(doc: dict[str, Any], fmt: str) -> str:
     if fmt in ("yaml", "json"):
         return render(doc, fmt)
     if fmt not in _WRITERS:
-        raise ConfigError(f"unknown output format {fmt!r}", "--format", f"use one of {', '.join(ALL_FORMATS)}")
+        raise ConfigError(f"unknown output format {fmt!r}", "fmt", f"use one of {', '.join(ALL_FORMATS)}")
     return _WRITERS[fmt](doc, transforms_of(doc))

@@ -12,9 +12,11 @@ x-y-z-w; metres, and degrees in everything shown.
 
 Contents: the extrinsic (matrix, translation, quaternion, rotation in degrees), method, α, cost,
 pairs used and inputs; the warnings; (1) both trajectories in a's world after applying the
-extrinsic, (2) per-pair residuals over time, (3) what each stage kept and each gate dropped,
-(4) the bootstrap spread when given; tables for whatever diagnostics the result document
-holds (time offset, uncertainty, residuals, robust, solver, …). It needs no optional dependency.
+extrinsic, (2) per-pair residuals over time, (3) what each stage kept and each gate dropped
+(one log scale, a zero without a bar), (4) the bootstrap spread when given; a titled table for
+every other block of the result document (time offset, uncertainty, residuals, robust, solver,
+fit test, …; values not computed left out), and the options that differ from the defaults.
+It needs no optional dependency.
 """
 from __future__ import annotations
 
@@ -39,6 +41,7 @@ from .writers import check_writable, write_output
 
 if TYPE_CHECKING:
     from ..pipeline import Calibration
+    from ..stages.counts import SampleCounts
     from ..stages.sync import Synced
 
 __all__ = ["write_report", "world_alignment", "render_report"]
@@ -46,12 +49,14 @@ __all__ = ["write_report", "world_alignment", "render_report"]
 MAX_PLOT_POINTS = 10_000
 COLOR_A, COLOR_B, COLOR_BAD = "#1f77b4", "#ff7f0e", "#d62728"
 
-# Result keys shown in the header or in their own section; anything else lands in "Other diagnostics".
-_SECTIONS = (("residuals", "Residual summary"), ("uncertainty", "Uncertainty"), ("time_offset", "Time offset"),
-             ("robust", "Outlier rejection"), ("solver", "Solver"), ("samples", "Samples per stage"),
-             ("inputs", "Inputs"))
+# Result keys shown in the header; every other block of the document is a titled table of its own.
+_TITLES = {"residuals": "Residual summary", "uncertainty": "Uncertainty", "time_offset": "Time offset",
+           "robust": "Outlier rejection", "solver": "Solver", "samples": "Samples per stage",
+           "sync": "Synchronisation", "noise_model": "Noise model", "alpha_auto": "α chosen from the data",
+           "observability": "Observability", "degrees_of_freedom": "Degrees of freedom",
+           "uncertainty_check": "Uncertainty check", "fit_test": "Fit test", "settings": "Settings"}
 _HEADER_KEYS = {"matrix", "translation", "quaternion_xyzw", "frames", "method", "alpha", "cost", "pairs_used",
-                "version", "warnings", "ros2_static_transform"}
+                "version", "warnings", "ros2_static_transform", "inputs"}
 
 _CSS = """
 body{font-family:-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;margin:0;background:#f6f7f9;color:#1d232b}
@@ -111,14 +116,19 @@ def _esc(value: Any) -> str:
     return html.escape(str(value), quote=True)
 
 
+def _empty(value: Any) -> bool:
+    """Nothing to show: None (a statistic not computed), an empty list or dict."""
+    return value is None or (isinstance(value, (list, tuple, dict)) and not value)
+
+
 def _flatten(d: dict[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
-    """Nested dicts → ``[("a.b", value), …]``."""
+    """Nested dicts → ``[("a.b", value), …]``, empty values left out."""
     rows: list[tuple[str, Any]] = []
     for k, v in d.items():
         key = f"{prefix}{k}"
         if isinstance(v, dict) and v:
             rows.extend(_flatten(v, key + "."))
-        else:
+        elif not _empty(v):
             rows.append((key, v))
     return rows
 
@@ -127,9 +137,10 @@ def _table(value: Any) -> str:
     """A two-column key/value table of a (nested) dict; other values as one line."""
     if not isinstance(value, dict):
         return f"<p class='num'>{_esc(_fmt(value))}</p>"
-    if not value:
+    flat = _flatten(value)
+    if not flat:
         return "<p class='note'>(empty)</p>"
-    rows = "".join(f"<tr><th>{_esc(k)}</th><td class='num'>{_esc(_fmt(v))}</td></tr>" for k, v in _flatten(value))
+    rows = "".join(f"<tr><th>{_esc(k)}</th><td class='num'>{_esc(_fmt(v))}</td></tr>" for k, v in flat)
     return f"<table>{rows}</table>"
 
 
@@ -269,32 +280,23 @@ def _residual_section(calibration: Calibration, document: dict[str, Any], X: Flo
 # ----------------------------------------------------------------------------------------------
 # samples per stage
 
-def _is_drop(key: str) -> bool:
-    return "dropped" in key or "rejected" in key or key.startswith("jumps_")
-
-
-def _samples_section(samples: Any) -> str:
-    if not isinstance(samples, dict):
-        return "<p class='note'>No per-stage counts in the result.</p>"
-    counts = {k: v for k, v in samples.items()
-              if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)}
-    kept = {k: v for k, v in counts.items() if not _is_drop(k)}
-    drops = {k: v for k, v in counts.items() if _is_drop(k)}
-    if not counts:
-        return "<p class='note'>No per-stage counts in the result.</p>"
+def _samples_section(samples: SampleCounts) -> str:
+    """Two bar panels on one log scale: what each stage read or kept, and what each gate removed
+    (:meth:`SampleCounts.losses`). A count of 0 draws no bar, and one dropped sample of thousands
+    a short one beside theirs."""
+    drops = samples.losses()
+    kept = {k: v for k, v in samples.as_dict().items() if k not in drops}
+    top = max(1, *kept.values(), *drops.values())
     chart = Chart(12.0, max(2.4, 0.32 * max(len(kept), len(drops)) + 1.0))
     axes = chart.grid(1, 2, margins=(1.45, 0.12, 0.4, 0.3), gaps=(1.75, 0.0))
-    for ax, data, color, title, log in ((axes[0], kept, COLOR_A, "what each stage read / kept", True),
-                                        (axes[1], drops, COLOR_BAD, "what each gate dropped", False)):
-        if not data:
-            ax.off, ax.title = True, f"{title}: none reported"
-            continue
+    for ax, data, color, title in ((axes[0], kept, COLOR_A, "what each stage read / kept"),
+                                   (axes[1], drops, COLOR_BAD, "what each gate dropped")):
         names, values = list(data)[::-1], np.array(list(data.values())[::-1], dtype=float)
-        ax.barh(np.maximum(values, 0.8) if log else values, color, texts=[_fmt(v) for v in values])
-        ax.yticks, ax.xlog, ax.grid, ax.title = names, log, "x", title
-        top = max(values.max(), 1.0)
-        ax.xlim = (0.4, top * 4.0) if log else (0.0, top * 1.25)
-    return _figure(chart, "samples per stage", "Counts from the result's <code>samples</code> (log scale on the left).")
+        ax.barh(values, color, texts=[_fmt(v) for v in values])
+        ax.yticks, ax.xlog, ax.grid, ax.title = names, True, "x", title
+        ax.xlim = (0.5, top * 4.0)
+    return _figure(chart, "samples per stage", "Counts from the result's <code>samples</code>, both panels on one "
+                   "log scale (a count of 0 has no bar).")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -382,15 +384,25 @@ def _warnings(document: dict[str, Any]) -> str:
     return f"<div class='warnings' id='warnings'><h2>⚠ {len(warnings)} warning(s)</h2><ul>{items}</ul></div>"
 
 
-def _tables(document: dict[str, Any]) -> str:
+def _settings(calibration: Calibration) -> str:
+    """The options that produced the result, as the differences from the defaults."""
+    changed = calibration.options.changed()
+    rows = [("configuration file", calibration.config_file), ("preset", calibration.preset)]
+    head = "".join(f"<tr><th>{k}</th><td class='num'>{_esc(v)}</td></tr>" for k, v in rows if v)
+    if not changed:
+        return f"<table>{head}</table><p class='note'>Options: the defaults.</p>"
+    return f"<table>{head}</table><p class='note'>Options: the defaults, except:</p>{_table(changed)}"
+
+
+def _tables(calibration: Calibration, document: dict[str, Any]) -> str:
+    """A titled table per block of the result not shown in the header (empty values left out)."""
     parts = []
-    for key, title in _SECTIONS:
-        if key in document and key != "inputs" and document[key] not in (None, {}, []):
-            parts.append(f"<div class='card'><h2>{_esc(title)}</h2>{_table(document[key])}</div>")
-    known = _HEADER_KEYS | {k for k, _ in _SECTIONS}
-    other = {k: v for k, v in document.items() if k not in known and v not in (None, {}, [])}
-    if other:
-        parts.append(f"<div class='card'><h2>Other diagnostics</h2>{_table(other)}</div>")
+    for key, value in document.items():
+        if key in _HEADER_KEYS or _empty(value):
+            continue
+        title = _TITLES.get(key, key.replace("_", " ").capitalize())
+        table = _settings(calibration) if key == "settings" else _table(value)
+        parts.append(f"<div class='card'><h2>{_esc(title)}</h2>{table}</div>")
     return f"<div class='grid'>{''.join(parts)}</div>" if parts else ""
 
 
@@ -409,10 +421,10 @@ def render_report(calibration: Calibration, document: dict[str, Any],
     body = [_header(calibration, document, X),
             "<h2>1. Trajectories after applying the extrinsic</h2>", _trajectory_section(calibration, X),
             "<h2>2. Residuals over time</h2>", _residual_section(calibration, document, X),
-            "<h2>3. Samples kept and dropped per stage</h2>", _samples_section(calibration.samples.as_dict())]
+            "<h2>3. Samples kept and dropped per stage</h2>", _samples_section(calibration.samples)]
     if bootstrap_deviations is not None:
         body += ["<h2>4. Bootstrap spread</h2>", _bootstrap_section(bootstrap_deviations)]
-    tables = _tables(document)
+    tables = _tables(calibration, document)
     if tables:
         body += ["<h2>Diagnostics</h2>", tables]
     return ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"

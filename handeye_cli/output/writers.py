@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..errors import ConfigError, WriteError
 
-__all__ = ["SUFFIXES", "output_format", "check_writable", "write_output", "write_stdout"]
+__all__ = ["format_mismatch", "SUFFIXES", "output_format", "check_writable", "write_output", "write_stdout"]
 
 # File-name endings that choose the output format (see handeye_cli/output/formats.py); Kalibr YAML
 # needs --format kalibr.
@@ -47,6 +47,26 @@ def output_format(path: str | Path | None, fmt: str | None, flag: str = "-o") ->
         raise ConfigError(f"cannot tell the output format from {str(path)!r}", flag,
                           f"name the file {', '.join(SUFFIXES)} or pass --format")
     return "yaml"    # a FIFO or device without a suffix: the default format
+
+
+# what a suffix may hold: the format it names and its kin (a URDF joint snippet in .urdf, Kalibr's YAML in .yaml),
+# and the XML or Python formats for a name ending .xml / .py (a ROS 2 launch file may be either)
+_KIN = {"urdf": ("urdf", "urdf-joint"), "yaml": ("yaml", "kalibr"), ".xml": ("urdf", "urdf-joint", "ros1-launch"),
+        ".py": ("ros2-launch",)}
+
+
+def format_mismatch(path: str | Path | None, fmt: str | None) -> str | None:
+    """A one-line warning when ``-o``'s name says another format than ``--format`` (``x.launch.xml`` holding
+    Python), else None; stdout or a name of no known suffix is no mismatch."""
+    if not fmt or _is_stdout(path):
+        return None
+    name = Path(str(path)).name
+    named = next((f for suffix, f in SUFFIXES.items() if name.lower().endswith(suffix)), None)
+    named = named or next((s for s in (".xml", ".py") if name.lower().endswith(s)), None)
+    if named is None or fmt in _KIN.get(named, (named,)):
+        return None
+    said = named.lstrip(".").upper() if named.startswith(".") else named
+    return f"{name} is written as --format {fmt}, though its name says {said}"
 
 
 def check_writable(path: str | Path | None, flag: str) -> None:

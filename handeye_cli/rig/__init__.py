@@ -24,7 +24,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ConfigError, DataError
-from ..options import Options
+from ..options import FIELDS, Options
+from ..pipeline import calibrate_read, check_samples
 from ..streams import PoseStream
 from .graph import loop_closures, synchronise
 from .joint import CONSISTENCY_P_VALUE, Consistency, JointProblem, Motions, bootstrap_rig, consistency, refine
@@ -34,44 +35,107 @@ from .read import StreamSpec, parse_stream, read_rig
 from .result import RigResult, transform_entry
 
 __all__ = ["RigOptions", "RigResult", "StreamSpec", "calibrate_rig", "calibrate_rig_files", "parse_stream",
-           "read_rig", "transform_entry"]
+           "per_stream", "read_rig", "transform_entry"]
+
+
+def _flag(text: str) -> dict[str, str]:
+    """A RigOptions field's command-line flag, which the CLI names in its errors (``handeye_cli.cli._as_flags``)."""
+    return {"flag": text}
 
 
 @dataclass(frozen=True)
 class RigOptions:
-    """Settings of a rig calibration.
+    """Settings of a rig calibration; per stream, by the stream's name, the options calibrate takes for its
+    streams a and b (same values, same parsers: :data:`handeye_cli.options.FIELDS`).
 
     reference: name of the reference sensor (default: the first stream).
-    time_offsets: per stream name, seconds its clock is ahead of the reference's, or ``'auto'``
-        (the default for every stream not named).
-    invert: names of streams recorded as ``T_sensor_world`` (inverted before use).
+    time_offsets: per stream name, seconds its clock is ahead of the reference's, or ``'auto'`` (calibrate's
+        ``time_offset``, whose default, auto, every stream not named gets); the key ``""`` sets every stream.
+    invert: names of streams recorded as ``T_sensor_world`` (inverted before use; calibrate's ``invert_a=True``).
+    not_inverted: names of streams the user says are not inverted (``invert_a=False``): a pair that fits only
+        inverted is then refused in the user's words, as calibrate does.
+    wxyz: per stream name, whether its text file stores quaternions w first (``wxyz_a``; unset: the format's).
+    scales: per stream name, the scale of its translations [m per unit] or ``'auto'`` (``scale``): a number
+        multiplies them; auto estimates it with that stream's extrinsic to the reference (to the first other
+        stream for the reference itself), as calibrate's ``scale='auto'`` does, before the joint solve.
     block_s: block length [s] of the bootstrap.
     options: the settings of every pairwise calibration (time source, sync, gates, pairs, solver)
-        and of the rig's own analysis (``bootstrap`` replicates, ``max_time_offset``, ``seed``);
-        the single-pair keys (``time_offset``, ``invert_a/b``, ``name_a/b``, ``prior``) are not used.
+        and of the rig's own analysis (``bootstrap`` replicates, ``max_time_offset``, ``seed``); the
+        single-pair keys (``time_offset``, ``invert_a/b``, ``wxyz_a/b``, ``scale``, ``name_a/b``, ``prior``)
+        are the per-stream fields above (a stream's name is its frame's: ``name_a``), ``prior`` is refused.
     """
 
-    reference: str | None = None
-    time_offsets: Mapping[str, float | str] = field(default_factory=dict)
-    invert: tuple[str, ...] = ()
-    block_s: float = 2.0
+    reference: str | None = field(default=None, metadata=_flag("--reference"))
+    time_offsets: Mapping[str, float | str] = field(default_factory=dict, metadata=_flag("--time-offset"))
+    invert: tuple[str, ...] = field(default=(), metadata=_flag("--invert"))
+    not_inverted: tuple[str, ...] = field(default=(), metadata=_flag("--no-invert"))
+    wxyz: Mapping[str, bool] = field(default_factory=dict, metadata=_flag("--wxyz"))
+    scales: Mapping[str, float | str] = field(default_factory=dict, metadata=_flag("--scale"))
+    block_s: float = field(default=2.0, metadata=_flag("--block"))
     options: Options = field(default_factory=Options)
+
+
+# calibrate's option of a stream that each per-stream field takes, and the stream names it holds
+_PER_STREAM = {"time_offsets": "time_offset", "scales": "scale", "wxyz": "wxyz_a"}
+
+
+def per_stream(options: RigOptions, names: list[str]) -> dict[str, dict[str, Any]]:
+    """Each per-stream field by stream name, every value checked by calibrate's parser for that option (errors
+    name the field, e.g. ``(scales)``); a key ``""`` (a bare ``--time-offset auto``) applies to every stream
+    but the reference. Unknown names are refused naming the field."""
+    out: dict[str, dict[str, Any]] = {}
+    ref = names[0] if options.reference is None else options.reference
+    for key in ("time_offsets", "scales", "wxyz", "invert", "not_inverted"):
+        given = getattr(options, key)
+        values = dict.fromkeys(given, True) if isinstance(given, tuple) else dict(given)
+        unknown = sorted(set(values) - set(names) - {""})
+        if unknown:
+            raise ConfigError(f"unknown stream {unknown[0]!r}", key, f"use one of {', '.join(names)}")
+        parse = FIELDS[_PER_STREAM[key]][1].parse if key in _PER_STREAM else None
+        every = {n: values[""] for n in names if n != ref} if "" in values else {}
+        out[key] = {n: parse(v, key) if parse else v for n, v in {**every, **values}.items() if n}
+    both = sorted(set(options.invert) & set(options.not_inverted))
+    if both:
+        raise ConfigError(f"stream {both[0]!r} is both inverted and not inverted", "not_inverted",
+                          "keep one of the two")
+    if options.options.solver.prior is not None or options.options.solver.scale != 1.0:
+        key = "prior" if options.options.solver.prior is not None else "scale"
+        raise ConfigError(f"{key} is of one pair's stream b, not of a rig's streams", key,
+                          "give a rig stream's scale by name (scales / --scale NAME=VALUE); a rig takes no prior")
+    return out
 
 
 def _check(names: list[str], options: RigOptions) -> int:
     if len(names) < 2:
-        raise ConfigError(f"{len(names)} stream(s) given", "rig", "name at least two streams (--stream NAME=…)")
+        raise ConfigError(f"{len(names)} stream(s) given", "streams", "name at least two streams (--stream NAME=…)")
     if len(set(names)) != len(names):
         raise ConfigError("stream names repeat", ", ".join(names), "give every --stream a different NAME")
-    for what, given in (("--time-offset", options.time_offsets), ("--invert", options.invert)):
-        unknown = sorted(set(given) - set(names))
-        if unknown:
-            raise ConfigError(f"unknown stream {unknown[0]!r}", what, f"use one of {', '.join(names)}")
     if not options.block_s > 0:
-        raise ConfigError(f"bad block length {options.block_s!r}", "--block", "give a number of seconds > 0")
+        raise ConfigError(f"bad block length {options.block_s!r}", "block_s", "give a number of seconds > 0")
     if options.reference is not None and options.reference not in names:
-        raise ConfigError(f"unknown reference {options.reference!r}", "--reference", f"use one of {', '.join(names)}")
+        raise ConfigError(f"unknown reference {options.reference!r}", "reference", f"use one of {', '.join(names)}")
     return 0 if options.reference is None else names.index(options.reference)
+
+
+def _scaled(streams: list[PoseStream], names: list[str], ref: int, scales: Mapping[str, float | str],
+            offsets: list[ClockOffset], cfg: Options) -> tuple[list[PoseStream], dict[str, Any]]:
+    """The streams with their translations in metres: a given scale applied, an ``auto`` one estimated (with
+    calibrate's ``scale='auto'``) on the pair of that stream with the reference (the reference's against the
+    first other stream). Returns the streams and, per scaled stream, what was applied."""
+    out, report = list(streams), {}
+    for name, value in scales.items():
+        k = names.index(name)
+        if value == "auto":
+            j = ref if k != ref else next(i for i in range(len(streams)) if i != k)
+            pair = Options.from_flat(cfg, scale="auto", bootstrap=0, prior=None,
+                                     time_offset=(offsets[k].offset_ns - offsets[j].offset_ns) / 1e9)
+            est = calibrate_read(streams[j], streams[k], pair, scale_by_fit=False).diagnostics["scale"]
+            value = float(est["value"])
+            report[name] = {"value": value, "std": float(est["std"]), "estimated_against": names[j]}
+        else:
+            report[name] = {"value": float(value)}
+        out[k] = replace(out[k], xyz=out[k].xyz * float(value))
+    return out, report
 
 
 def _motions(edges: list[Edge], offsets: list[ClockOffset]) -> list[Motions]:
@@ -118,13 +182,18 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
     when a sensor cannot be calibrated against any other."""
     opts = options or RigOptions()
     names = list(streams)
+    for name, stream in streams.items():
+        check_samples(stream, f"stream {name!r}")
     n, ref = len(names), _check(names, opts)
+    given = per_stream(opts, names)
     cfg = opts.options
     inverted = [name in opts.invert for name in names]
     used = [s.inverted() if inv else s for s, inv in zip(streams.values(), inverted, strict=True)]
-    offsets = clock_offsets(used, ref, {names.index(k): v for k, v in opts.time_offsets.items()},
+    offsets = clock_offsets(used, ref, {names.index(k): v for k, v in given["time_offsets"].items()},
                             cfg.sync.max_time_offset)
-    edges, warnings = solve_edges(used, names, offsets, cfg)
+    used, scales = _scaled(used, names, ref, given["scales"], offsets, cfg)
+    chosen = [name in opts.invert or name in opts.not_inverted for name in names]
+    edges, warnings = solve_edges(used, names, offsets, cfg, chosen)
     warnings = [f"{names[k]}: time offset: {w}" for k, o in enumerate(offsets) for w in o.warnings] + warnings
     if not edges:
         raise DataError("no pair of streams could be calibrated", ", ".join(names), "see the warnings above")
@@ -149,7 +218,8 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
     if cfg.analysis.bootstrap > 0:
         unc = bootstrap_rig(problem, T, _motions(edges, offsets), cfg.analysis.bootstrap,
                             block_s=opts.block_s, seed=cfg.pairs.seed)
-    settings = {"reference": names[ref], "time_offsets": dict(opts.time_offsets), "invert": list(opts.invert),
+    settings = {"reference": names[ref], "time_offsets": given["time_offsets"], "invert": list(opts.invert),
+                "not_inverted": list(opts.not_inverted), "wxyz": given["wxyz"], "scales": scales,
                 "block_seconds": opts.block_s, "options": cfg.flat()}
     return RigResult(names, ref, used, inverted, offsets, edges, corrections, problem, T0, T, closures, joint, cons,
                      variances, covariances, unc, warnings, dict(inputs or {}), settings)
@@ -165,8 +235,10 @@ def calibrate_rig_files(log: str | None, specs: Sequence[str | StreamSpec], opti
     named = [parse_stream(s) if isinstance(s, str) else s for s in specs]
     from ..io.remote import session_of
 
+    names = [s.name or "" for s in named]
     with session_of(read) as remote:
-        streams = read_rig(log, named, opts.options, quiet=quiet)
+        streams = read_rig(log, named, opts.options, quiet=quiet,
+                           wxyz=per_stream(opts, names)["wxyz"] if len(set(names)) == len(names) >= 2 else {})
     inputs: dict[str, Any] = {"log": log, "streams": {s.name: s.describe() for s in named},
                               "time_source": read.time_source}
     if remote.urls:

@@ -85,10 +85,14 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
     return out
 
 
-def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset], options: Options) -> Edge:
-    # the rig's bootstrap resamples all pairs at once; a prior is of one T_a_b, not of every pair
+def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset], options: Options,
+          chosen: list[bool]) -> Edge:
+    # the rig's bootstrap resamples all pairs at once; a prior is of one T_a_b, not of every pair. A stream
+    # whose inversion the user gave (inverted by the rig already, or said not to be) is "not inverted (again),
+    # by the user's word": the inversion check then refuses in those words, as calibrate's --no-invert-a does
+    said: dict[str, Any] = {key: False for key, c in (("invert_a", chosen[j]), ("invert_b", chosen[k])) if c}
     opts = Options.from_flat(options, time_offset=(offsets[k].offset_ns - offsets[j].offset_ns) / 1e9,
-                             bootstrap=0, prior=None)
+                             bootstrap=0, prior=None, **said)
     cal = calibrate_read(streams[j], streams[k], opts, scale_by_fit=False)   # the rig's reader applied the read
     #                                                         options; a badly scaled stream is named by the rig
     A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
@@ -96,15 +100,16 @@ def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset],
 
 
 def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[ClockOffset],
-                options: Options) -> tuple[list[Edge], list[str]]:
+                options: Options, chosen: list[bool] | None = None) -> tuple[list[Edge], list[str]]:
     """Calibrate every pair ``j < k`` with ``options`` (sync, gates, pairs, solver; the time offset
-    is the pair's, from ``offsets``); a pair that cannot be calibrated is left out with a warning. Returns the edges and
-    the warnings (each pair's own warnings prefixed with its names)."""
+    is the pair's, from ``offsets``; ``chosen``: per stream, whether the user said whether it is inverted); a
+    pair that cannot be calibrated is left out with a warning.
+    Returns the edges and the warnings (each pair's own warnings prefixed with its names)."""
     edges, warnings = [], []
     for j in range(len(streams)):
         for k in range(j + 1, len(streams)):
             try:
-                edge = _edge(streams, j, k, offsets, options)
+                edge = _edge(streams, j, k, offsets, options, chosen or [False] * len(streams))
             except HandEyeError as e:
                 warnings.append(f"pair {names[j]}-{names[k]} left out: {e}")
                 continue

@@ -10,6 +10,7 @@ Each stream is ``T_frame_child(t)``: int64 ns stamps, positions [m], quaternions
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 
@@ -29,7 +30,7 @@ def parse_stream(text: str) -> StreamSpec:
     name, sep, source = text.partition("=")
     name, source = name.strip(), source.strip()
     if not sep or not name or not source:
-        raise ConfigError(f"bad stream {text!r}", "--stream", "write NAME=/topic, NAME=tf:PARENT,CHILD or NAME=FILE")
+        raise ConfigError(f"bad stream {text!r}", "streams", "write NAME=/topic, NAME=tf:PARENT,CHILD or NAME=FILE")
     name = str(frame_name(name, f"--stream {text}"))       # the name is the sensor's frame in every output
     if source.startswith("tf:"):
         frames = [f.strip() for f in source[3:].split(",")]
@@ -45,11 +46,12 @@ def parse_stream(text: str) -> StreamSpec:
 
 
 def read_rig(log: str | None, specs: list[StreamSpec], options: Options | None = None, *,
-             quiet: bool = True) -> dict[str, PoseStream]:
+             quiet: bool = True, wxyz: Mapping[str, bool] | None = None) -> dict[str, PoseStream]:
     """Every stream by name, in the order of ``specs`` (each named; a spec without a path is a topic or TF chain
     of ``log``): :func:`handeye_cli.pipeline.read_streams`, the read path of ``calibrate``, so every read option
     of ``options`` (time source, time unit, CSV columns) applies alike, and all streams of the log are read in
-    a single pass."""
+    a single pass. ``wxyz``: per stream name, whether its text file stores quaternions w first (unset: the
+    format's order)."""
     names = [s.name or "" for s in specs]
     if not all(names) or len(set(names)) != len(names):
         raise ConfigError("stream names repeat or are missing", ", ".join(names),
@@ -59,4 +61,5 @@ def read_rig(log: str | None, specs: list[StreamSpec], options: Options | None =
         raise ConfigError(f"stream {in_log[0].name} names a topic or TF chain but no log is given", "handeye rig",
                           "pass the log as the first argument: handeye rig LOG --stream …")
     located = [s if s.path is not None else replace(s, path=log) for s in specs]
-    return dict(zip(names, read_streams(located, options, quiet=quiet), strict=True))
+    orders = ["auto" if name not in (wxyz or {}) else "wxyz" if (wxyz or {})[name] else "xyzw" for name in names]
+    return dict(zip(names, read_streams(located, options, quiet=quiet, quaternion_orders=orders), strict=True))

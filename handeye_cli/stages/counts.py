@@ -51,7 +51,7 @@ class SampleCounts:
         return asdict(self)
 
     def losses(self) -> dict[str, int]:
-        """The counts of samples some stage removed, by stage (for the report's gate table)."""
+        """The counts of samples some stage removed, by stage (the report's "what each gate dropped" panel)."""
         names = ("duplicates_dropped_a", "duplicates_dropped_b", "dropped_outside_span", "dropped_timestamp_gate",
                  "dropped_pose_jump", "jumps_a", "jumps_b")
         return {f.name: getattr(self, f.name) for f in fields(self) if f.name in names}

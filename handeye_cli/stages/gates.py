@@ -229,7 +229,7 @@ def sync_and_gate(a: PoseStream, b: PoseStream, *, sync: str = "auto", max_dt_ns
     stream's rate) when fewer than ``min_samples`` samples are left.
     """
     if gate not in GATES:
-        raise ConfigError(f"unknown pose-jump gate {gate!r}", "--gate", f"use one of {', '.join(GATES)}")
+        raise ConfigError(f"unknown pose-jump gate {gate!r}", "gate", f"use one of {', '.join(GATES)}")
     steps = (median_step_ns(a), median_step_ns(b))
     jumps: dict[str, int] = {"dropped_pose_jump": 0, "accepted_jumps": 0, "jumps_a": 0, "jumps_b": 0}
     seg: dict[str, Ints | None] = {"segment_a": None, "segment_b": None}

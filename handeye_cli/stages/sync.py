@@ -138,7 +138,7 @@ def rates_text(step_ns: tuple[int, int]) -> str:
 
 def _check(a: PoseStream, b: PoseStream, method: str, time_offset_ns: int) -> None:
     if method not in METHODS:
-        raise ConfigError(f"unknown association method {method!r}", "--sync", f"use one of {', '.join(METHODS)}")
+        raise ConfigError(f"unknown association method {method!r}", "sync", f"use one of {', '.join(METHODS)}")
     for name, stream in (("a", a), ("b", b)):
         if len(stream) == 0:
             raise DataError(f"pose stream {name} is empty", stream.source or f"stream {name}",
