@@ -32,10 +32,12 @@ from ..solvers.approximate import dqconvrlx
 from ..solvers.problem import validate_motions
 from .covariance import LinearCovariance, linear_covariance, select_samples
 
-__all__ = ["ObservabilityWarning", "Observability", "assess_observability", "describe_direction"]
+__all__ = ["ObservabilityWarning", "Observability", "assess_observability", "common_axis", "describe_direction"]
 
 PRIOR_HINT = "pass --prior FILE (a known approximate extrinsic) to fix it"
 PRIOR_GIVEN = "rely on the given prior, which alone determines it"
+MIN_ROTATION_DEG = 1.0          # motions below this count as not rotating
+MAX_AXIS_SPREAD_DEG = 2.0       # rotation axes spread less than this: one common axis (single_axis / planar)
 
 
 @dataclass(frozen=True)
@@ -128,6 +130,29 @@ def _principal(vectors: FloatArray) -> tuple[FloatArray, float]:
     lam, V = np.linalg.eigh(vectors.T @ vectors)
     spread = np.degrees(np.arctan(np.sqrt(max(lam[0] + lam[1], 0.0) / max(lam[2], 1e-300))))
     return V[:, 2], float(spread)
+
+
+def _rotations(A: FloatArray, B: FloatArray, min_rotation_deg: float) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """Rotation vectors of the motions of a (N, 3) [rad], each pair's rotation angle (mean of a's and b's)
+    [deg], and which pairs rotate by at least ``min_rotation_deg``."""
+    rotvec = dq.to_rotvec(dq.from_matrix(A[:, :3, :3]))
+    angles = np.degrees(0.5 * (np.linalg.norm(rotvec, axis=1) + se3.rotation_angle(B)))
+    return rotvec, angles, angles >= min_rotation_deg
+
+
+def common_axis(motions_a: FloatArray, motions_b: FloatArray, *, min_rotation_deg: float = MIN_ROTATION_DEG,
+                max_axis_spread_deg: float = MAX_AXIS_SPREAD_DEG) -> FloatArray | None:
+    """The common rotation axis (unit, frame a) when the motions that rotate all rotate about one axis
+    (the ``single_axis`` / ``planar`` finding of :func:`assess_observability`, with the same thresholds),
+    else ``None``. Translation of ``X`` along it does not change the fit (``R_A n = n``).
+
+    ``motions_a``, ``motions_b``: (N, 4, 4) motions, ``A_i X = X B_i``."""
+    rotvec, _, rotating = _rotations(np.asarray(motions_a, dtype=np.float64),
+                                     np.asarray(motions_b, dtype=np.float64), min_rotation_deg)
+    if not rotating.any():
+        return None
+    axis, spread = _principal(rotvec[rotating])
+    return axis if spread < max_axis_spread_deg else None
 
 
 def _warning(code: str, message: str, remedy: str, kind: str | None = None,
@@ -270,8 +295,9 @@ def _rotation_checks(A: FloatArray, rotvec: FloatArray, angles: FloatArray, rota
 
 def assess_observability(motions_a: FloatArray, motions_b: FloatArray, T_a_b: FloatArray | None = None, *,
                          alpha: float = 1.0, prior: Prior | None = None, weights: FloatArray | None = None,
-                         min_pairs: int = 10, min_rotation_deg: float = 1.0, small_rotation_deg: float = 2.0,
-                         max_axis_spread_deg: float = 2.0, fixed_line_tolerance: float = 0.02,
+                         min_pairs: int = 10, min_rotation_deg: float = MIN_ROTATION_DEG,
+                         small_rotation_deg: float = 2.0, max_axis_spread_deg: float = MAX_AXIS_SPREAD_DEG,
+                         fixed_line_tolerance: float = 0.02,
                          max_rotation_std_deg: float = 1.0, max_translation_std_m: float = 0.05,
                          samples: tuple[IntArray, IntArray] | None = None) -> Observability:
     """Detect degenerate motion and name the unobservable directions of ``T_a_b``.
@@ -309,9 +335,7 @@ def assess_observability(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Fl
     samples = select_samples(samples, keep)
     X = np.asarray(T_a_b, dtype=np.float64) if T_a_b is not None else _estimate(A, B, alpha, prior, w)
     R_x = X[:3, :3]
-    rotvec = dq.to_rotvec(dq.from_matrix(A[:, :3, :3]))
-    angles = np.degrees(0.5 * (np.linalg.norm(rotvec, axis=1) + se3.rotation_angle(B)))
-    rotating = angles >= min_rotation_deg
+    rotvec, angles, rotating = _rotations(A, B, min_rotation_deg)
     found: list[ObservabilityWarning] = []
     if len(A) < min_pairs:
         found.append(_warning("too_few_pairs", f"only {len(A)} motion pairs", "record more motion, or pair "

@@ -65,6 +65,16 @@ class MedianFit:
         """(rotation [deg], translation [m])."""
         return self.rotation_deg, self.translation_m
 
+    @property
+    def rank(self) -> tuple[float, float]:
+        """The order in which readings are ranked: rotation times translation median (floored), then the rotation
+        median (noise-free fits tie at the floors). Both count: on planar motion a stream read inverted fits the
+        rotations as well as the right reading (the common axis only turns over), so the rotation alone picked an
+        inversion whose translations were metres off, and a wrong quaternion order then looked decisively better
+        (a 60-s diff-drive base's TUM files read as w-x-y-z). A fit decisively better than another ranks lower:
+        its two gains multiply to at least BETTER / NOT_WORSE."""
+        return max(self.rotation_deg, _TINY[0]) * max(self.translation_m, _TINY[1]), self.rotation_deg
+
     def gains_over(self, other: MedianFit) -> tuple[float, float]:
         """How many times lower this fit's medians are than ``other``'s (> 1: this one fits better)."""
         g = [max(o, tiny) / max(v, tiny) for o, v, tiny in zip(other.medians, self.medians, _TINY, strict=True)]
@@ -148,7 +158,7 @@ def _best_over_inversions(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i:
     fits = [median_fit(se3.relative(Ta[i], Ta[j]), se3.relative(Tb[i], Tb[j]))
             for Ta, Tb in ((T_a, T_b), (se3.inverse(T_a), T_b), (T_a, se3.inverse(T_b)))]
     found = [f for f in fits if f is not None]
-    return min(found, key=lambda f: f.rotation_deg) if found else None
+    return min(found, key=lambda f: f.rank) if found else None
 
 
 def choose_quaternion_order(a: PoseStream, b: PoseStream, *, time_offset_ns: int = 0, max_dt_ns: int | None = None,
@@ -187,7 +197,7 @@ def choose_quaternion_order(a: PoseStream, b: PoseStream, *, time_offset_ns: int
     fits: dict[tuple[str | None, str | None], MedianFit | None] = {
         (oa, ob): _best_over_inversions(matrices("a", oa), matrices("b", ob), i, j) for oa, ob in product(*options)}
     base = fits.pop(given_orders)
-    others = sorted(((f, o) for o, f in fits.items() if f is not None), key=lambda fo: fo[0].rotation_deg)
+    others = sorted(((f, o) for o, f in fits.items() if f is not None), key=lambda fo: fo[0].rank)
     if base is None or not others:
         return a, b, None
     best, best_orders = others[0]

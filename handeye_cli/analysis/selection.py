@@ -31,8 +31,9 @@ the number of samples: no candidate pair is enumerated beyond the probes and the
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -47,6 +48,7 @@ from ..stages.sync import Synced
 from .alpha import blocked_alpha, time_blocks
 from .covariance import tangent_basis
 from .noise_model import NoiseModel, PairFeatures, cost_residuals, fit_noise_model, pair_features
+from .observability import common_axis
 
 __all__ = ["Selection", "select_pairs", "ladder"]
 
@@ -54,6 +56,7 @@ _KEEP_RATIO = 1.5           # levels within this factor of the best predicted er
 _ABSOLUTE_SHARE = 0.5       # ... and every longer level whose variance is mostly the absolute floor
 _MIN_LEVEL_PAIRS = 8
 _Q_PRIME_FIRST = np.r_[4:8, 0:4]   # rows of the tangent basis (x = [q; q']) in the cost forms' [q'; q] order
+_T = TypeVar("_T")
 _SPREAD_SEED = 0            # the jitter of the evenly spread pairs (fixed: a recording always gives one answer)
 _CROSSING = 5               # pairs across a segment boundary that test whether the world stayed the same
 _SAME_WORLD = 6.0           # ... when their median residual is within this many predicted variances (the model's trim)
@@ -166,18 +169,35 @@ def _ml_weights(model: NoiseModel, f: PairFeatures) -> tuple[NDArray[np.float64]
 
 
 def _level_errors(A: NDArray[np.float64], B: NDArray[np.float64], w: NDArray[np.float64], alpha: float,
-                  X: NDArray[np.float64], level: NDArray[np.int64], scale: NDArray[np.float64]) -> NDArray[np.float64]:
+                  X: NDArray[np.float64], level: NDArray[np.int64], scale: NDArray[np.float64],
+                  axis: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
     """(L, 2) predicted RMS rotation [rad] and translation [m] error of X from each level's pairs
     (motions ``A``, ``B``, weights ``w``, ladder index ``level``; α [1/m]), level l's ``scale[l]``
     times over: ``tr`` of the blocks of ``H⁻¹``, with ``H = Dᵀ Q D`` the curvature of cost (8) on the
-    level's pairs in the tangent ``δ = (ω, v)``."""
+    level's pairs in the tangent ``δ = (ω, v)``.
+
+    ``axis`` (unit, frame a): the common rotation axis of planar motion; the translation along it is
+    held fixed (``H`` restricted to the other five directions), as the reduced in-plane solve holds it
+    (:mod:`.subspace`). The data do not determine it: what curvature ``H`` has there is the noise's
+    tilt of the rotation axes, and its inverse (metres to tens of metres, varying from level to level
+    by chance) would otherwise decide the levels, keeping one long stride whose few spans starve the
+    yaw the translations alone carry."""
     member = (level[None, :] == np.arange(len(scale))[:, None]) * w
     Q = split_forms(A, B, member, alpha).sum(axis=1)          # each level's cost form, [q'; q] order
-    D = tangent_basis(*dq.from_transforms(X))[_Q_PRIME_FIRST]   # dx/dδ with x = [q'; q]
-    cov = np.linalg.pinv(scale[:, None, None] * (D.T @ Q @ D), hermitian=True)
+    P = np.eye(6) if axis is None else _without_translation_along(axis)     # δ = P η
+    D = tangent_basis(*dq.from_transforms(X))[_Q_PRIME_FIRST] @ P      # dx/dη with x = [q'; q]
+    cov = P @ np.linalg.pinv(scale[:, None, None] * (D.T @ Q @ D), hermitian=True) @ P.T
     traces = np.stack([np.trace(cov[:, :3, :3], axis1=1, axis2=2), np.trace(cov[:, 3:, 3:], axis1=1, axis2=2)], 1)
     errors: NDArray[np.float64] = np.sqrt(np.maximum(traces, 0.0))
     return errors
+
+
+def _without_translation_along(axis: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(6, 5) orthonormal basis of the tangent ``δ = (ω, v)`` without translation along the unit ``axis``."""
+    P = np.zeros((6, 5))
+    P[:3, :3] = np.eye(3)
+    P[3:, 3:] = np.linalg.svd(np.eye(3) - np.outer(axis, axis))[0][:, :2]
+    return P
 
 
 @dataclass(frozen=True, eq=False)
@@ -208,8 +228,9 @@ def _overlap(stride: int, available: int, used: int, drift_share: float) -> floa
 
 
 def _choose_levels(probe: _Probe, w: NDArray[np.float64], alpha: float, share: NDArray[np.float64],
-                   X: NDArray[np.float64], max_pairs: int) -> NDArray[np.int64]:
-    """Ladder indices of the levels to keep (see the module docstring, step 4–5)."""
+                   X: NDArray[np.float64], max_pairs: int, axis: NDArray[np.float64] | None) -> NDArray[np.int64]:
+    """Ladder indices of the levels to keep (see the module docstring, step 4–5); ``axis``: the common
+    rotation axis of planar motion (frame a), along which the errors are not judged."""
     counts = np.bincount(probe.level, minlength=len(probe.strides))
     budget = max(max_pairs // 4, _MIN_LEVEL_PAIRS)       # what one level would get when a few are kept
     used = np.minimum(probe.available, budget)
@@ -217,7 +238,7 @@ def _choose_levels(probe: _Probe, w: NDArray[np.float64], alpha: float, share: N
     overlap = [_overlap(int(k), int(a), int(u), float(s))
                for k, a, u, s in zip(probe.strides, probe.available, used, level_share, strict=True)]
     errors = _level_errors(probe.pairs.A, probe.pairs.B, w, alpha, X, probe.level,
-                           used / np.maximum(counts, 1) / np.asarray(overlap))
+                           used / np.maximum(counts, 1) / np.asarray(overlap), axis)
     errors[counts < _MIN_LEVEL_PAIRS] = np.inf
     if not np.isfinite(errors).any():
         return np.arange(len(probe.strides))
@@ -245,19 +266,34 @@ def _kept_pairs(synced: Synced, segs: _Segments, strides: NDArray[np.int64], max
     return _pairs(synced, i, i + np.repeat(strides, sizes)), crowding
 
 
-def _blocked(pairs: Pairs, cap: float, weights: NDArray[np.float64], prior: Prior | None) -> float:
-    """:func:`~.alpha.blocked_alpha` of the pairs, judged on the data alone where they determine the extrinsic: a
-    prior's term counts as exact information in the predicted errors (its own error is no part of them), so with it
-    every smaller α looks better, and the translations that alone determine a ground vehicle's yaw lose their weight
-    to a prior that may be wrong (a car with a prior 1° off in yaw: yaw 0.0005–0.005° without it, 0.012–0.067°
-    with it). A prior is used only when the pairs cannot be solved without one."""
-    blocks = time_blocks(pairs.t_i_ns, pairs.t_j_ns)
+def _without_prior_first(fit: Callable[[Prior | None], _T], prior: Prior | None) -> _T:
+    """``fit(None)``, or ``fit(prior)`` when the pairs cannot be solved without the prior (a
+    :class:`~handeye_cli.errors.HandEyeError`). The selection judges the data alone where they determine the
+    extrinsic: along what they leave open the residuals do not change, and where they determine it a wrong
+    prior's term (eq 26) pulls ``X``, inflating the residuals the noise model is fitted to (a diff-drive
+    with a prior wrong by yaw +1°, pitch +1°, y +2 cm moved its pair weights and with them the estimated yaw
+    by 1.3e-4°), and counts as exact information in the predicted errors of :func:`_blocked`."""
     try:
-        return blocked_alpha(pairs.A, pairs.B, cap, blocks, weights=weights).alpha
+        return fit(None)
     except HandEyeError:
         if prior is None:
             raise
-        return blocked_alpha(pairs.A, pairs.B, cap, blocks, prior=prior, weights=weights).alpha
+        return fit(prior)
+
+
+def _blocked(pairs: Pairs, cap: float, weights: NDArray[np.float64], prior: Prior | None) -> float:
+    """:func:`~.alpha.blocked_alpha` of the pairs (see :func:`_without_prior_first`): with a prior's term in the
+    predicted errors every smaller α looks better, and the translations that alone determine a ground vehicle's
+    yaw lose their weight to a prior that may be wrong (a car with a prior 1° off in yaw: yaw 0.0005–0.005°
+    without it, 0.012–0.067° with it)."""
+    blocks = time_blocks(pairs.t_i_ns, pairs.t_j_ns)
+    return _without_prior_first(
+        lambda p: blocked_alpha(pairs.A, pairs.B, cap, blocks, prior=p, weights=weights).alpha, prior)
+
+
+def _solved(A: NDArray[np.float64], B: NDArray[np.float64], prior: Prior | None, **options: Any) -> NDArray[np.float64]:
+    """``X`` of :func:`~handeye_cli.solvers.solve` on the pairs (see :func:`_without_prior_first`)."""
+    return _without_prior_first(lambda p: solve(A, B, prior=p, **options).matrix, prior)
 
 
 def _rejoined(synced: Synced, segs: _Segments, path: NDArray[np.float64], X: NDArray[np.float64],
@@ -298,7 +334,8 @@ def _rejoined(synced: Synced, segs: _Segments, path: NDArray[np.float64], X: NDA
 
 def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt", prior: Prior | None = None,
                  probe: int = 200, rounds: int = 3) -> Selection:
-    """The ``auto`` strategy (module docstring): pairs, weights, α and noise model for ``synced``.
+    """The ``auto`` strategy (module docstring): pairs, weights, α and noise model for ``synced``. ``prior``
+    enters a solve only where the pairs cannot be solved without it (:func:`_without_prior_first`).
 
     Raises :class:`~handeye_cli.errors.HandEyeError` when the probe cannot be solved (too few
     samples or motions that cannot determine the extrinsic; the solver's message says which).
@@ -310,7 +347,7 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
                          len(pr.pairs))
     path = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(synced.T_a[:, :3, 3], axis=0), axis=1))]
     count = np.bincount(pr.level, minlength=len(pr.strides)).astype(float)
-    X = solve(pr.pairs.A, pr.pairs.B, method=method, prior=prior, weights=1.0 / count[pr.level]).matrix
+    X = _solved(pr.pairs.A, pr.pairs.B, prior, method=method, weights=1.0 / count[pr.level])
     rejoined = 0
     if len(segs.length) > 1:          # segments the gate split where the world did not move are one
         f = pair_features(synced.stamps_ns, path, pr.pairs.i, pr.pairs.j, pr.pairs.B, X)
@@ -321,14 +358,15 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
             segs = _Segments.of(joined)
             pr = _probe(synced, segs, probe)
             count = np.bincount(pr.level, minlength=len(pr.strides)).astype(float)
-            X = solve(pr.pairs.A, pr.pairs.B, method=method, prior=prior, weights=1.0 / count[pr.level]).matrix
+            X = _solved(pr.pairs.A, pr.pairs.B, prior, method=method, weights=1.0 / count[pr.level])
+    axis = common_axis(pr.pairs.A, pr.pairs.B)          # planar: translation along it is not the data's
     kept, done = np.zeros(0, dtype=np.int64), 0
     while done < rounds:
         done += 1
         f = pair_features(synced.stamps_ns, path, pr.pairs.i, pr.pairs.j, pr.pairs.B, X)
         model = fit_noise_model(*cost_residuals(pr.pairs.A, pr.pairs.B, X), f)
         w, alpha = _ml_weights(model, f)
-        levels = _choose_levels(pr, w, alpha, model.drift_share(f), X, max_pairs)
+        levels = _choose_levels(pr, w, alpha, model.drift_share(f), X, max_pairs, axis)
         if np.array_equal(levels, kept):
             break
         kept = levels
@@ -337,7 +375,7 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
         fk = pair_features(synced.stamps_ns, path, pairs.i, pairs.j, pairs.B, X)
         weights, alpha = _ml_weights(model, fk)
         weights = weights / (1.0 + model.drift_share(fk) * np.clip(crowding - 1.0, 0.0, None))
-        X = solve(pairs.A, pairs.B, method=method, alpha=alpha, prior=prior, weights=weights).matrix
+        X = _solved(pairs.A, pairs.B, prior, method=method, alpha=alpha, weights=weights)
     if model.kind == "drifting":       # errors shared across time: the ML α is an upper bound (analysis.alpha)
         alpha = _blocked(pairs, alpha, weights, prior)
     return Selection(pairs, weights / weights.mean(), alpha, model, tuple(int(k) for k in pr.strides[kept]), done,

@@ -67,15 +67,17 @@ class GroundRecording:
     jumped: NDArray[np.bool_]
 
 
-def _controls(t: NDArray[np.float64], kind: str, rng: np.random.Generator
+def _controls(t: NDArray[np.float64], kind: str, rng: np.random.Generator, turning: float, spin_period_s: float
               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Forward speed v [m/s] and yaw rate ω [rad/s]: figure eights, arcs and (diff-drive) turns in place."""
+    """Forward speed v [m/s] and yaw rate ω [rad/s]: figure eights and arcs (yaw rate times ``turning``)
+    and (diff-drive) a turn in place every ``spin_period_s`` [s] (``inf``: never)."""
     f = rng.uniform(0.03, 0.08)
     omega = np.sin(2 * np.pi * f * t) * (0.8 if kind == "diff-drive" else 0.25)            # figure eights
     omega += 0.3 * np.sin(2 * np.pi * rng.uniform(0.1, 0.2) * t + rng.uniform(0, 2 * np.pi))
+    omega *= turning
     v = (0.5 if kind == "diff-drive" else 8.0) * (1.0 + 0.4 * np.sin(2 * np.pi * rng.uniform(0.02, 0.05) * t))
-    if kind == "diff-drive":                   # a turn in place every 30 s, ~5 s long, ramped (limited acceleration)
-        r = np.clip((np.sin(2 * np.pi * t / 30.0) - 0.75) / 0.2, 0.0, 1.0)
+    if kind == "diff-drive":       # turns in place, about a sixth of the period long, ramped (limited acceleration)
+        r = np.clip((np.sin(2 * np.pi * t / spin_period_s) - 0.75) / 0.2, 0.0, 1.0)
         spin = r * r * (3 - 2 * r)
         v = (1 - spin) * v
         omega = (1 - spin) * omega + spin * 1.0
@@ -130,7 +132,8 @@ def _stream(stamps_s: NDArray[np.floating[Any]], T: NDArray[np.float64], frame: 
 def simulate_ground(kind: str = "diff-drive", *, duration_s: float = 240.0, seed: int = 0,
                     mount: NDArray[np.float64] | None = None, base_rate: float = 50.0,
                     sensor_rate: float = 10.0, localiser_rate: float = 1.5, slip: float = 0.002,
-                    gyro_bias_deg_s: float = 0.002, localiser_jumps: int = 3) -> GroundRecording:
+                    gyro_bias_deg_s: float = 0.002, localiser_jumps: int = 3, turning: float = 1.0,
+                    spin_period_s: float = 30.0) -> GroundRecording:
     """A ground robot's log: base pose stream, sensor odometry and (diff-drive) a localiser.
 
     ``kind`` is ``diff-drive`` or ``car``; ``mount`` the true ``T_base_link_sensor`` (default
@@ -138,7 +141,9 @@ def simulate_ground(kind: str = "diff-drive", *, duration_s: float = 240.0, seed
     ground truth), ``sensor_rate`` (lidar or visual odometry), ``localiser_rate``. Wheel odometry:
     speed scale error ``slip`` (fraction, plus 0.2 % slip noise per step while turning), yaw-rate bias
     ``gyro_bias_deg_s`` [deg/s]. The localiser has 2 cm / 0.3° absolute noise and
-    ``localiser_jumps`` jumps of 0.2–0.5 m and 3–8°. Seeded and deterministic.
+    ``localiser_jumps`` jumps of 0.2–0.5 m and 3–8°. Motion: ``turning`` scales the yaw rate of the
+    arcs (below 1: longer, straighter runs); the diff-drive turns in place every ``spin_period_s`` [s]
+    (``math.inf``: never). Seeded and deterministic.
     """
     if kind not in GROUND_KINDS:
         raise ValueError(f"unknown ground kind {kind!r}; expected one of {GROUND_KINDS}")
@@ -147,7 +152,7 @@ def simulate_ground(kind: str = "diff-drive", *, duration_s: float = 240.0, seed
                    dtype=np.float64)
     dt = 1.0 / _SIM_RATE
     t_sim = np.arange(int(duration_s * _SIM_RATE) + 1, dtype=np.float64) * dt
-    v, omega = _controls(t_sim, kind, rng)
+    v, omega = _controls(t_sim, kind, rng, turning, spin_period_s)
     x, y, yaw = _integrate(dt, v, omega)
     z = np.zeros_like(x)
     roll, pitch = np.zeros_like(x), np.zeros_like(x)
@@ -161,8 +166,8 @@ def simulate_ground(kind: str = "diff-drive", *, duration_s: float = 240.0, seed
     i_base = _sample(t_sim, base_rate, duration_s, rng)
     i_sensor = _sample(t_sim, sensor_rate, duration_s, rng)
     if kind == "diff-drive":
-        turning = np.abs(omega) > 0.3
-        v_meas = v * (1.0 + slip + 0.002 * rng.normal(size=len(v)) * turning) + 0.002 * rng.normal(size=len(v))
+        in_turn = np.abs(omega) > 0.3
+        v_meas = v * (1.0 + slip + 0.002 * rng.normal(size=len(v)) * in_turn) + 0.002 * rng.normal(size=len(v))
         w_meas = omega + np.deg2rad(gyro_bias_deg_s) + np.deg2rad(0.05) * rng.normal(size=len(v))
         xo, yo, yawo = _integrate(dt, v_meas, w_meas)
         base = _poses(xo, yo, np.zeros_like(xo), np.c_[np.zeros_like(xo), np.zeros_like(xo), yawo])[i_base]
