@@ -127,7 +127,7 @@ def test_the_fleet_report_draws_each_sensor_pair_apart_one_line_per_robot(capsys
     cam = (tmp_path / "records.jsonl").read_text().splitlines()
     lidar = [json.dumps({**json.loads(line), "frames": {"a": "base", "b": "lidar"}}) for line in cam[:4]]
     (tmp_path / "records.jsonl").write_text("\n".join(cam + lidar) + "\n")
-    code, _, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html")
+    code, _, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html", "-q")
     assert code == 0 and err == ""
     html = (tmp_path / "fleet.html").read_text()
     svgs = [base64.b64decode(d).decode() for d in re.findall(r"src='data:image/svg\+xml;base64,([^']*)'", html)]
