@@ -142,3 +142,24 @@ def test_planar_motion_keeps_the_format_order_and_still_finds_a_w_first_file(w_f
     assert choice is not None and choice.orders == ("xyzw", "wxyz" if w_first_b else "xyzw")
     assert choice.chosen_by == ("fit" if w_first_b else "format") and choice.used[1] < 0.1
     assert np.allclose(np.abs(np.sum(b2.quat_xyzw * g.sensor.quat_xyzw, axis=1)), 1.0) and a2 is a
+
+
+def test_readings_that_fit_alike_because_the_motion_is_degenerate_name_the_motion():
+    """When the two quaternion orders fit alike with other extrinsics because the motion leaves a direction open
+    (one oblique rotation axis), the refusal names the motion, not --wxyz (kinhec's motion-000004: 'cannot be told
+    from the data ... say which with --wxyz-a'); a ground robot's z axis and general motion are not refused."""
+    from test_observability import _arm_about_one_joint
+
+    from handeye_cli.analysis.readings import _refuse_degenerate
+    from handeye_cli.errors import UnderdeterminedError
+
+    a, b, _, _ = _arm_about_one_joint()
+    k = np.arange(0, len(a) - 10, 3)
+    with pytest.raises(UnderdeterminedError, match="is not determined by the motion"):
+        _refuse_degenerate(a.matrices(), b.matrices(), k, k + 10)
+    g = simulate_ground("diff-drive", seed=2, duration_s=60.0)
+    rig = simulate_rig(Rig(random_transform(np.random.default_rng(3), 0.3)), duration_s=20.0, seed=3)
+    for stream in (g.base, rig[0]):                     # rotation about z of base_link; general 3-D motion
+        T = stream.matrices()
+        k = np.arange(0, len(T) - 10, 3)
+        _refuse_degenerate(T, T, k, k + 10)             # no refusal

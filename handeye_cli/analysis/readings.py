@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import DataError, HandEyeError
+from ..errors import DataError, HandEyeError, UnderdeterminedError
 from ..geometry import se3
 from ..solvers import solve
 from ..streams import PoseStream
@@ -161,6 +161,24 @@ def _best_over_inversions(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i:
     return min(found, key=lambda f: f.rank) if found else None
 
 
+def _refuse_degenerate(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64],
+                       j: NDArray[np.int64]) -> None:
+    """Raise the motion's own refusal when it leaves a direction of the extrinsic open that no reduced solve
+    takes (one rotation axis oblique to frame a, as :mod:`.subspace` refuses it; pure translation): two readings
+    then fit alike because the motion cannot tell their extrinsics apart, and the quaternion order is not what
+    the user must give (kinhec's motion-000004 was refused naming ``--wxyz-a``)."""
+    from .observability import assess_observability
+    from .subspace import AXIS_Z_TOLERANCE_DEG
+
+    oblique = np.cos(np.deg2rad(AXIS_Z_TOLERANCE_DEG))      # a ground robot's z: the reduced solve's, not refused
+    findings = [w for w in assess_observability(se3.relative(T_a[i], T_a[j]), se3.relative(T_b[i], T_b[j])).warnings
+                if w.code in ("single_axis", "planar", "pure_translation")
+                and (w.direction_a is None or abs(w.direction_a[2]) < oblique)]
+    if findings:
+        raise UnderdeterminedError(findings[0].message.replace("is unobservable", "is not determined by the motion"),
+                                   "observability", findings[0].remedy)
+
+
 def choose_quaternion_order(a: PoseStream, b: PoseStream, *, time_offset_ns: int = 0, max_dt_ns: int | None = None,
                             seed: int = 0) -> tuple[PoseStream, PoseStream, OrderChoice | None]:
     """Streams a and b in the quaternion order that fits (see the module docstring), and the choice; the
@@ -210,6 +228,7 @@ def choose_quaternion_order(a: PoseStream, b: PoseStream, *, time_offset_ns: int
         rot_deg, trans_m = extrinsic_error(best.matrix, base.matrix)
         worst = np.maximum(base.medians, best.medians)
         if rot_deg > max(ALIKE_DEG, worst[0]) or trans_m > max(ALIKE_M, worst[1]):
+            _refuse_degenerate(matrices("a", given_orders[0]), matrices("b", given_orders[1]), i, j)
             flags = " and ".join(f"{_FLAGS[g].format(name)} or {_FLAGS[o].format(name)}" for name, o, g
                                  in zip("ab", best_orders, given_orders, strict=True) if o and g and o != g)
             raise DataError("the quaternion order of the text input cannot be told from the data: the other order "
