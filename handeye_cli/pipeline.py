@@ -41,7 +41,7 @@ from .analysis.selection import Selection, select_pairs
 from .analysis.stream_noise import StreamNoise, stream_noise
 from .analysis.subspace import observable_subspace
 from .config import load_options
-from .errors import ConfigError, DataError, HandEyeError
+from .errors import ConfigError, DataError, FitRejectedError, HandEyeError
 from .geometry import se3
 from .io.nominal import read_nominal
 from .io.spec import StreamSpec
@@ -618,9 +618,15 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
         if recovered is None:
             raise rejected
         return recovered
+    moved = None if rejected or stations is None or opts.analysis.robust else _moved(pairs, res, opts, alpha, prior)
+    if moved and not opts.analysis.accept_poor_fit:             # a mount that slipped between two stations
+        raise moved
     suspect = verdict.message() if verdict else data_warning(res, weights, samples)
     if suspect:
         warnings.insert(0, suspect)
+    if moved:                                                   # kept on request: the fit test failed, exit 3
+        diagnostics["fit_test"] = {**diagnostics["fit_test"], "passed": False, "extrinsic_changed": moved.what}
+        warnings.insert(0, f"poor fit accepted with --accept-poor-fit: {moved.what}")
     if rejected:
         warnings.insert(0, f"poor fit accepted with --accept-poor-fit: {fit.summary()}")
     boot = None
@@ -632,6 +638,26 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     return Calibration(solution, stream_a, stream_b, kept, pairs, samples, opts, res, warnings=warnings,
                        diagnostics=diagnostics, inputs=dict(inputs or {}), weights=weights, robust=robust,
                        bootstrap=boot)
+
+
+def _moved(pairs: Pairs, res: Residuals, opts: Options, alpha: float, prior: Prior | None) -> FitRejectedError | None:
+    """A station capture's refusal when the stations before one stamp fit another extrinsic than those after it
+    (:func:`moved_during`): the fit test's noise of sparse stations is an assumed one, lenient enough that a mount
+    slipping 10° / 5 cm between two stations passes it."""
+    from .analysis.robust import moved_during
+
+    found = moved_during(pairs.A, pairs.B, pairs.i, pairs.j, res, method=opts.solver.method, alpha=alpha,
+                         prior=prior)
+    if found is None:
+        return None
+    cut, gain = found
+    t0 = min(pairs.t_i_ns.min(), pairs.t_j_ns.min())
+    at = pairs.t_i_ns[pairs.i == cut]
+    when = f" at {(at[0] - t0) / 1e9:.1f} s since the first station" if len(at) else ""
+    return FitRejectedError(f"the extrinsic changed during the capture: the stations from number {cut + 1}{when} on "
+                            f"fit another T_a_b, and each part fits its own {gain:.3g}× better than one fits both",
+                            "fit test", "check that the sensor is rigidly mounted and calibrate the stations before "
+                            "and after apart; to keep this result anyway: --accept-poor-fit (exit code 3)")
 
 
 def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inputs: dict[str, Any] | None,

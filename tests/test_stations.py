@@ -183,3 +183,26 @@ def test_a_mount_that_moved_during_the_capture_is_refused_not_taken_for_outliers
     code, _, err = run(capsys, "calibrate", robot, camera, "--invert-b", "-o", tmp_path / "r.yaml")
     assert code == 2 and "does not fit a rigid rig" in err, err
     assert not (tmp_path / "r.yaml").exists()
+
+
+def test_a_sparse_capture_whose_mount_slipped_is_refused_though_its_fit_passes(capsys, tmp_path):
+    """One pose per station: the fit test's noise is an assumed one (0.15° / 1.5 mm per pose), so a mount that
+    slipped 10° / 5 cm before the last 6 of 15 stations passed it (exit 0, median residual 6.8°). One run of
+    stations fits another extrinsic and the others fit theirs 3× better without it: refused, and kept on
+    request (exit 3). A clean sparse capture is not refused."""
+    c = simulate_arm(15, setup="eye-in-hand", sparse=True, seed=3)
+    slip = se3.from_xyz_quat(np.array([0.05, 0.0, 0.0]), np.r_[np.sin(np.deg2rad(5.0)), 0.0, 0.0,
+                                                               np.cos(np.deg2rad(5.0))])
+    T = c.camera.matrices().copy()
+    T[9:] = se3.inverse(slip) @ T[9:]
+    moved = PoseStream.from_matrices(c.camera.stamps_ns, T, frame_id=c.camera.frame_id,
+                                     child_frame_id=c.camera.child_frame_id)
+    robot, camera = write_tum(tmp_path / "robot.tum", c.robot), write_tum(tmp_path / "camera.tum", moved)
+    code, _, err = run(capsys, "calibrate", robot, camera, "--invert-b", "-o", tmp_path / "r.yaml")
+    assert code == 2 and "the extrinsic changed during the capture" in err, err
+    assert not (tmp_path / "r.yaml").exists()
+    code, _, err = run(capsys, "calibrate", robot, camera, "--invert-b", "--accept-poor-fit", "-o", tmp_path / "r.yaml")
+    assert code == 3 and "changed during the capture" in err
+    clean = write_tum(tmp_path / "clean.tum", c.camera)
+    code, _, err = run(capsys, "calibrate", robot, clean, "--invert-b", "-o", tmp_path / "c.yaml")
+    assert code == 0, err

@@ -26,18 +26,21 @@ from typing import Any
 import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
-from ..errors import TooFewPairsError
+from ..errors import HandEyeError, TooFewPairsError
 from ..geometry import dualquat as dq
 from ..solvers import Prior, Solution, solve
 from ..solvers.problem import pair_blocks, validate_motions
-from .residuals import Residuals, residuals_batch
+from .residuals import Residuals, pair_residuals, residuals_batch
 
 __all__ = ["RobustResult", "robust_solve", "minimal_hypotheses", "consensus_share", "longest_disagreement",
-           "RETRY_MIN_INLIERS", "RETRY_MAX_RATIO", "RETRY_MAX_RUN"]
+           "RETRY_MIN_INLIERS", "RETRY_MAX_RATIO", "RETRY_MAX_RUN", "moved_during", "MOVED_GAIN",
+           "MOVED_MIN_SIDE"]
 
 RETRY_MIN_INLIERS = 0.5
 RETRY_MAX_RATIO = 3.0
 RETRY_MAX_RUN = 0.25
+MOVED_GAIN = 3.0             # the samples before and after one stamp fit their own extrinsics this much better
+MOVED_MIN_SIDE = 5           # ... with at least this many samples a side
 """A fit the fit test refuses is solved again with outliers rejected (as ``--robust``) and kept when at least
 ``RETRY_MIN_INLIERS`` of its pose samples agree with the consensus (:func:`consensus_share`) and the inliers fit
 as clean data do: a fit-test ratio (residuals over what the streams' own noise predicts) of at most
@@ -239,3 +242,39 @@ def robust_solve(motions_a: FloatArray, motions_b: FloatArray, *, method: str = 
             break
     return RobustResult(solution, mask, np.flatnonzero(~mask), float(np.rad2deg(tau_r)), float(tau_t),
                         Residuals(np.rad2deg(rot), trans), int(len(cand)), refinements)
+
+
+
+def moved_during(motions_a: FloatArray, motions_b: FloatArray, i: IntArray, j: IntArray, residuals: Residuals, *,
+                 method: str = "dqopt", alpha: float = 1.0, prior: Prior | None = None,
+                 min_side: int = MOVED_MIN_SIDE) -> tuple[int, float] | None:
+    """Whether the extrinsic changed during a capture (a mount that slipped between two stations: the samples
+    before one stamp fit one ``T_a_b``, those after another). Each split of the samples (``i[k] < j[k]`` sample
+    indices of the motions ``A_k = T_a(t_i)⁻¹ T_a(t_j)``, at least ``min_side`` samples a side) is solved apart
+    on the pairs inside each side; where both sides fit their own extrinsic ``MOVED_GAIN`` times better than
+    the solution of all pairs fits them (``residuals``, every pair's at it; median rotation or translation),
+    the capture held two. A consensus of scattered inliers (:func:`robust_solve`) cannot find it: one period
+    is less than half of the all-with-all pairs. Returns the first sample after the best split and its gain,
+    or None."""
+    n = int(max(i.max(), j.max())) + 1 if len(i) else 0
+    best: tuple[int, float] | None = None
+    for cut in range(min_side, n - min_side + 1):
+        sides = [j < cut, i >= cut]
+        if min(int(m.sum()) for m in sides) < 2 * min_side:
+            continue
+        own_rot, own_trans, all_rot, all_trans = [], [], [], []
+        for m in sides:
+            try:
+                X = solve(motions_a[m], motions_b[m], method=method, alpha=alpha, prior=prior).matrix
+            except HandEyeError:
+                return None
+            r = pair_residuals(motions_a[m], motions_b[m], X)
+            own_rot.append(r.rotation_deg)
+            own_trans.append(r.translation_m)
+            all_rot.append(residuals.rotation_deg[m])
+            all_trans.append(residuals.translation_m[m])
+        gain = max(float(np.median(np.concatenate(a)) / max(float(np.median(np.concatenate(o))), 1e-300))
+                   for a, o in ((all_rot, own_rot), (all_trans, own_trans)))
+        if best is None or gain > best[1]:
+            best = (cut, gain)
+    return best if best is not None and best[1] >= MOVED_GAIN else None
