@@ -1,6 +1,8 @@
 """Station captures (robot arm at rest at each station) are found and calibrated with default flags."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import yaml
@@ -166,20 +168,25 @@ def test_a_few_bad_stations_are_rejected_by_default_and_named(capsys, tmp_path, 
     assert code == 3 and "poor fit accepted" in err                            # the plain fit, on request
 
 
+def _slipped(tmp_path: Path, c: ArmCapture, deg: float, metres: float, station: int) -> tuple[Path, Path]:
+    """TUM files of the capture with the camera's mount moved ``deg`` about x and ``metres`` along x before
+    ``station`` (0-based): the camera stream ``T_cam_target`` seen from the moved camera from then on."""
+    slip = se3.from_xyz_quat(np.array([metres, 0.0, 0.0]), np.r_[np.sin(np.deg2rad(deg / 2)), 0.0, 0.0,
+                                                                  np.cos(np.deg2rad(deg / 2))])
+    T = c.camera.matrices().copy()
+    after = c.camera.stamps_ns > (c.station_times_ns[station - 1] + c.station_times_ns[station]) // 2
+    T[after] = se3.inverse(slip) @ T[after]
+    moved = PoseStream.from_matrices(c.camera.stamps_ns, T, frame_id=c.camera.frame_id,
+                                     child_frame_id=c.camera.child_frame_id)
+    return write_tum(tmp_path / "robot.tum", c.robot), write_tum(tmp_path / "camera.tum", moved)
+
+
 def test_a_mount_that_moved_during_the_capture_is_refused_not_taken_for_outliers(capsys, tmp_path):
     """The camera's mount moved 2° / 1 cm before the last 4 of 15 stations: 73 % of the stations agree with one
     extrinsic and fit it as clean data do (1.08), as with 4 bad detections, but the disagreeing ones are one run
     in time. The outlier retry does not take the first period's extrinsic for a verified result: exit 2, nothing
     written (it did: exit 0 with 'outliers rejected')."""
-    c = simulate_arm(15, setup="eye-in-hand", seed=3)
-    slip = se3.from_xyz_quat(np.array([0.01, 0.0, 0.0]), np.r_[np.sin(np.deg2rad(1.0)), 0.0, 0.0,
-                                                               np.cos(np.deg2rad(1.0))])
-    T = c.camera.matrices().copy()
-    after = c.camera.stamps_ns > (c.station_times_ns[10] + c.station_times_ns[11]) // 2
-    T[after] = se3.inverse(slip) @ T[after]            # T_cam_target seen from the moved camera
-    moved = PoseStream.from_matrices(c.camera.stamps_ns, T, frame_id=c.camera.frame_id,
-                                     child_frame_id=c.camera.child_frame_id)
-    robot, camera = write_tum(tmp_path / "robot.tum", c.robot), write_tum(tmp_path / "camera.tum", moved)
+    robot, camera = _slipped(tmp_path, simulate_arm(15, setup="eye-in-hand", seed=3), 2.0, 0.01, 11)
     code, _, err = run(capsys, "calibrate", robot, camera, "--invert-b", "-o", tmp_path / "r.yaml")
     assert code == 2 and "does not fit a rigid rig" in err, err
     assert not (tmp_path / "r.yaml").exists()
@@ -191,13 +198,7 @@ def test_a_sparse_capture_whose_mount_slipped_is_refused_though_its_fit_passes(c
     stations fits another extrinsic and the others fit theirs 3× better without it: refused, and kept on
     request (exit 3). A clean sparse capture is not refused."""
     c = simulate_arm(15, setup="eye-in-hand", sparse=True, seed=3)
-    slip = se3.from_xyz_quat(np.array([0.05, 0.0, 0.0]), np.r_[np.sin(np.deg2rad(5.0)), 0.0, 0.0,
-                                                               np.cos(np.deg2rad(5.0))])
-    T = c.camera.matrices().copy()
-    T[9:] = se3.inverse(slip) @ T[9:]
-    moved = PoseStream.from_matrices(c.camera.stamps_ns, T, frame_id=c.camera.frame_id,
-                                     child_frame_id=c.camera.child_frame_id)
-    robot, camera = write_tum(tmp_path / "robot.tum", c.robot), write_tum(tmp_path / "camera.tum", moved)
+    robot, camera = _slipped(tmp_path, c, 10.0, 0.05, 9)
     code, _, err = run(capsys, "calibrate", robot, camera, "--invert-b", "-o", tmp_path / "r.yaml")
     assert code == 2 and "the extrinsic changed during the capture" in err, err
     assert not (tmp_path / "r.yaml").exists()
