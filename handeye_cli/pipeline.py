@@ -15,9 +15,10 @@ Examples
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -34,12 +35,13 @@ from .analysis import (
 from .analysis.alpha import TIME_BLOCKS, noise_model_alpha, time_blocks
 from .analysis.covariance import drift_check
 from .analysis.diagnosis import data_warning, too_few_pairs
-from .analysis.fit_test import fit_test, sample_noise
+from .analysis.fit_test import FitTest, fit_test, sample_noise
 from .analysis.inversion import InversionVerdict, check_inversion
+from .analysis.observability import Observability
 from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit, scale_reading
 from .analysis.selection import Selection, select_pairs
 from .analysis.stream_noise import StreamNoise, stream_noise
-from .analysis.subspace import observable_subspace
+from .analysis.subspace import Subspace, observable_subspace
 from .config import load_options
 from .errors import ConfigError, DataError, FitRejectedError, HandEyeError
 from .geometry import se3
@@ -55,7 +57,7 @@ from .stages.stations import Stations, detect_stations
 from .stages.sync import Synced, default_max_dt_ns
 from .streams import PoseStream
 
-__all__ = ["Calibration", "StreamSpec", "Uncertainty", "calibrate", "calibrate_files", "calibrate_read",
+__all__ = ["Calibration", "Diagnostics", "StreamSpec", "Uncertainty", "calibrate", "calibrate_files", "calibrate_read",
            "check_samples", "inverted_as_read", "read_streams", "refuse_unread"]
 
 
@@ -70,6 +72,33 @@ class Uncertainty:
 
 
 @dataclass(frozen=True, eq=False)
+class Diagnostics(Mapping[str, Any]):
+    """What the analyses of one calibration found, built once when it ends and read-only after.
+
+    The typed results that code reads back: ``fit`` (the fit test), ``observability`` (degenerate motion, the
+    predicted covariance), ``subspace`` (each degree of freedom: estimated, from the prior or unobservable) and
+    ``selection`` (the ``auto`` pairs' noise model; None for another strategy). As a read-only mapping it is the
+    result document's diagnostic sections in order (``time_offset``, ``interpretation``, ``noise_model``,
+    ``observability``, ``degrees_of_freedom``, ``residuals``, ``fit_test`` …: JSON-ready values, the keys of
+    docs/reference/result-schema.md), so ``calibration.diagnostics["fit_test"]`` reads as the file does."""
+
+    sections: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    fit: FitTest | None = None
+    observability: Observability | None = None
+    subspace: Subspace | None = None
+    selection: Selection | None = None
+
+    def __getitem__(self, key: str) -> Any:
+        return self.sections[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.sections)
+
+    def __len__(self) -> int:
+        return len(self.sections)
+
+
+@dataclass(frozen=True, eq=False)
 class Calibration:
     """Everything a calibration produced.
 
@@ -77,7 +106,8 @@ class Calibration:
     stream_a, stream_b: the streams as used (after inversion, before the time offset).
     synced: the samples that passed sync and gates; pairs: the motions solved.
     samples: what each stage read, kept and dropped; options: the options used.
-    warnings: human-readable warnings; diagnostics: extra result keys (time offset, residuals…);
+    warnings: human-readable warnings; diagnostics: what the analyses found (:class:`Diagnostics`: typed,
+    and the result's diagnostic keys: time offset, residuals…);
     inputs: what was read; residuals: per-pair residuals at the solution; weights: per-pair
     weights used (inlier mask with ``robust``, else None); robust, bootstrap: those analyses.
     """
@@ -91,7 +121,7 @@ class Calibration:
     options: Options
     residuals: Residuals
     warnings: list[str] = field(default_factory=list)
-    diagnostics: dict[str, Any] = field(default_factory=dict)
+    diagnostics: Diagnostics = field(default_factory=Diagnostics)
     inputs: dict[str, Any] = field(default_factory=dict)
     weights: np.ndarray | None = None
     robust: RobustResult | None = None
@@ -120,11 +150,11 @@ class Calibration:
         the noise model's predicted (sandwich) covariance; None where neither could be formed."""
         if self.bootstrap is not None:
             return Uncertainty(self.bootstrap.rotation_std_deg, self.bootstrap.translation_std_m, "bootstrap")
-        obs = self.diagnostics.get("observability", {})
-        if "predicted_rotation_std_deg" not in obs:
+        obs = self.diagnostics.observability
+        if obs is None or obs.covariance is None:
             return None
-        return Uncertainty(np.asarray(obs["predicted_rotation_std_deg"], dtype=float),
-                           np.asarray(obs["predicted_translation_std_m"], dtype=float), "covariance")
+        return Uncertainty(np.asarray(obs.covariance.rotation_std_deg, dtype=float),
+                           np.asarray(obs.covariance.translation_std_m, dtype=float), "covariance")
 
     def __repr__(self) -> str:
         """One line: frames, translation, rotation angle, method, pairs, fit test and certificate."""
@@ -132,11 +162,11 @@ class Calibration:
 
     def _line(self) -> str:
         f, t = self.frames, self.translation
-        fit = self.diagnostics.get("fit_test", {})
+        fit = self.diagnostics.fit
         cert = self.solution.certificate
         return (f"T_{f['a']}_{f['b']}: t=[{t[0]:.4f}, {t[1]:.4f}, {t[2]:.4f}] m, "
                 f"rotation {np.rad2deg(float(se3.rotation_angle(self.matrix))):.3f}°, {self.solution.method} on "
-                f"{self.solution.pairs} pairs, fit ratio {fit.get('ratio', float('nan')):.3g}"
+                f"{self.solution.pairs} pairs, fit ratio {float('nan') if fit is None else fit.ratio:.3g}"
                 f"{'' if cert is None else ', certified' if cert.certified else ', NOT certified'}, "
                 f"{len(self.warnings)} warning(s)")
 
@@ -635,8 +665,10 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
                          samples=ij, seed=opts.pairs.seed,
                          estimate=solution.matrix if opts.solver.method == "dqopt" else None)   # the same solve
         diagnostics["uncertainty"] = {"method": "bootstrap over pose samples", **boot.as_dict()}
+    found = Diagnostics(MappingProxyType(diagnostics), fit=fit, observability=obs, subspace=subspace,
+                        selection=selection)
     return Calibration(solution, stream_a, stream_b, kept, pairs, samples, opts, res, warnings=warnings,
-                       diagnostics=diagnostics, inputs=dict(inputs or {}), weights=weights, robust=robust,
+                       diagnostics=found, inputs=dict(inputs or {}), weights=weights, robust=robust,
                        bootstrap=boot)
 
 
@@ -688,7 +720,7 @@ def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inp
         return None
     if (cal.robust is None or consensus_share(cal.robust.inliers, cal.pairs.i, cal.pairs.j) < RETRY_MIN_INLIERS
             or longest_disagreement(cal.robust.inliers, cal.pairs.i, cal.pairs.j) > RETRY_MAX_RUN
-            or not cal.diagnostics["fit_test"]["ratio"] <= RETRY_MAX_RATIO):
+            or cal.diagnostics.fit is None or not cal.diagnostics.fit.ratio <= RETRY_MAX_RATIO):
         return None
     n, kept = len(cal.robust.inliers), int(cal.robust.inliers.sum())
     note = (f"outliers rejected: the fit of all pairs was refused ({refused}); {n - kept} of {n} pairs did not fit "

@@ -60,3 +60,21 @@ def test_compare_methods_is_library_code_with_typed_rows(cal) -> None:
     assert min(r.cost for r in pair_rows) >= rows[0].cost * (1 - 1e-9)
     d = rows[1].as_dict()
     assert d["milliseconds"] == 1e3 * rows[1].seconds and len(d["rotation_vector_deg"]) == 3
+
+
+def test_diagnostics_are_typed_and_read_only(cal) -> None:
+    """The analyses leave as typed objects and a read-only mapping of the document's sections (issue 21: dicts
+    filled in place): nothing can change a result's fit test after the fact, and what code reads is typed."""
+    from handeye_cli.analysis.fit_test import FitTest
+    from handeye_cli.analysis.observability import Observability
+    from handeye_cli.analysis.subspace import Subspace
+
+    d = cal.diagnostics
+    assert isinstance(d.fit, FitTest) and isinstance(d.observability, Observability)
+    assert isinstance(d.subspace, Subspace) and d.selection is not None
+    assert d["fit_test"]["ratio"] == d.fit.ratio and list(d)[0] == "time_offset"
+    with pytest.raises(TypeError):
+        d["fit_test"] = {}                                                   # type: ignore[index]
+    with pytest.raises(AttributeError):
+        d.fit = None                                                         # type: ignore[misc]
+    assert handeye_cli.document(cal)["fit_test"] == d["fit_test"]
