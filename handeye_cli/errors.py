@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["one_line", "in_keywords", "HandEyeError", "ConfigError", "ReadError", "DataError", "TooFewPairsError",
-           "UnderdeterminedError", "FitRejectedError", "WriteError"]
+__all__ = ["one_line", "in_keywords", "KEYWORD_FLAGS", "HandEyeError", "ConfigError", "ReadError", "DataError",
+           "TooFewPairsError", "UnderdeterminedError", "FitRejectedError", "WriteError"]
 
 
 class HandEyeError(ValueError):
@@ -91,8 +91,10 @@ class WriteError(HandEyeError):
     """A result, report or other output could not be written."""
 
 
-# flags whose Python keyword is not the flag's name without dashes
-_KEYWORD_OF = {"config": "config_file", "format": "fmt", "stream": "streams", "output": "output_file"}
+#: the library's keywords whose flag is not the keyword dashed (``max_jump`` ↔ ``--max-jump``), both ways:
+#: the CLI's ``_as_flags`` and :func:`in_keywords` read this one table
+KEYWORD_FLAGS = {"preset": "--preset", "config_file": "--config", "fmt": "--format", "streams": "--stream"}
+_KEYWORD_OF = {flag[2:]: key for key, flag in KEYWORD_FLAGS.items()}
 _WORDS = {"to", "or", "and", "for", "with", "is", "the", "a", "an", "given", "instead", "first", "then", "on", "in",
           "if", "when", "as", "of", "that", "it", "at", "by", "from", "each", "too", "also", "alone", "only"}
 _VALUE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.|*:/-]*$")

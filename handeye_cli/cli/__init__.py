@@ -26,7 +26,7 @@ if not {"OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"} & set(os.e
 
 import click
 
-from ..errors import HandEyeError
+from ..errors import KEYWORD_FLAGS, HandEyeError
 from ..version import __version__
 from .common import CONTEXT, Drifted, StrictFailure
 
@@ -111,8 +111,7 @@ def main(argv: list[str] | None = None) -> None:
 
 
 # the library's keywords that are no option of options.py, and their flags
-_KEYWORDS = {"preset": "--preset", "config_file": "--config", "fmt": "--format", "streams": "--stream",
-             "max_rotation_deg": "--max-rotation-deg", "max_translation_m": "--max-translation-m"}
+_KEYWORDS = {**KEYWORD_FLAGS, "max_rotation_deg": "--max-rotation-deg", "max_translation_m": "--max-translation-m"}
 
 
 def _as_flags(error: HandEyeError) -> HandEyeError:
