@@ -39,8 +39,6 @@ __all__ = ["RobustResult", "robust_solve", "minimal_hypotheses", "consensus_shar
 RETRY_MIN_INLIERS = 0.5
 RETRY_MAX_RATIO = 3.0
 RETRY_MAX_RUN = 0.25
-MOVED_GAIN = 3.0             # the samples before and after one stamp fit their own extrinsics this much better
-MOVED_MIN_SIDE = 5           # ... with at least this many samples a side
 """A fit the fit test refuses is solved again with outliers rejected (as ``--robust``) and kept when at least
 ``RETRY_MIN_INLIERS`` of its pose samples agree with the consensus (:func:`consensus_share`) and the inliers fit
 as clean data do: a fit-test ratio (residuals over what the streams' own noise predicts) of at most
@@ -53,6 +51,8 @@ and Student-t tails: 48 % inlier pairs, 70 % agreeing stations, a fit of 1.16 an
 kept when the disagreeing samples hold a run of more than ``RETRY_MAX_RUN`` of them (:func:`longest_disagreement`):
 that is a sensor that moved during the recording, whose consensus is one period's extrinsic; CI must see it
 refused. (A mount slipping 1° / 5 mm half-way through a rig's stream was kept as 'outliers rejected'.)"""
+MOVED_GAIN = 3.0             # the samples before and after one stamp fit their own extrinsics this much better
+MOVED_MIN_SIDE = 5           # ... with at least this many samples a side
 
 
 def _agreeing(inliers: BoolArray, i: IntArray, j: IntArray) -> BoolArray:
@@ -242,7 +242,6 @@ def robust_solve(motions_a: FloatArray, motions_b: FloatArray, *, method: str = 
             break
     return RobustResult(solution, mask, np.flatnonzero(~mask), float(np.rad2deg(tau_r)), float(tau_t),
                         Residuals(np.rad2deg(rot), trans), int(len(cand)), refinements)
-
 
 
 def moved_during(motions_a: FloatArray, motions_b: FloatArray, i: IntArray, j: IntArray, residuals: Residuals, *,
