@@ -187,15 +187,20 @@ def _gauss_newton(residual: Callable[[FloatArray], FloatArray], p: FloatArray,
     return p, J
 
 
+def _across(n_a: FloatArray) -> FloatArray:
+    """(3, 2) the unit basis ``u1, u2`` of the plane across unit ``n_a`` (right-handed: ``u1 × u2 = n_a``), the
+    coordinates of :func:`_in_plane`'s translation."""
+    u1 = np.cross(np.cross(n_a, [1.0, 0.0, 0.0] if abs(n_a[0]) < 0.9 else [0.0, 1.0, 0.0]), n_a)
+    u1 /= np.linalg.norm(u1)
+    return np.stack([u1, np.cross(n_a, u1)], axis=1)
+
+
 def _in_plane(A: FloatArray, B: FloatArray, w: FloatArray, n_a: FloatArray, R_tilt: FloatArray, z: float,
               yaw0: float | None) -> tuple[float, FloatArray, FloatArray]:
     """Yaw about ``n_a`` [rad], translation across ``n_a`` (2,) in the basis ``u1, u2``, and their 3x3
     covariance, from eq 4's rows with the tilt and the translation along ``n_a`` (``z`` [m]) fixed.
     ``yaw0`` fixes the yaw too (then only the translation is solved)."""
-    u1 = np.cross(n_a, [1.0, 0.0, 0.0] if abs(n_a[0]) < 0.9 else [0.0, 1.0, 0.0])
-    u1 = np.cross(u1, n_a)
-    u1 /= np.linalg.norm(u1)
-    u2 = np.cross(n_a, u1)
+    u1, u2 = _across(n_a).T
     sw = np.sqrt(w)[:, None]
     RA_I = A[:, :3, :3] - np.eye(3)
     tA, u = A[:, :3, 3], B[:, :3, 3] @ R_tilt.T
@@ -273,9 +278,7 @@ def _oblique(A: FloatArray, B: FloatArray, w: FloatArray, X: FloatArray, obs: Ob
     mixed = np.abs(n_a) > np.sin(np.deg2rad(AXIS_Z_TOLERANCE_DEG))
     name = describe_direction(n_a, "a")
     t_why = f"its part along the common rotation axis ({name}) is the prior's: the motion rotates about it only"
-    u1 = np.cross(np.cross(n_a, [1.0, 0.0, 0.0] if abs(n_a[0]) < 0.9 else [0.0, 1.0, 0.0]), n_a)
-    u1 /= np.linalg.norm(u1)
-    basis = np.stack([u1, np.cross(n_a, u1)], axis=1)               # translation across n_a: t = basis @ p
+    basis = _across(n_a)                                            # translation across n_a: t = basis @ p
     t_std = np.sqrt(np.clip(np.diag(basis @ cov[:2, :2] @ basis.T), 0, None))
     dofs = [Dof(n, FROM_PRIOR, float(v[k]), reason=t_why) if mixed[k] else Dof(n, ESTIMATED, float(v[k]),
                                                                                float(t_std[k]))
