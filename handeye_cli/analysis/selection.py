@@ -323,13 +323,19 @@ def _rejoined(synced: Synced, segs: _Segments, path: NDArray[np.float64], X: NDA
     f = pair_features(synced.stamps_ns, path, pairs.i, pairs.j, pairs.B, X)
     r_rot, r_dual = cost_residuals(pairs.A, pairs.B, X)
     z = np.maximum(r_rot ** 2 / model.rot_variance(f), r_dual ** 2 / model.dual_variance(f))
-    same = np.array([bool(np.any(boundary == b)) and float(np.median(z[boundary == b])) <= _SAME_WORLD
+    same = np.array([float(np.median(z[boundary == b])) <= _SAME_WORLD     # k = 0 spans every boundary
                      for b in range(len(ends))])
     if not same.any():
         return None
     new = np.zeros(len(synced), dtype=np.int64)
     new[segs.start[1:][~same]] = 1
     return np.cumsum(new)
+
+
+def _probe_solve(pr: _Probe, prior: Prior | None, method: str) -> NDArray[np.float64]:
+    """``X`` of the probe, every level weighted alike (each pair by one over its level's count)."""
+    count = np.bincount(pr.level, minlength=len(pr.strides)).astype(float)
+    return _solved(pr.pairs.A, pr.pairs.B, prior, method=method, weights=1.0 / count[pr.level])
 
 
 def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt", prior: Prior | None = None,
@@ -346,8 +352,7 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
         return Selection(pr.pairs, np.ones(len(pr.pairs)), 1.0, None, tuple(int(k) for k in pr.strides), 0,
                          len(pr.pairs))
     path = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(synced.T_a[:, :3, 3], axis=0), axis=1))]
-    count = np.bincount(pr.level, minlength=len(pr.strides)).astype(float)
-    X = _solved(pr.pairs.A, pr.pairs.B, prior, method=method, weights=1.0 / count[pr.level])
+    X = _probe_solve(pr, prior, method)
     rejoined = 0
     if len(segs.length) > 1:          # segments the gate split where the world did not move are one
         f = pair_features(synced.stamps_ns, path, pr.pairs.i, pr.pairs.j, pr.pairs.B, X)
@@ -357,8 +362,7 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
             rejoined = len(segs.length) - int(joined[-1]) - 1
             segs = _Segments.of(joined)
             pr = _probe(synced, segs, probe)
-            count = np.bincount(pr.level, minlength=len(pr.strides)).astype(float)
-            X = _solved(pr.pairs.A, pr.pairs.B, prior, method=method, weights=1.0 / count[pr.level])
+            X = _probe_solve(pr, prior, method)
     axis = common_axis(pr.pairs.A, pr.pairs.B)          # planar: translation along it is not the data's
     kept, done = np.zeros(0, dtype=np.int64), 0
     while done < rounds:
