@@ -648,7 +648,8 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
         if recovered is None:
             raise rejected
         return recovered
-    moved = None if rejected or stations is None or opts.analysis.robust else _moved(pairs, res, opts, alpha, prior)
+    moved = None if rejected or stations is None or opts.analysis.robust else _moved(kept, pairs, res, opts, alpha,
+                                                                                     prior)
     if moved and not opts.analysis.accept_poor_fit:             # a mount that slipped between two stations
         raise moved
     suspect = verdict.message() if verdict else data_warning(res, weights, samples)
@@ -672,10 +673,11 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
                        bootstrap=boot)
 
 
-def _moved(pairs: Pairs, res: Residuals, opts: Options, alpha: float, prior: Prior | None) -> FitRejectedError | None:
+def _moved(kept: Synced, pairs: Pairs, res: Residuals, opts: Options, alpha: float,
+           prior: Prior | None) -> FitRejectedError | None:
     """A station capture's refusal when the stations before one stamp fit another extrinsic than those after it
-    (:func:`moved_during`): the fit test's noise of sparse stations is an assumed one, lenient enough that a mount
-    slipping 10° / 5 cm between two stations passes it."""
+    (:func:`moved_during`; ``kept``: the stations, which ``pairs`` index): the fit test's noise of sparse stations
+    is an assumed one, lenient enough that a mount slipping 10° / 5 cm between two stations passes it."""
     from .analysis.robust import moved_during
 
     found = moved_during(pairs.A, pairs.B, pairs.i, pairs.j, res, method=opts.solver.method, alpha=alpha,
@@ -683,10 +685,9 @@ def _moved(pairs: Pairs, res: Residuals, opts: Options, alpha: float, prior: Pri
     if found is None:
         return None
     cut, gain = found
-    t0 = min(pairs.t_i_ns.min(), pairs.t_j_ns.min())
-    at = pairs.t_i_ns[pairs.i == cut]
-    when = f" at {(at[0] - t0) / 1e9:.1f} s since the first station" if len(at) else ""
-    return FitRejectedError(f"the extrinsic changed during the capture: the stations from number {cut + 1}{when} on "
+    when = (kept.stamps_ns[cut] - kept.stamps_ns[0]) / 1e9
+    return FitRejectedError(f"the extrinsic changed during the capture: the stations from number {cut + 1} at "
+                            f"{when:.1f} s since the first station on "
                             f"fit another T_a_b, and each part fits its own {gain:.3g}× better than one fits both",
                             "fit test", "check that the sensor is rigidly mounted and calibrate the stations before "
                             "and after apart; to keep this result anyway: --accept-poor-fit (exit code 3)")
