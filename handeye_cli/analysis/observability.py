@@ -60,6 +60,11 @@ class ObservabilityWarning:
     def __str__(self) -> str:
         return f"{self.message}; {self.remedy}"
 
+    def refusal(self) -> UnderdeterminedError:
+        """This finding as the refusal of a result that would rest on what it names (one line, exit 2)."""
+        return UnderdeterminedError(self.message.replace("is unobservable", "is not determined by the motion"),
+                                    "observability", self.remedy)
+
     def as_dict(self) -> dict[str, Any]:
         """Plain dict for the result file."""
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import DataError, HandEyeError, UnderdeterminedError
+from ..errors import DataError, HandEyeError
 from ..geometry import se3
 from ..solvers import solve
 from ..streams import PoseStream
@@ -175,8 +175,7 @@ def _refuse_degenerate(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: ND
                 if w.code in ("single_axis", "planar", "pure_translation")
                 and (w.direction_a is None or abs(w.direction_a[2]) < oblique)]
     if findings:
-        raise UnderdeterminedError(findings[0].message.replace("is unobservable", "is not determined by the motion"),
-                                   "observability", findings[0].remedy)
+        raise findings[0].refusal()
 
 
 def choose_quaternion_order(a: PoseStream, b: PoseStream, *, time_offset_ns: int = 0, max_dt_ns: int | None = None,

@@ -36,7 +36,6 @@ from typing import Any
 import numpy as np
 
 from .._typing import FloatArray
-from ..errors import UnderdeterminedError
 from ..geometry import dualquat as dq
 from .covariance import LinearCovariance
 from .observability import Observability, describe_direction
@@ -267,8 +266,7 @@ def _oblique(A: FloatArray, B: FloatArray, w: FloatArray, X: FloatArray, obs: Ob
     """
     finding = next(f for f in obs.warnings if f.code in ("planar", "single_axis"))
     if nominal is None:
-        raise UnderdeterminedError(finding.message.replace("is unobservable", "is not determined by the motion"),
-                                   "observability", finding.remedy)
+        raise finding.refusal()
     n_a, n_b, ra, rb = _axes(A, B, w)
     if n_a @ axis_a < 0:                                        # the finding's sign (signs stay paired)
         n_a, n_b = -n_a, -n_b
