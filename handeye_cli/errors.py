@@ -124,9 +124,4 @@ def in_keywords(error: HandEyeError) -> HandEyeError:
     ``frames_a=(PARENT, CHILD)``). The one place the library turns the command line's words into its own; the
     ``where`` part already names the option by its key."""
     fix = _FLAG.sub(_keyword, error.fix)
-    if fix == error.fix:
-        return error
-    out = type(error).__new__(type(error))
-    HandEyeError.__init__(out, error.what, error.where, fix)
-    out.__dict__.update({k: v for k, v in error.__dict__.items() if k not in ("what", "where", "fix")})
-    return out
+    return error if fix == error.fix else type(error)(error.what, error.where, fix)
