@@ -4,7 +4,7 @@ Public API::
 
     handeye_cli.solve(motions_a, motions_b, method="dqopt", alpha="auto", prior=None, weights=None)
     handeye_cli.calibrate_files("a.tum", "b.tum", method="dqopt")     # files (or StreamSpec/PoseStream)
-    handeye_cli.calibrate_files("log.mcap", topic_a="/cam0/pose", topic_b="/cam1/pose", alpha="auto")
+    handeye_cli.calibrate_files("log.mcap", stream_a="/cam0/pose", stream_b="tf:odom,imu_link", alpha="auto")
     handeye_cli.calibrate(stream_a, stream_b, gate="off")              # two PoseStreams → Calibration
     handeye_cli.load_options(config_file=None, preset=None, **options) # defaults < preset < file < keywords
     handeye_cli.calibrate_rig_files("log.mcap", ["cam0=/cam0/pose", "imu=tf:odom,imu_link"], RigOptions())
@@ -12,7 +12,8 @@ Public API::
     handeye_cli.compare_methods(calibration)                           # every method on its pairs
 
 Keyword options have the command line's names without dashes (``--max-jump`` → ``max_jump``);
-see :mod:`handeye_cli.options`.
+see :mod:`handeye_cli.options`. A stream is named as every command names one (``--stream-a SOURCE``,
+``--stream NAME=SOURCE``): ``/topic``, ``tf:PARENT,CHILD`` or ``FILE`` (:mod:`handeye_cli.io.spec`).
 
 Conventions: ``T_a_b`` is the pose of frame b in frame a (maps points from b to a);
 quaternions are x-y-z-w; time is int64 nanoseconds; metres and radians.

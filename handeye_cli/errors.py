@@ -97,8 +97,9 @@ KEYWORD_FLAGS = {"preset": "--preset", "config_file": "--config", "fmt": "--form
 _KEYWORD_OF = {flag[2:]: key for key, flag in KEYWORD_FLAGS.items()}
 _WORDS = {"to", "or", "and", "for", "with", "is", "the", "a", "an", "given", "instead", "first", "then", "on", "in",
           "if", "when", "as", "of", "that", "it", "at", "by", "from", "each", "too", "also", "alone", "only"}
-_VALUE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.|*:/-]*$")
-_FLAG = re.compile(r"--(no-)?([a-z][a-z0-9-]*)((?: (?![-])[^\s,;:)]+){0,2})")
+_VALUE = re.compile(r"^/?[A-Za-z0-9_][A-Za-z0-9_.|*:/,=-]*$")     # a word, number, topic or stream source
+# a flag and up to two words after it; a word is cut at , ; : ) but a stream source (tf:PARENT,CHILD) is whole
+_FLAG = re.compile(r"--(no-)?([a-z][a-z0-9-]*)((?: (?![-])(?:[^\s,;:)]*tf:[^\s;:)]*[^\s,;:)]|[^\s,;:)]+)){0,2})")
 
 
 def _keyword(m: re.Match[str]) -> str:

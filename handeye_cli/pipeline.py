@@ -46,7 +46,7 @@ from .config import load_options
 from .errors import ConfigError, DataError, FitRejectedError, HandEyeError
 from .geometry import se3
 from .io.nominal import read_nominal
-from .io.spec import StreamSpec
+from .io.spec import StreamSpec, stream_source
 from .options import FIELDS, Options, ReadOptions
 from .solvers import Prior, Solution, solve
 from .solvers.scale import scale_translations, solve_with_scale
@@ -58,7 +58,7 @@ from .stages.sync import Synced, default_max_dt_ns
 from .streams import PoseStream
 
 __all__ = ["Calibration", "Diagnostics", "StreamSpec", "Uncertainty", "calibrate", "calibrate_files", "calibrate_read",
-           "check_samples", "inverted_as_read", "read_streams", "refuse_unread"]
+           "check_samples", "inverted_as_read", "read_streams", "refuse_unread", "stream_specs"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -211,16 +211,49 @@ class Calibration:
 Source = str | Path | StreamSpec | PoseStream
 
 
-def _spec(source: Source, topic: str | None, frames: tuple[str, str] | None) -> StreamSpec | PoseStream:
-    if isinstance(source, PoseStream | StreamSpec):
-        if topic or frames:
-            raise ConfigError("a topic or frame pair was given for a stream that is not a file", "topic/frames",
-                              "give topic_a/topic_b/frames_a/frames_b only with file paths")
-        return source
-    if isinstance(source, str | Path):
-        return StreamSpec(str(source), topic, tuple(frames) if frames else None)   # type: ignore[arg-type]
-    raise ConfigError(f"cannot read a stream from {type(source).__name__}", "calibrate_files",
-                      "give a file path, a StreamSpec or a PoseStream")
+def stream_specs(inputs: Sequence[Source], *, stream_a: str | StreamSpec | None = None,
+                 stream_b: str | StreamSpec | None = None, topic_a: str | None = None, topic_b: str | None = None,
+                 frames_a: str | Sequence[str] | None = None, frames_b: str | Sequence[str] | None = None
+                 ) -> tuple[StreamSpec | PoseStream, StreamSpec | PoseStream]:
+    """Streams a and b of one calibration, as ``handeye calibrate`` / ``compare`` and :func:`calibrate_files` name
+    them: ``inputs`` (a log; or one file, :class:`StreamSpec` or in-memory ``PoseStream`` per stream, a then b)
+    and each stream's source in the shared spelling (``stream_a``: ``/topic``, ``tf:PARENT,CHILD`` or ``FILE``, or
+    its synonyms ``topic_a``, ``frames_a`` = (PARENT, CHILD); :func:`~handeye_cli.io.spec.stream_source` parses
+    them). A topic or TF chain is read from the log (a: the first input, b: the last); a FILE is a stream of its
+    own and takes no input; a stream named by neither is its input, whole."""
+    sources = (stream_source("stream_a", stream_a, topic=topic_a, frames=frames_a),
+               stream_source("stream_b", stream_b, topic=topic_b, frames=frames_b))
+    own = [s is not None and s.path is not None for s in sources]
+    shown = " ".join(map(str, inputs)) or "no input"
+    if len(inputs) > 2 - sum(own):
+        raise ConfigError(f"{len(inputs)} inputs given for {2 - sum(own)} stream(s) read from them", shown,
+                          "pass one log, or one file per stream (a then b); a stream named as a FILE "
+                          "(--stream-a FILE) takes none")
+    if not inputs and not all(own):
+        raise ConfigError("no input given", "calibrate", "pass a log, or one pose file per stream (a then b)")
+    if len(inputs) == 1 and not any(own) and not all(s is not None for s in sources):
+        raise ConfigError("one input needs a topic or a TF chain for each stream", shown,
+                          "add --stream-a/--stream-b /topic or tf:PARENT,CHILD (see 'handeye inspect "
+                          f"{inputs[0]}'), or pass two pose files")
+    specs: list[StreamSpec | PoseStream] = []
+    for k, source in enumerate(sources):
+        if source is not None and source.path is not None:
+            specs.append(source)
+            continue
+        item = inputs[0] if k == 0 else inputs[-1]
+        if not isinstance(item, str | Path | PoseStream | StreamSpec):
+            raise ConfigError(f"cannot read a stream from {type(item).__name__}", "calibrate_files",
+                              "give a file path, a StreamSpec or a PoseStream")
+        if isinstance(item, PoseStream | StreamSpec):
+            if source is not None:
+                raise ConfigError("a topic or TF chain was given for a stream that is not a file",
+                                  f"stream_{'ab'[k]}", "name a stream's source only with a log's path")
+            specs.append(item)
+        else:
+            specs.append(StreamSpec(str(item)) if source is None else replace(source, path=str(item)))
+    if sum(isinstance(s, StreamSpec) and s.path == "-" for s in specs) > 1:
+        raise ConfigError("stdin ('-') can feed only one stream", shown, "pass the other as a file")
+    return specs[0], specs[1]
 
 
 def read_streams(specs: Sequence[StreamSpec | PoseStream], options: Options | None = None, *,
@@ -730,30 +763,33 @@ def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inp
     return replace(cal, warnings=[note, *cal.warnings])
 
 
-def calibrate_files(a: Source, b: Source | None = None, *, topic_a: str | None = None, topic_b: str | None = None,
-                    frames_a: tuple[str, str] | None = None, frames_b: tuple[str, str] | None = None,
+def calibrate_files(a: Source | None = None, b: Source | None = None, *, stream_a: str | StreamSpec | None = None,
+                    stream_b: str | StreamSpec | None = None, topic_a: str | None = None, topic_b: str | None = None,
+                    frames_a: Sequence[str] | None = None, frames_b: Sequence[str] | None = None,
                     options: Options | None = None, config_file: str | Path | None = None,
                     preset: str | None = None, quiet: bool = True, **overrides: Any) -> Calibration:
     """Read two streams and :func:`calibrate` ``T_a_b``.
 
     ``a``, ``b``: file paths (str or Path; a log, or one text pose file per stream; ``-`` is
     stdin), :class:`StreamSpec` or in-memory :class:`~handeye_cli.streams.PoseStream`. With one
-    log, ``b`` may be omitted and the streams are chosen with ``topic_a``/``topic_b`` or
-    ``frames_a``/``frames_b`` = (parent, child). Options: ``options`` < ``preset`` <
-    ``config_file`` < ``overrides`` by flat name (e.g. ``method="dqopt", alpha="auto"``).
+    log, ``b`` may be omitted and the streams are named by ``stream_a``/``stream_b`` in the spelling every
+    command shares: ``"/topic"``, ``"tf:PARENT,CHILD"`` (the parent first) or a ``"FILE"`` of its own
+    (:func:`stream_specs`; ``topic_a`` and ``frames_a=(PARENT, CHILD)`` are synonyms). Options: ``options`` <
+    ``preset`` < ``config_file`` < ``overrides`` by flat name (e.g. ``method="dqopt", alpha="auto"``).
     """
     opts = load_options(config_file, preset, base=options, **overrides)
-    spec_a, spec_b = _spec(a, topic_a, frames_a), _spec(a if b is None else b, topic_b, frames_b)
+    spec_a, spec_b = stream_specs(tuple(x for x in (a, b) if x is not None), stream_a=stream_a, stream_b=stream_b,
+                                  topic_a=topic_a, topic_b=topic_b, frames_a=frames_a, frames_b=frames_b)
     refuse_unread(opts.read, (isinstance(spec_a, PoseStream), isinstance(spec_b, PoseStream)))
     from .io.remote import session_of
 
     with session_of(opts.read) as remote:
-        stream_a, stream_b = read_streams([spec_a, spec_b], opts, quiet=quiet)
+        read_a, read_b = read_streams([spec_a, spec_b], opts, quiet=quiet)
     inputs: dict[str, Any] = {"a": _describe(spec_a), "b": _describe(spec_b), "time_source": opts.read.time_source,
                               **_inversion_inputs(opts.read)}
     if remote.urls:
         inputs["bytes_fetched"] = remote.bytes_fetched      # [B] read from object storage (URL inputs)
-    return calibrate_read(stream_a, stream_b, opts, inputs=inputs).with_origin(config_file, preset)
+    return calibrate_read(read_a, read_b, opts, inputs=inputs).with_origin(config_file, preset)
 
 
 

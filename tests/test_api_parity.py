@@ -205,3 +205,19 @@ def test_python_errors_name_keywords_where_the_command_line_names_flags(capsys):
     code, _, err = run(capsys, "calibrate", "sample_data/rig.mcap", "--topic-a", "/cam0/pose", "--topic-b",
                        "/cam1/pose", "--max-jump", "0.01")
     assert code == 2 and "(--max-jump)" in err and "--gate paper" in err
+
+
+def test_the_stream_keywords_are_the_command_lines_stream_flags():
+    """One spelling of a stream on both surfaces (issue 21): calibrate_files takes a keyword for each of the flags
+    calibrate, compare and batch name a stream by (--stream-a SOURCE and its synonyms --topic-a, --frames-a)."""
+    import inspect
+
+    from handeye_cli.cli.batch import batch
+    from handeye_cli.cli.calibrate import calibrate as calibrate_command
+    from handeye_cli.cli.compare import compare
+    from handeye_cli.cli.params import STREAM_KEYS
+
+    assert set(STREAM_KEYS) <= set(inspect.signature(calibrate_files).parameters)
+    for command in (calibrate_command, compare, batch):
+        names = {p.name for p in command.params}
+        assert names & {k for k in names if k.split("_")[0] in ("stream", "topic", "frames")} == set(STREAM_KEYS)

@@ -144,7 +144,7 @@ def test_gates_can_be_switched_off(capsys, rig):
 
 @pytest.mark.parametrize("args, message", [
     (["calibrate", "missing.tum", "missing2.tum"], "not found"),
-    (["calibrate", "{a}"], "topic or a frame pair"),
+    (["calibrate", "{a}"], "a topic or a TF chain for each stream"),
     (["calibrate", "{a}", "{b}", "--pairs", "bogus"], "bad pair strategy"),
     (["calibrate", "{a}", "{b}", "--pairs", "keyframes", "--min-rotation", "179"], "motion pair(s) left"),
     (["calibrate", "{a}", "{b}", "--max-dt", "1e-6"], "timestamp gate"),

@@ -12,7 +12,8 @@ def test_frames_a_given_one_frame_names_the_flag_not_a_frame(capsys) -> None:
     code, out, err = run(capsys, "calibrate", SAMPLE / "rig.mcap", "--frames-a", "base_link", "--topic-b",
                          "/cam1/pose")
     assert code == 2 and out == ""
-    assert err.startswith("error: --frames-a takes two frame names, PARENT CHILD; got '--topic-b' as CHILD")
+    assert err.startswith("error: bad TF chain 'base_link --topic-b': it takes two frame names, PARENT CHILD; "
+                          "got '--topic-b' as CHILD (--frames-a)")
     assert "--frames-a odom base_link" in err and len(err.splitlines()) == 1
 
 

@@ -324,3 +324,90 @@ def test_solve_cli_and_python_share_values_and_case_rule(capsys, key, value):
     code, out, err = run(capsys, "solve", pairs, f"--{key}", value, "-q")
     assert (code == 0) == (python == "accepted"), err
     assert python == "refused" or "matrix:" in out
+
+
+# A stream is named the same way everywhere (issue 21): /topic, tf:PARENT,CHILD or FILE, parsed by one function
+# (io.spec.stream_source) for calibrate, compare, batch (flags and per-input entries), rig and the Python API;
+# --topic-a and --frames-a PARENT CHILD (topic_a, frames_a=(PARENT, CHILD)) are its synonyms.
+RIG_LOG = ROOT / "sample_data" / "rig.mcap"
+CONSECUTIVE = ("--pairs", "consecutive", "-q")
+
+
+def _calibrated(capsys, *args) -> dict:
+    code, out, err = run(capsys, "calibrate", *args, *CONSECUTIVE, "--format", "json")
+    assert code == 0, err
+    return json.loads(out)
+
+
+@pytest.fixture(scope="module")
+def log_pair():
+    """The Python API's calibration of rig.mcap's /cam0/pose against the TF chain odom → cam1."""
+    return handeye_cli.calibrate_files(RIG_LOG, stream_a="/cam0/pose", stream_b="tf:odom,cam1", pairs="consecutive")
+
+
+def test_calibrate_and_python_name_a_stream_in_one_spelling_and_its_synonyms(capsys, log_pair):
+    shared = _calibrated(capsys, RIG_LOG, "--stream-a", "/cam0/pose", "--stream-b", "tf:odom,cam1")
+    synonyms = _calibrated(capsys, RIG_LOG, "--topic-a", "/cam0/pose", "--frames-b", "odom", "cam1")
+    assert shared["matrix"] == synonyms["matrix"] == log_pair.matrix.tolist() and shared["inputs"] == synonyms["inputs"]
+    assert shared["inputs"]["a"]["topic"] == "/cam0/pose" and shared["inputs"]["b"]["frames"] == ["odom", "cam1"]
+
+
+def test_batch_names_a_stream_in_one_spelling_in_flags_and_per_input_entries(capsys, tmp_path, log_pair):
+    code, out, err = run(capsys, "batch", RIG_LOG, "--stream-a", "/cam0/pose", "--stream-b", "tf:odom,cam1",
+                         *CONSECUTIVE, "-j", "1")
+    assert code == 0 and json.loads(out)["matrix"] == log_pair.matrix.tolist(), err
+    (tmp_path / "p.yaml").write_text('"rig.mcap": {stream_b: "tf:odom,cam1"}\n', encoding="utf-8")
+    code, out, err = run(capsys, "batch", RIG_LOG, "--stream-a", "/cam0/pose", "--stream-b", "/cam1/pose",
+                         "--per-input", tmp_path / "p.yaml", *CONSECUTIVE, "-j", "1")
+    assert code == 0 and json.loads(out)["matrix"] == log_pair.matrix.tolist(), err     # the entry's stream b
+
+
+def test_rig_names_a_stream_in_one_spelling_on_the_command_line_and_in_python(capsys):
+    streams = ["cam0=/cam0/pose", "cam1=tf:odom,cam1"]
+    code, out, err = run(capsys, "rig", RIG_LOG, *(w for s in streams for w in ("--stream", s)), *CONSECUTIVE,
+                         "--format", "json")
+    assert code == 0, err
+    rig = handeye_cli.calibrate_rig_files(str(RIG_LOG), streams, RigOptions(options=handeye_cli.load_options(
+        pairs="consecutive")))
+    assert json.loads(out)["transforms"][0]["translation"] == rig.document()["transforms"][0]["translation"]
+    assert rig.document()["inputs"]["streams"]["cam1"]["frames"] == ["odom", "cam1"]
+
+
+def test_a_file_source_is_a_stream_of_its_own_in_calibrate_and_python(capsys, files):
+    positional = _calibrated(capsys, files["a"], files["b"])
+    assert _calibrated(capsys, "--stream-a", files["a"], "--stream-b", files["b"])["matrix"] == positional["matrix"]
+    assert _calibrated(capsys, files["a"], "--stream-b", files["b"])["matrix"] == positional["matrix"]
+    cal = handeye_cli.calibrate_files(stream_a=str(files["a"]), stream_b=str(files["b"]), pairs="consecutive")
+    assert cal.matrix.tolist() == positional["matrix"]
+    code, _, err = run(capsys, "calibrate", files["a"], files["a"], "--stream-b", files["b"])
+    assert code == 2 and "3 inputs" not in err and "2 inputs given for 1 stream(s)" in err, err
+
+
+BAD_CHAIN = "bad TF chain 'tf:odom': it takes two frame names, PARENT CHILD"
+
+
+@pytest.mark.parametrize("argv, flag_", [
+    (("calibrate", RIG_LOG, "--stream-a", "tf:odom", "--stream-b", "/cam1/pose"), "(--stream-a)"),
+    (("compare", RIG_LOG, "--stream-a", "/cam0/pose", "--stream-b", "tf:odom"), "(--stream-b)"),
+    (("batch", RIG_LOG, "--stream-a", "tf:odom", "--stream-b", "/cam1/pose"), "(--stream-a)"),
+    (("rig", RIG_LOG, "--stream", "a=tf:odom", "--stream", "b=/cam1/pose"), "(--stream)"),
+])
+def test_a_bad_tf_chain_is_refused_alike_by_every_command_naming_parent_child(capsys, argv, flag_):
+    code, out, err = run(capsys, *argv)
+    assert code == 2 and out == "" and err.startswith(f"error: {BAD_CHAIN} {flag_}") and len(err.splitlines()) == 1
+    assert "the parent first" in err and "tf:odom,base_link" in err
+
+
+def test_the_python_api_and_a_per_input_entry_refuse_a_bad_chain_in_their_own_words(capsys, tmp_path):
+    with pytest.raises(ConfigError) as info:
+        handeye_cli.calibrate_files(RIG_LOG, stream_a="tf:odom", stream_b="/cam1/pose")
+    assert str(info.value).startswith(f"{BAD_CHAIN} (stream_a)") and "stream_a='tf:odom,base_link'" in str(info.value)
+    with pytest.raises(ConfigError, match=r"\(frames_a\): .*frames_a=\('odom', 'base_link'\)"):
+        handeye_cli.calibrate_files(RIG_LOG, frames_a=("odom",), stream_b="/cam1/pose")
+    with pytest.raises(ConfigError, match=rf"^{BAD_CHAIN} \(streams\)"):
+        handeye_cli.calibrate_rig_files(str(RIG_LOG), ["a=tf:odom", "b=/cam1/pose"])
+    with pytest.raises(ConfigError, match=r"stream a is named twice \(stream_a/topic_a\)"):
+        handeye_cli.calibrate_files(RIG_LOG, stream_a="/cam0/pose", topic_a="/cam0/pose", stream_b="/cam1/pose")
+    (tmp_path / "p.yaml").write_text('"*": {stream_a: "tf:odom"}\n', encoding="utf-8")
+    code, _, err = run(capsys, "batch", RIG_LOG, "--per-input", tmp_path / "p.yaml")
+    assert code == 2 and err.startswith(f"error: {BAD_CHAIN} ({tmp_path / 'p.yaml'}: *: stream_a)"), err

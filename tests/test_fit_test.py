@@ -109,7 +109,7 @@ def test_refusal_is_a_data_error_naming_the_causes_and_the_override():
     e = info.value
     assert isinstance(e, DataError) and e.where == "fit test"
     for keyword in ("wxyz_a=True / wxyz_b=True", "invert_a=True / invert_b=True", "time_unit=",   # the API's words
-                    "frames_a=(PARENT, CHILD)", "time_offset='auto'", "robust=True", "accept_poor_fit=True"):
+                    "stream_a='tf:PARENT,CHILD'", "time_offset='auto'", "robust=True", "accept_poor_fit=True"):
         assert keyword in e.fix
     assert e.fix.index("wxyz") < e.fix.index("time_unit")     # continuous: the quaternion order first
 

@@ -109,14 +109,18 @@ def test_the_right_flag_calibrates_without_an_inversion_warning(capsys, station_
 
 
 def test_tf_frames_given_child_first_are_refused_naming_parent_child(capsys, tmp_path):
-    """--frames-a cam0 world reads T_cam0_world: refused, and the fix names the frames PARENT CHILD."""
+    """--frames-a cam0 world reads T_cam0_world: refused, and the fix names the frames PARENT CHILD in the spelling
+    every command shares (tf:PARENT,CHILD); so is the same chain named in it (--stream-a tf:cam0,world)."""
     from _util import ROOT
 
     out_file = tmp_path / "r.yaml"
     code, out, err = run(capsys, "calibrate", ROOT / "sample_data" / "rig.mcap", "--frames-a", "cam0", "world",
                          "--frames-b", "world", "cam1", "-o", out_file)
     assert code == 2 and not out_file.exists() and err.count("\n") == 1
-    assert "--frames-a world cam0 (PARENT CHILD)" in err
+    assert "--stream-a tf:world,cam0 (tf:PARENT,CHILD, the parent first)" in err
+    code, _, again = run(capsys, "calibrate", ROOT / "sample_data" / "rig.mcap", "--stream-a", "tf:cam0,world",
+                         "--stream-b", "tf:world,cam1", "-o", out_file)
+    assert code == 2 and again == err
     code, _, err = run(capsys, "calibrate", ROOT / "sample_data" / "rig.mcap", "--frames-a", "world", "cam0",
                        "--frames-b", "world", "cam1", "-o", out_file)
     assert code == 0, err

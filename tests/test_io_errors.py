@@ -175,7 +175,7 @@ def test_topic_with_several_frame_pairs(tmp_path, recs):
     two = [(r[0], [(*r[:2], "cam0", *r[3:]), (*r[:2], "cam1", *r[3:])]) for r in recs]
     path = write_mcap(tmp_path / "tf.mcap", [Channel("/tf", TF, two)])
     fails(lambda: read_stream(path, topic="/tf"), r"several frame pairs \(world->cam0, world->cam1\)",
-          "--frames-a PARENT CHILD")
+          "--stream-a tf:PARENT,CHILD")
 
 
 # --- invalid poses: dropped with a warning naming the sample --------------------------------

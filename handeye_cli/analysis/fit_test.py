@@ -151,7 +151,7 @@ def _causes(options: Options, stations: bool, inverted: bool, test: FitTest) -> 
     invert = ("a stream recorded as T_sensor_world (--invert-a / --invert-b"
               + (", or drop the one given)" if read.invert_a or read.invert_b else ")"))
     causes = [invert, wxyz, unit] if inverted else [unit, wxyz, invert] if stations else [wxyz, invert, unit]
-    causes.append("TF frames in the wrong order (--frames-a PARENT CHILD: parent first)")
+    causes.append("TF frames in the wrong order (--stream-a tf:PARENT,CHILD, the parent first)")
     if options.sync.time_offset != "auto":
         causes.append("a clock offset (--time-offset auto, with --max-time-offset SECONDS for a large one)")
     if solver.scale == 1.0:

@@ -147,7 +147,7 @@ def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArr
     method, alpha: the solver used for the comparison fits.
     inverted_now: whether streams a and b were already inverted by the user (to name the right flag).
     frames: the (parent, child) TF frame pair each stream was read as, if any: inverting such a stream is
-        naming its frames the other way round, and that is the flag named (``--frames-a CHILD PARENT``).
+        naming its frames the other way round, and that is the flag named (``--stream-a tf:CHILD,PARENT``).
 
     Returns the verdict (both streams as candidates when their inversions fit alike), or None.
     """
@@ -164,7 +164,7 @@ def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArr
         if alt is None:
             continue
         if alt.decisively_better_than(base):
-            flag = (f"--frames-{name} {pair[1]} {pair[0]} (PARENT CHILD)" if pair and
+            flag = (f"--stream-{name} tf:{pair[1]},{pair[0]} (tf:PARENT,CHILD, the parent first)" if pair and
                     not now else f"--no-invert-{name}" if now else f"--invert-{name}")
             found.append(Candidate(name, alt.medians, float(max(alt.gains_over(base))), flag))
     if not found:

@@ -111,7 +111,8 @@ def main(argv: list[str] | None = None) -> None:
 
 
 # the library's keywords that are no option of options.py, and their flags
-_KEYWORDS = {**KEYWORD_FLAGS, "max_rotation_deg": "--max-rotation-deg", "max_translation_m": "--max-translation-m"}
+_KEYWORDS = {**KEYWORD_FLAGS, "max_rotation_deg": "--max-rotation-deg", "max_translation_m": "--max-translation-m",
+             **{f"{kind}_{side}": f"--{kind}-{side}" for kind in ("stream", "topic", "frames") for side in "ab"}}
 
 
 def _as_flags(error: HandEyeError) -> HandEyeError:

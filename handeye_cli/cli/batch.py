@@ -18,12 +18,21 @@ from ..fleet import BatchSettings, Job, Streams, discover, run_batch
 from ..fleet.engine import DEFAULT_TIMEOUT_S
 from ..fleet.journal import Journal
 from ..fleet.overrides import read_overrides, settings_for, unmatched
+from ..io.spec import stream_source
 from ..options import number
 from ..output.formats import ALL_FORMATS
 from ..output.writers import check_writable, write_stdout
 from .check import verdict_options
 from .common import CONTEXT, warn
-from .params import command_options, options_from_cli, quiet_option, refused_report, report_option, stream_options
+from .params import (
+    command_options,
+    options_from_cli,
+    quiet_option,
+    refused_report,
+    report_option,
+    stream_options,
+    stream_values,
+)
 
 __all__ = ["batch", "report"]
 
@@ -42,8 +51,8 @@ def _timeout(ctx: click.Context, param: click.Parameter, value: str) -> float | 
 @verdict_options
 @click.option("--per-input", "per_input", type=click.Path(dir_okay=False), help="YAML mapping glob patterns of "
               "input paths (or, without '/', of a path component: robot07*) to the options and streams that differ "
-              "for them (flat names as in --config; topic_a/topic_b, frames_a/frames_b), applied over the shared "
-              "options in file order.")
+              "for them (flat names as in --config; stream_a/stream_b: /topic, tf:PARENT,CHILD or FILE), applied over "
+              "the shared options in file order.")
 @click.option("--timeout", default=f"{DEFAULT_TIMEOUT_S:g}", callback=_timeout, metavar="SECONDS|off",
               show_default=True, help="Time limit of each input [s]: an input still running then (a FIFO no one "
               "writes, a hung file system) is an error record; off: no limit.")
@@ -90,7 +99,9 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
         from ..io.nominal import read_nominal
 
         nominal = read_nominal(o["against"])
-    streams = Streams(o["topic_a"], o["topic_b"], o["frames_a"] or None, o["frames_b"] or None)
+    given = stream_values(o)
+    streams = Streams(*(stream_source(f"stream_{side}", given[f"stream_{side}"], topic=given[f"topic_{side}"],
+                                      frames=given[f"frames_{side}"]) for side in "ab"))
     options = options_from_cli(o)
     overrides = read_overrides(o["per_input"]) if o["per_input"] else ()
     from ..io.remote import session_of

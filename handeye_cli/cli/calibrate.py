@@ -7,30 +7,23 @@ import click
 import numpy as np
 
 from ..analysis.verdict import verdict_for
-from ..errors import ConfigError, HandEyeError
+from ..errors import HandEyeError
 from ..geometry import dualquat as dq
 from ..io.nominal import read_nominal
 from ..output.document import calibration_document
 from ..output.writers import check_writable
-from ..pipeline import Calibration, StreamSpec, calibrate_files
+from ..pipeline import Calibration, calibrate_files, stream_specs
 from .check import verdict_options
 from .common import CONTEXT, emit, finish, result_format
-from .params import command_options, options_from_cli, output_options, quiet_option, report_option, stream_options
-
-
-def stream_specs(inputs: tuple[str, ...], p: dict[str, Any]) -> tuple[StreamSpec, StreamSpec]:
-    """Streams a and b from the inputs (one log, or one file per stream) and the topic/frame flags."""
-    if len(inputs) > 2:
-        raise ConfigError(f"{len(inputs)} inputs given", " ".join(inputs),
-                          "pass one log, or one file per stream (a then b)")
-    if len(inputs) == 1 and not ((p["topic_a"] or p["frames_a"]) and (p["topic_b"] or p["frames_b"])):
-        raise ConfigError("one input needs a topic or a frame pair for each stream", inputs[0],
-                          "add --topic-a/--topic-b or --frames-a/--frames-b (see 'handeye inspect "
-                          f"{inputs[0]}'), or pass two pose files")
-    if inputs.count("-") > 1:
-        raise ConfigError("stdin ('-') can feed only one stream", " ".join(inputs), "pass the other as a file")
-    return (StreamSpec(inputs[0], p["topic_a"], p["frames_a"] or None),
-            StreamSpec(inputs[-1], p["topic_b"], p["frames_b"] or None))
+from .params import (
+    command_options,
+    options_from_cli,
+    output_options,
+    quiet_option,
+    report_option,
+    stream_options,
+    stream_values,
+)
 
 
 def summary_line(doc: dict[str, Any]) -> str:
@@ -54,7 +47,7 @@ def write_run_report(path: str, result: Calibration) -> HandEyeError | None:
 
 
 @click.command("calibrate", context_settings=CONTEXT)
-@click.argument("inputs", nargs=-1, required=True)
+@click.argument("inputs", nargs=-1)
 @stream_options
 @command_options("calibrate")
 @report_option
@@ -64,14 +57,16 @@ def write_run_report(path: str, result: Calibration) -> HandEyeError | None:
 def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
     """Calibrate T_a_b from a log (MCAP, ROS 1 bag, ROS 2 bag) or two pose files (TUM, EuRoC, CSV).
 
-    Stream a is the first topic/frame pair/file, stream b the second; T_a_b is the pose of b's
-    frame in a's frame. The result goes to stdout (YAML) unless -o is given. A text stream may
-    come from stdin as '-'.
+    Stream a is the first topic/TF chain/file, stream b the second; T_a_b is the pose of b's
+    frame in a's frame. A stream is named as every command names one (--stream-a SOURCE): /topic,
+    tf:PARENT,CHILD (the parent first) or FILE. The result goes to stdout (YAML) unless -o is
+    given. A text stream may come from stdin as '-'.
 
     \b
     Examples:
       handeye calibrate sample_data/rig.mcap --topic-a /cam0/pose --topic-b /cam1/pose
-      handeye calibrate log.bag --frames-a world cam0 --frames-b odom imu --time-offset auto
+      handeye calibrate log.bag --stream-a tf:world,cam0 --stream-b tf:odom,imu --time-offset auto
+      handeye calibrate log.bag --stream-a /cam0/pose --stream-b wheels.tum   # a topic against a file
       handeye calibrate a.tum b.tum --method dqopt -o extrinsic.json
       cat a.tum | handeye calibrate - b.tum --robust --alpha auto --bootstrap 1000 --report report.html
       handeye calibrate log.mcap --topic-a /cam0/pose --topic-b /cam1/pose --against robot.urdf  # exit 1: moved
@@ -80,7 +75,7 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
     """
     config_file, preset = p.get("config_file"), p.get("preset")
     options = options_from_cli(p)
-    spec_a, spec_b = stream_specs(inputs, p)
+    spec_a, spec_b = stream_specs(inputs, **stream_values(p))
     fmt = result_format(p["output"], p["fmt"])
     if p["report_file"]:
         check_writable(p["report_file"], "--report")

@@ -17,10 +17,18 @@ import numpy as np
 from ..comparison import MethodResult, compare_methods
 from ..output.document import plain, render
 from ..output.writers import check_writable, output_format, write_output
-from ..pipeline import calibrate_files
-from .calibrate import stream_specs, write_run_report
+from ..pipeline import calibrate_files, stream_specs
+from .calibrate import write_run_report
 from .common import CONTEXT
-from .params import command_options, options_from_cli, quiet_option, report_option, stream_options, summary_format
+from .params import (
+    command_options,
+    options_from_cli,
+    quiet_option,
+    report_option,
+    stream_options,
+    stream_values,
+    summary_format,
+)
 
 __all__ = ["compare"]
 
@@ -39,7 +47,7 @@ def _table(rows: list[MethodResult]) -> str:
 
 
 @click.command("compare", context_settings=CONTEXT)
-@click.argument("inputs", nargs=-1, required=True)
+@click.argument("inputs", nargs=-1)
 @stream_options
 @command_options("compare")
 @report_option
@@ -61,7 +69,7 @@ def compare(inputs: tuple[str, ...], **p: Any) -> None:
     --report FILE is calibrate's page of the pairs every method solved (the --method row's result).
     """
     options = options_from_cli(p)
-    spec_a, spec_b = stream_specs(inputs, p)
+    spec_a, spec_b = stream_specs(inputs, **stream_values(p))
     check_writable(p["output"], "-o")
     if p["report_file"]:
         check_writable(p["report_file"], "--report")

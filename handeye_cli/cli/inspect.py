@@ -59,7 +59,7 @@ def _inspect_text(info: dict[str, Any]) -> str:
     topics = info.get("topics", [])
     if topics:
         width = max(len(t["topic"]) for t in topics)
-        lines.append("  topics (* = a pose stream calibrate can use with --topic-a/--topic-b; rates over each "
+        lines.append("  topics (* = a pose stream calibrate can use with --stream-a/--stream-b /topic; rates over each "
                      "topic's own span):")
         for t in topics:
             lines.append(f"  {'*' if t['pose'] else ' '} {t['topic']:<{width}}  {t['type']}  {t['count']} msgs"
@@ -67,7 +67,7 @@ def _inspect_text(info: dict[str, Any]) -> str:
     frames = info.get("tf_frames", [])
     if frames:
         lines.append(f"  TF tree, from all {info['tf_messages']} TF messages "
-                     "(use with --frames-a/--frames-b PARENT CHILD):")
+                     "(use with --stream-a/--stream-b tf:PARENT,CHILD, the parent first):")
         lines += _tf_tree(frames)
     return "\n".join(lines) + "\n"
 

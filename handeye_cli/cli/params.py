@@ -18,8 +18,8 @@ from ..options import EVERY_PAIR, FIELDS, Options, optional_flag
 from ..output.formats import ALL_FORMATS, SUMMARY_FORMATS
 
 __all__ = ["apply", "command_options", "options_from_cli", "OPTION_NAMES", "per_stream_options", "per_stream_values",
-           "stream_options", "output_options", "scoped", "quiet_option", "report_option", "refused", "refused_report",
-           "refused_quiet", "summary_format"]
+           "stream_options", "stream_values", "STREAM_KEYS", "output_options", "scoped", "quiet_option",
+           "report_option", "refused", "refused_report", "refused_quiet", "summary_format"]
 
 F = Callable[..., Any]
 
@@ -172,26 +172,26 @@ def options_from_cli(params: dict[str, Any]) -> Options:
     return load_options(params.pop("config_file", None), params.pop("preset", None), **given)
 
 
-def _frame_pair(ctx: click.Context, param: click.Parameter, value: tuple[str, str] | None
-                ) -> tuple[str, str] | None:
-    """``--frames-a PARENT CHILD``: two frame names; a flag taken as a frame (``--frames-a base_link --topic-b
-    …``: click gives ``--topic-b`` as CHILD) is refused naming the flag and what it takes."""
-    flag = param.opts[0]
-    for role, name in zip(("PARENT", "CHILD"), value or (), strict=False):
-        if name.startswith("-"):
-            raise ConfigError(f"{flag} takes two frame names, PARENT CHILD; got {name!r} as {role}", flag,
-                              f"give both frames, the parent first, e.g. {flag} odom base_link")
-    return value
+#: the flags naming streams a and b (the shared spelling and its two synonyms), as ``io.spec.stream_source`` takes them
+STREAM_KEYS = ("stream_a", "stream_b", "topic_a", "topic_b", "frames_a", "frames_b")
+
+
+def stream_values(params: dict[str, Any]) -> dict[str, Any]:
+    """The stream flags of ``params`` (removed from it) as keywords of ``pipeline.stream_specs``: not given is None."""
+    return {key: params.pop(key) or None for key in STREAM_KEYS}
 
 
 stream_options = apply(
-    click.option("--topic-a", help="Topic of stream a (PoseStamped, PoseWithCovarianceStamped, TransformStamped, "
-                 "Odometry, TFMessage, Foxglove pose types)."),
-    click.option("--topic-b", help="Topic of stream b."),
-    click.option("--frames-a", nargs=2, metavar="PARENT CHILD", callback=_frame_pair, help="Stream a as the TF "
-                 "chain PARENT→CHILD resolved through /tf and /tf_static (the parent first, e.g. odom base_link)."),
-    click.option("--frames-b", nargs=2, metavar="PARENT CHILD", callback=_frame_pair,
-                 help="Stream b as a TF chain PARENT CHILD."),
+    click.option("--stream-a", metavar="SOURCE", help="Stream a, as every command names a stream: /topic (a pose "
+                 "topic of the log), tf:PARENT,CHILD (the TF chain PARENT→CHILD through /tf and /tf_static, the parent "
+                 "first, e.g. tf:odom,base_link) or FILE (a pose file of its own: TUM, EuRoC, CSV)."),
+    click.option("--stream-b", metavar="SOURCE", help="Stream b: /topic, tf:PARENT,CHILD or FILE."),
+    click.option("--topic-a", help="Stream a's topic (PoseStamped, PoseWithCovarianceStamped, TransformStamped, "
+                 "Odometry, TFMessage, Foxglove pose types): --stream-a /topic, for a topic of any name."),
+    click.option("--topic-b", help="Stream b's topic."),
+    click.option("--frames-a", nargs=2, metavar="PARENT CHILD", help="Stream a as the TF chain PARENT→CHILD: "
+                 "--stream-a tf:PARENT,CHILD (the parent first, e.g. odom base_link)."),
+    click.option("--frames-b", nargs=2, metavar="PARENT CHILD", help="Stream b as the TF chain PARENT→CHILD."),
 )
 
 output_options = apply(

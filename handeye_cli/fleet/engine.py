@@ -22,11 +22,13 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
 from ..errors import ConfigError, HandEyeError
+from ..io.remote import is_url
+from ..io.spec import StreamSpec
 from ..options import Options
 from ..output.document import calibration_document
 from .discovery import BatchInput
@@ -51,12 +53,11 @@ class Interrupted(KeyboardInterrupt):
 
 @dataclass(frozen=True)
 class Streams:
-    """Which streams of a log are a and b: a topic or a (parent, child) TF frame pair each."""
+    """Which streams of a log are a and b: each a source without a path (a topic or a TF chain of every input,
+    :func:`~handeye_cli.io.spec.stream_source`), a pose file of its own (a path), or None (unnamed)."""
 
-    topic_a: str | None = None
-    topic_b: str | None = None
-    frames_a: tuple[str, str] | None = None
-    frames_b: tuple[str, str] | None = None
+    a: StreamSpec | None = None
+    b: StreamSpec | None = None
 
 
 @dataclass(frozen=True)
@@ -73,20 +74,25 @@ class Job:
     timeout: float | None = None
 
 
+def _located(spec: StreamSpec | None, cwd: str) -> StreamSpec | None:
+    """A stream named as a pose file of its own, its relative path read from ``cwd`` as the inputs' are."""
+    if spec is None or spec.path is None or is_url(spec.path):
+        return spec
+    return replace(spec, path=os.path.join(cwd, spec.path))
+
+
 def _calibrate(job: Job) -> Record:
     """The result document of one input, plus the span of its synced samples. Relative paths are
     read from the client's working directory (``job.cwd``) wherever the job runs, so that a Dask
     worker on a shared file system finds them and every executor records the same ``inputs``."""
-    from ..io.remote import is_url
     from ..pipeline import calibrate_files
 
     paths = tuple(p if is_url(p) else os.path.join(job.cwd, p) for p in job.input.paths)     # a URL: opened here
-    s = job.streams
     if len(paths) == 2:            # two text pose files: no topics
         result = calibrate_files(paths[0], paths[1], options=job.options)
     else:
-        result = calibrate_files(paths[0], topic_a=s.topic_a, topic_b=s.topic_b, frames_a=s.frames_a,
-                                 frames_b=s.frames_b, options=job.options)
+        result = calibrate_files(paths[0], stream_a=_located(job.streams.a, job.cwd),
+                                 stream_b=_located(job.streams.b, job.cwd), options=job.options)
     stamps = result.synced.stamps_ns
     return {**calibration_document(result), "log_span_ns": [int(stamps[0]), int(stamps[-1])]}
 

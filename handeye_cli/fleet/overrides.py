@@ -1,11 +1,12 @@
 """Per-input options for a batch (``--per-input FILE``): a YAML mapping of glob patterns of input
 paths to the options and streams that differ for the inputs they match, options by flat name as
-in ``--config``, streams as ``topic_a``/``topic_b`` (a topic) or ``frames_a``/``frames_b`` (a TF
-pair: ``[PARENT, CHILD]`` or ``"PARENT CHILD"``), so that one run covers a mixed fleet::
+in ``--config``, streams as ``stream_a``/``stream_b`` in the spelling every command shares (``/topic``,
+``tf:PARENT,CHILD``, ``FILE``; :func:`~handeye_cli.io.spec.stream_source`), or its synonyms ``topic_a`` and
+``frames_a`` (``[PARENT, CHILD]`` or ``"PARENT CHILD"``), so that one run covers a mixed fleet::
 
     "*/robot42/*": {time_offset: 0.02}
-    "robot07*": {topic_b: /imu/pose}
-    "logs/2026-11-03/*.bag": {gate: off, pairs: all, frames_a: [odom, base_link]}
+    "robot07*": {stream_b: /imu/pose}
+    "logs/2026-11-03/*.bag": {gate: off, pairs: all, stream_a: "tf:odom,base_link"}
 
 An input matches a pattern when one of its paths does as a whole (:func:`fnmatch.fnmatch`, ``*``
 also crosses ``/``), or, for a pattern without ``/``, when one of its paths' components does: so
@@ -24,25 +25,24 @@ from typing import Any
 
 from ..config import read_config
 from ..errors import ConfigError
+from ..io.spec import StreamSpec, stream_source
 from ..options import Options
 from .discovery import BatchInput
 from .engine import Streams
 
 __all__ = ["Override", "read_overrides", "settings_for", "unmatched"]
 
-_TOPICS = ("topic_a", "topic_b")
-_FRAMES = ("frames_a", "frames_b")
-_OTHER = {"topic_a": "frames_a", "frames_a": "topic_a", "topic_b": "frames_b", "frames_b": "topic_b"}
+_STREAM_KEYS = {f"{kind}_{side}": (side, kind) for side in "ab" for kind in ("stream", "topic", "frames")}
 
 
 @dataclass(frozen=True)
 class Override:
-    """Options (``values``: flat name, value pairs) and streams (``streams``: ``topic_a`` … with
-    checked values) for the inputs whose paths match ``pattern``."""
+    """Options (``values``: flat name, value pairs) and streams (``streams``: side ``a``/``b``, its parsed source)
+    for the inputs whose paths match ``pattern``."""
 
     pattern: str
     values: tuple[tuple[str, Any], ...]
-    streams: tuple[tuple[str, Any], ...]
+    streams: tuple[tuple[str, StreamSpec], ...]
     where: str
 
     def matches(self, item: BatchInput) -> bool:
@@ -52,16 +52,16 @@ class Override:
                          any(fnmatch(part, self.pattern) for p in item.paths for part in PurePath(p).parts))
 
 
-def _stream(key: str, value: Any, where: str) -> Any:
-    """A checked stream value: a topic name, or a (parent, child) frame pair."""
-    if key in _TOPICS:
-        if not isinstance(value, str) or not value.strip():
-            raise ConfigError(f"{key} must be a topic name", where, f'write e.g. {key}: /cam0/pose')
-        return value
-    pair = value.split() if isinstance(value, str) else value
-    if not (isinstance(pair, list) and len(pair) == 2 and all(isinstance(v, str) and v for v in pair)):
-        raise ConfigError(f"{key} must be a TF frame pair PARENT CHILD", where, f"write e.g. {key}: [odom, imu_link]")
-    return tuple(pair)
+def _streams(values: dict[str, Any], where: str) -> tuple[tuple[str, StreamSpec], ...]:
+    """The entry's streams, each parsed by the one parser of a stream source (at most one key per side)."""
+    out = []
+    for side in "ab":
+        given = {kind: values[key] for key, (s, kind) in _STREAM_KEYS.items() if s == side and key in values}
+        spec = stream_source(f"stream_{side}", given.get("stream"), topic=given.get("topic"),
+                             frames=given.get("frames"), where=where)
+        if spec is not None:
+            out.append((side, spec))
+    return tuple(out)
 
 
 def read_overrides(path: str | Path) -> tuple[Override, ...]:
@@ -72,8 +72,8 @@ def read_overrides(path: str | Path) -> tuple[Override, ...]:
         if not isinstance(values, dict):
             raise ConfigError("each pattern needs a mapping of option: value", where,
                               'write e.g. "*/robot42/*": {time_offset: 0.02}')
-        streams = tuple((k, _stream(k, v, where)) for k, v in values.items() if k in _TOPICS + _FRAMES)
-        options = {k: v for k, v in values.items() if k not in _TOPICS + _FRAMES}
+        streams = _streams(values, where)
+        options = {k: v for k, v in values.items() if k not in _STREAM_KEYS}
         Options.from_flat(Options(), where, **options)
         out.append(Override(str(pattern), tuple(options.items()), streams, where))
     return tuple(out)
@@ -81,14 +81,14 @@ def read_overrides(path: str | Path) -> tuple[Override, ...]:
 
 def settings_for(item: BatchInput, streams: Streams, base: Options,
                  overrides: Sequence[Override]) -> tuple[Streams, Options]:
-    """``streams`` and ``base`` with every matching override applied in order (a topic given for
-    stream a replaces its frames, and the other way round)."""
+    """``streams`` and ``base`` with every matching override applied in order (a stream named replaces what
+    named it before, in whichever spelling)."""
     opts = base
     for o in overrides:
         if o.matches(item):
             opts = Options.from_flat(opts, o.where, **dict(o.values))
-            for key, value in o.streams:
-                streams = replace(streams, **{key: value, _OTHER[key]: None})
+            for side, spec in o.streams:
+                streams = replace(streams, **{side: spec})
     return streams, opts
 
 

@@ -149,8 +149,8 @@ def _read_log(plist: list[Path | RemoteObject], fmts: list[str], requests: Seque
               quiet: bool, names: list[str]) -> list[PoseStream]:
     for topic, frames in requests:
         if (topic is None) == (frames is None):
-            raise ConfigError("give exactly one of a topic or a (parent, child) frame pair",
-                               ", ".join(map(str, plist)), "use --topic-a/--topic-b or --frames-a/--frames-b")
+            raise ConfigError("give exactly one of a topic or a (parent, child) frame pair", ", ".join(map(str, plist)),
+                              "name each stream as /topic or tf:PARENT,CHILD (--stream-a/--stream-b)")
     with open_log(plist, fmts) as src:
         if any(map(is_url, names)):
             src.name = ", ".join(names)

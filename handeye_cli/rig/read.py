@@ -1,9 +1,10 @@
 """Read all streams of a rig: every topic / TF chain of the log in one pass, plus separate files.
 
-A stream is named on the command line as ``NAME=SOURCE``:
+A stream is named on the command line as ``NAME=SOURCE``, SOURCE in the spelling every command shares
+(:mod:`handeye_cli.io.spec`):
 
 * ``NAME=/topic`` — a pose-carrying topic of the log;
-* ``NAME=tf:PARENT,CHILD`` — the TF chain PARENT→CHILD of the log (``/tf`` + ``/tf_static``);
+* ``NAME=tf:PARENT,CHILD`` — the TF chain PARENT→CHILD of the log (``/tf`` + ``/tf_static``), the parent first;
 * ``NAME=FILE`` — a separate pose file (TUM, EuRoC, CSV) holding ``T_world_sensor``.
 
 Each stream is ``T_frame_child(t)``: int64 ns stamps, positions [m], quaternions x-y-z-w.
@@ -12,11 +13,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import replace
-from pathlib import Path
 
 from ..errors import ConfigError
-from ..io.remote import is_url
-from ..io.spec import StreamSpec
+from ..io.spec import SOURCE_FORMS, StreamSpec, stream_source
 from ..options import Options, frame_name
 from ..pipeline import read_streams
 from ..streams import PoseStream
@@ -25,24 +24,17 @@ __all__ = ["StreamSpec", "parse_stream", "read_rig"]
 
 
 def parse_stream(text: str) -> StreamSpec:
-    """``NAME=/topic``, ``NAME=tf:PARENT,CHILD`` or ``NAME=FILE`` → a named :class:`StreamSpec` (a topic or TF
-    chain has no path: it is the rig's log's)."""
+    """``NAME=SOURCE`` → a named :class:`StreamSpec`: SOURCE in the spelling every command shares, parsed by
+    :func:`~handeye_cli.io.spec.stream_source` (``/topic`` or ``tf:PARENT,CHILD`` of the rig's log: no path;
+    ``FILE``)."""
     name, sep, source = text.partition("=")
     name, source = name.strip(), source.strip()
     if not sep or not name or not source:
-        raise ConfigError(f"bad stream {text!r}", "streams", "write NAME=/topic, NAME=tf:PARENT,CHILD or NAME=FILE")
+        raise ConfigError(f"bad stream {text!r}", "streams", f"write NAME=SOURCE, SOURCE one of {SOURCE_FORMS}")
     name = str(frame_name(name, f"--stream {text}"))       # the name is the sensor's frame in every output
-    if source.startswith("tf:"):
-        frames = [f.strip() for f in source[3:].split(",")]
-        if len(frames) != 2 or not all(frames):
-            raise ConfigError(f"bad TF chain {source!r}", f"--stream {text}", "write NAME=tf:PARENT,CHILD")
-        return StreamSpec(frames=(frames[0], frames[1]), name=name)
-    if Path(source).is_file() or is_url(source):
-        return StreamSpec(source, name=name)
-    if source.startswith("/"):
-        return StreamSpec(topic=source, name=name)
-    raise ConfigError(f"{source!r} is neither a topic (/…), a TF chain (tf:PARENT,CHILD) nor an existing file",
-                      f"--stream {text}", "check the path, or start a topic with /")
+    spec = stream_source("streams", source)
+    assert spec is not None                                 # a source was given
+    return replace(spec, name=name)
 
 
 def read_rig(log: str | None, specs: list[StreamSpec], options: Options | None = None, *,
