@@ -41,7 +41,8 @@ from .analysis.observability import Observability
 from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit, scale_reading
 from .analysis.selection import Selection, select_pairs
 from .analysis.stream_noise import StreamNoise, stream_noise
-from .analysis.subspace import Subspace, observable_subspace
+from .analysis.subspace import ESTIMATED, Subspace, observable_subspace
+from .analysis.verdict import Judged
 from .config import load_options
 from .errors import ConfigError, DataError, FitRejectedError, HandEyeError
 from .geometry import se3
@@ -77,7 +78,9 @@ class Diagnostics(Mapping[str, Any]):
 
     The typed results that code reads back: ``fit`` (the fit test), ``observability`` (degenerate motion, the
     predicted covariance), ``subspace`` (each degree of freedom: estimated, from the prior or unobservable) and
-    ``selection`` (the ``auto`` pairs' noise model; None for another strategy). As a read-only mapping it is the
+    ``selection`` (the ``auto`` pairs' noise model; None for another strategy); ``poor_fit_accepted``: the fit test
+    failed (the residuals, or a mount that moved between stations) and ``accept_poor_fit`` kept the result (the
+    document's ``fit_test.passed`` false; ``handeye calibrate`` exits 3). As a read-only mapping it is the
     result document's diagnostic sections in order (``time_offset``, ``interpretation``, ``noise_model``,
     ``observability``, ``degrees_of_freedom``, ``residuals``, ``fit_test`` …: JSON-ready values, the keys of
     docs/reference/result-schema.md), so ``calibration.diagnostics["fit_test"]`` reads as the file does."""
@@ -87,6 +90,7 @@ class Diagnostics(Mapping[str, Any]):
     observability: Observability | None = None
     subspace: Subspace | None = None
     selection: Selection | None = None
+    poor_fit_accepted: bool = False
 
     def __getitem__(self, key: str) -> Any:
         return self.sections[key]
@@ -189,6 +193,18 @@ class Calibration:
         (as valid tf2 frame ids: no leading '/')."""
         a, b = frame_names(self.options, self.stream_a, self.stream_b)
         return {"a": a, "b": b}
+
+    def judged(self) -> Judged:
+        """What a drift verdict reads of this calibration (``--against``), from its typed parts: ``T_a_b``, the
+        frames' names and the streams' topics, the degrees of freedom not estimated and the bootstrap's
+        intervals."""
+        topics = tuple(spec.get("topic") if isinstance(spec := self.inputs.get(k), dict) else None for k in "ab")
+        sub = self.diagnostics.subspace
+        open_dofs = {} if sub is None else {d.name: (d.status, d.reason) for d in sub.dofs if d.status != ESTIMATED}
+        boot = self.bootstrap
+        return Judged(np.asarray(self.matrix, dtype=float), (self.frames["a"], self.frames["b"]),
+                      (topics[0], topics[1]), open_dofs,
+                      None if boot is None else (boot.rotation_interval_deg, boot.translation_interval_m))
 
     def bootstrap_deviations(self) -> np.ndarray | None:
         """(K, 6) bootstrap deviations of X: rotation vector [deg] (3), translation [m] (3)."""
@@ -700,7 +716,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
                          estimate=solution.matrix if opts.solver.method == "dqopt" else None)   # the same solve
         diagnostics["uncertainty"] = {"method": "bootstrap over pose samples", **boot.as_dict()}
     found = Diagnostics(MappingProxyType(diagnostics), fit=fit, observability=obs, subspace=subspace,
-                        selection=selection)
+                        selection=selection, poor_fit_accepted=bool(rejected or moved))
     return Calibration(solution, stream_a, stream_b, kept, pairs, samples, opts, res, warnings=warnings,
                        diagnostics=found, inputs=dict(inputs or {}), weights=weights, robust=robust,
                        bootstrap=boot)

@@ -15,6 +15,7 @@ import subprocess
 import sys
 import types
 import xml.etree.ElementTree as ET
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,7 @@ from _util import run
 from handeye_cli import document
 from handeye_cli.errors import ConfigError, HandEyeError
 from handeye_cli.geometry import se3
-from handeye_cli.output.document import _static_transform_command, render
+from handeye_cli.output.document import render, static_transform_command
 from handeye_cli.output.formats import ALL_FORMATS, render_format
 from handeye_cli.rig.result import transform_entry
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
@@ -55,7 +56,7 @@ def _doc(a: str, b: str) -> dict:
     t, q = se3.to_xyz_quat(X)
     return {"matrix": X.tolist(), "translation": t.tolist(), "quaternion_xyzw": q.tolist(), "frames": {"a": a, "b": b},
             "method": "dqopt", "pairs_used": 10, "version": "0.2.0", "warnings": [a],
-            "ros2_static_transform": _static_transform_command(t, q, {"a": a, "b": b})}
+            "ros2_static_transform": static_transform_command(t, q, {"a": a, "b": b})}
 
 
 def _rig_doc(ref: str, child: str) -> dict:
@@ -271,11 +272,11 @@ def test_reports_escape_hostile_names(tmp_path):
 
     evil = "cam<script>alert(1)</script><img src=x onerror=alert(2)>'\""
     a, b = simulate_rig(Rig(random_transform(np.random.default_rng(3), 0.3)), duration_s=8.0, seed=4)
-    cal = calibrate(a, b)
-    plain_doc = {**document(cal), "warnings": ["a plain warning"]}
-    doc = {**plain_doc, "frames": {"a": evil, "b": "imu"}, "warnings": [evil], "inputs": {"a": evil},
-           "ros2_static_transform": evil}
-    assert _tags(render_report(cal, doc, None)) == _tags(render_report(cal, plain_doc, None))
+    cal = replace(calibrate(a, b), warnings=["a plain warning"])
+    hostile = replace(cal, stream_a=replace(cal.stream_a, child_frame_id=evil), warnings=[evil], inputs={"a": evil})
+    assert hostile.frames["a"] == evil                            # in the header, the inputs and the ROS 2 line
+    assert _tags(render_report(hostile)) == _tags(render_report(cal))
+    plain_doc = document(cal)
     record = {"input": evil, "status": "ok", "matrix": plain_doc["matrix"], "frames": {"a": evil, "b": "imu"},
               "log_span_ns": [1_700_000_000_000_000_000, 1_700_000_010_000_000_000]}
     failed = {"input": evil, "status": "error", "error": evil}

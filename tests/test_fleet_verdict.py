@@ -11,7 +11,7 @@ from _logs import write_tum
 from _util import run
 from scipy.spatial.transform import Rotation
 
-from handeye_cli.analysis.verdict import compare
+from handeye_cli.analysis.verdict import compare, intervals_of
 from handeye_cli.geometry import se3
 from handeye_cli.output.formats import render_format
 from handeye_cli.simulation import Rig, simulate_rig
@@ -42,10 +42,10 @@ def test_significance_from_the_bootstrap_interval():
     wide = {"rotation_interval_deg": [[-2, -2, -2], [2, 2, 2]], "translation_interval_m": [t - 0.01, t + 0.01]}
     narrow = {"rotation_interval_deg": [[-0.1] * 3, [0.1] * 3], "translation_interval_m": [t - 0.01, t + 0.01]}
     assert d[2] == pytest.approx(-1.0, abs=1e-9)
-    not_significant = compare(result, X, 0.5, 0.005, uncertainty=wide)
+    not_significant = compare(result, X, 0.5, 0.005, intervals=intervals_of(wide))
     assert not_significant.rotation_out and not not_significant.rotation_significant and not not_significant.drift
     assert "not significant" in not_significant.summary()
-    significant = compare(result, X, 0.5, 0.005, uncertainty=narrow)
+    significant = compare(result, X, 0.5, 0.005, intervals=intervals_of(narrow))
     assert significant.rotation_significant and not significant.translation_significant and significant.drift
     assert significant.as_dict()["rotation_significant"] is True and significant.as_dict()["significant"] is True
     assert not_significant.as_dict()["significant"] is False

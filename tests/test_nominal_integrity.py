@@ -15,7 +15,7 @@ from _util import run
 from handeye_cli.errors import ReadError
 from handeye_cli.geometry import se3
 from handeye_cli.io.nominal import read_nominal
-from handeye_cli.output.document import _static_transform_command, render
+from handeye_cli.output.document import render, static_transform_command
 from handeye_cli.output.formats import ALL_FORMATS, render_format
 from handeye_cli.rig.result import transform_entry
 from handeye_cli.simulation import random_transform
@@ -167,7 +167,7 @@ def _document(X: np.ndarray) -> dict:
     frames = {"a": "cam0_link", "b": "imu"}
     return {"matrix": X.tolist(), "translation": t.tolist(), "quaternion_xyzw": q.tolist(), "frames": frames,
             "method": "dqopt", "pairs_used": 10, "version": "0.2.0", "warnings": [],
-            "ros2_static_transform": _static_transform_command(t, q, frames)}
+            "ros2_static_transform": static_transform_command(t, q, frames)}
 
 
 SUFFIX = {"yaml": ".yaml", "json": ".json", "urdf": ".urdf", "urdf-joint": ".urdf", "ros1-launch": ".launch",

@@ -34,16 +34,31 @@ def rig():
 
 
 @pytest.fixture(scope="module")
-def full_doc(rig):
+def full(rig):
+    """The calibration with two warnings, three pairs rejected by --robust and more diagnostic sections: the report
+    reads the typed calibration, so that is what is given."""
+    from dataclasses import replace
+    from types import MappingProxyType
+
+    from handeye_cli.analysis.robust import RobustResult
+
     _, _, cal = rig
-    doc = document(cal)
-    doc["warnings"] = [WARNING, "second warning"]
-    doc["residuals"] = {"rotation_median_deg": 0.1, "rotation_p95_deg": 0.3, "translation_median_m": 0.002}
-    doc["uncertainty"] = {"bootstrap": {"replicates": 200, "rotation_std_deg": [0.01, 0.02, 0.03],
-                                        "translation_interval_m": [[-1e-3] * 3, [1e-3] * 3]}}
-    doc["robust"] = {"inliers": len(cal.pairs) - 3, "rejected": [0, 5, 9]}
-    doc["observability"] = {"rank": 6, "spread_deg": 41.0}
-    return doc
+    inliers = np.ones(len(cal.pairs), dtype=bool)
+    inliers[[0, 5, 9]] = False
+    sections = {**cal.diagnostics,
+                "residuals": {"rotation_median_deg": 0.1, "rotation_p95_deg": 0.3, "translation_median_m": 0.002},
+                "uncertainty": {"bootstrap": {"replicates": 200, "rotation_std_deg": [0.01, 0.02, 0.03],
+                                              "translation_interval_m": [[-1e-3] * 3, [1e-3] * 3]}},
+                "robust": {"inliers": len(cal.pairs) - 3, "rejected": [0, 5, 9]},
+                "observability": {"rank": 6, "spread_deg": 41.0}}
+    robust = RobustResult(cal.solution, inliers, np.array([0, 5, 9]), 1.0, 0.01, cal.residuals, 1, 1)
+    return replace(cal, warnings=[WARNING, "second warning"], robust=robust,
+                   diagnostics=replace(cal.diagnostics, sections=MappingProxyType(sections)))
+
+
+@pytest.fixture(scope="module")
+def full_doc(full):
+    return document(full)
 
 
 @pytest.fixture(scope="module")
@@ -53,9 +68,9 @@ def deviations():
 
 
 @pytest.fixture(scope="module")
-def report(rig, full_doc, deviations, tmp_path_factory) -> Path:
+def report(full, deviations, tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("report") / "out.html"
-    path.write_text(render_report(rig[2], full_doc, deviations), encoding="utf-8")
+    path.write_text(render_report(full, deviations), encoding="utf-8")
     return path
 
 
@@ -92,10 +107,9 @@ def test_report_is_self_contained_and_states_the_result(report, full_doc, rig):
     assert [p.name for p in report.parent.iterdir()] == ["out.html"]        # no temp file left behind
 
 
-def test_optional_keys_may_be_missing(rig, tmp_path):
-    _, _, cal = rig
-    document = {"robust": {"rejected": "not a list"}}                 # no matrix: falls back to the calibration
-    (tmp_path / "bare.html").write_text(render_report(cal, document, np.full((4, 6), np.nan)), encoding="utf-8")
+def test_optional_parts_may_be_missing(rig, tmp_path):
+    _, _, cal = rig                                                   # no warnings, no robust step, no bootstrap
+    (tmp_path / "bare.html").write_text(render_report(cal, np.full((4, 6), np.nan)), encoding="utf-8")
     text = (tmp_path / "bare.html").read_text(encoding="utf-8")
     for v in cal.matrix[:3, 3]:
         assert f"{v:.6f}" in text
@@ -106,7 +120,7 @@ def test_optional_keys_may_be_missing(rig, tmp_path):
 def test_bad_arguments_fail_without_a_file(rig, tmp_path):
     _, _, cal = rig
     with pytest.raises(ValueError, match=r"\(K, 6\)"):
-        render_report(cal, {}, np.zeros((5, 3)))
+        render_report(cal, np.zeros((5, 3)))
     with pytest.raises(HandEyeError):
         write_report(tmp_path / "missing" / "r.html", cal)
     assert list(tmp_path.iterdir()) == []
@@ -194,7 +208,7 @@ def test_sample_bars_show_zero_as_nothing_and_one_drop_as_small(rig):
     counts = SampleCounts(read_a=3000, read_b=3000, synced=2999, dropped_outside_span=1, synced_kept=2999,
                           keyframes=2999, candidate_pairs=2998, pairs=1000)
     cal = replace(rig[2], samples=counts)
-    svg = _svgs(render_report(cal, document(cal)))["samples per stage"]
+    svg = _svgs(render_report(cal))["samples per stage"]
     kept, drops = _bar_widths(svg, COLOR_A), _bar_widths(svg, COLOR_BAD)
     losses = counts.losses()
     assert len(drops) == len(losses) and len(kept) == len(counts.as_dict()) - len(losses)

@@ -133,16 +133,23 @@ def test_against_a_nominal_without_the_sensors_is_refused_before_the_work(calibr
     assert len(calibrated) == n_before
 
 
-def test_rig_verdict_judges_significance_from_the_bootstrap_intervals(rig_doc, tmp_path) -> None:
-    """A nominal 2 cm away is drift when outside the sensor's interval, and only out of tolerance inside a wide one."""
+def test_rig_verdict_judges_significance_from_the_bootstrap_intervals(rig_doc, calibrated, tmp_path) -> None:
+    """A nominal 2 cm away is drift when outside the sensor's interval, and only out of tolerance inside a wide one.
+    The verdicts read the typed result (its bootstrap intervals), not its document."""
+    from dataclasses import replace
+
+    from handeye_cli.rig.joint import RigUncertainty
+
     nominal = read_nominal(_nominal_urdf(tmp_path / "robot.urdf", moved="lidar"))
-    lidar = next(t for t in rig_doc["transforms"] if t["child"] == "lidar")
-    t = np.array(lidar["translation"])
-    narrow = {"rotation_interval_deg": [[-0.1] * 3, [0.1] * 3], "translation_interval_m": [t - 0.001, t + 0.001]}
-    wide = {"rotation_interval_deg": [[-1.0] * 3, [1.0] * 3], "translation_interval_m": [t - 0.05, t + 0.05]}
-    for spread, drift in ((narrow, True), (wide, False)):
-        doc = {**rig_doc, "uncertainty": {"sensors": {"lidar": {k: np.asarray(v).tolist() for k, v in spread.items()}}}}
-        verdicts = rig_verdicts(doc, nominal, 0.5, 0.01)
+    result = calibrated[0]
+    plain = rig_verdicts(result, nominal, 0.5, 0.01)
+    assert plain["cam1"].rotation_significant is None and not plain["cam1"].drift     # no bootstrap: not known
+    t = {f.child: f.matrix for f in result.stated()}["lidar"][:3, 3]
+    n = len(result.names)
+    for half_width, drift in ((0.001, True), (0.05, False)):
+        rotation = np.tile([[-10 * half_width] * 3, [10 * half_width] * 3], (n, 1, 1))
+        u = RigUncertainty(np.zeros((n, 3)), np.zeros((n, 3)), rotation,
+                           np.tile([t - half_width, t + half_width], (n, 1, 1)), 10, 2.0, 0)
+        verdicts = rig_verdicts(replace(result, uncertainty=u), nominal, 0.5, 0.01)
         assert verdicts["lidar"].drift is drift and verdicts["lidar"].translation_out
         assert verdicts["lidar"].translation_significant is drift
-        assert verdicts["cam1"].rotation_significant is None and not verdicts["cam1"].drift

@@ -83,7 +83,8 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
     result = calibrate_files(spec_a, spec_b, options=options, quiet=p["quiet"])
     result = result.with_origin(config_file, preset)
     doc = calibration_document(result)
-    verdict = None if nominal is None else verdict_for(doc, nominal, p["max_rotation_deg"], p["max_translation_m"])
+    verdict = (None if nominal is None else
+               verdict_for(result.judged(), nominal, p["max_rotation_deg"], p["max_translation_m"]))
     if verdict is not None:
         doc["verdict"] = verdict.as_dict()
     report_error = write_run_report(p["report_file"], result) if p["report_file"] else None
@@ -95,4 +96,4 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
     finish(doc, strict=options.analysis.strict, quiet=p["quiet"],
            drift=verdict.summary() if verdict is not None and verdict.drift else None,
            within=verdict.summary() if verdict is not None else None,
-           late=late, poor_fit_accepted=not doc["fit_test"]["passed"])   # not passed: only with --accept-poor-fit
+           late=late, poor_fit_accepted=result.diagnostics.poor_fit_accepted)

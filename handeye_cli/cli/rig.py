@@ -111,7 +111,7 @@ def rig(log: str | None, **p: Any) -> None:
                       scales=per_stream_values(p, "scale"), block_s=p["block_s"], options=options)
     result = calibrate_rig_files(log, specs, opts, quiet=p["quiet"])
     doc = result.document()
-    verdicts = {} if nominal is None else rig_verdicts(doc, nominal, p["max_rotation_deg"], p["max_translation_m"])
+    verdicts = {} if nominal is None else rig_verdicts(result, nominal, p["max_rotation_deg"], p["max_translation_m"])
     if verdicts:
         doc["verdicts"] = {name: v.as_dict() for name, v in verdicts.items()}
     emit(doc, p["output"], fmt)

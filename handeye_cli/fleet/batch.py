@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..analysis.verdict import verdict_for
+from ..analysis.verdict import Judged, verdict_for
 from ..errors import HandEyeError, WriteError
 from ..io.nominal import Nominal
 from ..io.progress import Progress, progress
@@ -135,7 +135,7 @@ def _judge(record: Record, s: BatchSettings) -> Record:
     seconds = record.pop("seconds")
     if record["status"] != "error" and s.nominal is not None:
         try:
-            verdict = verdict_for(record, s.nominal, s.max_rotation_deg, s.max_translation_m)
+            verdict = verdict_for(Judged.from_document(record), s.nominal, s.max_rotation_deg, s.max_translation_m)
         except HandEyeError as e:
             record.update(status="error", error=str(e))
         except Exception as e:  # a bug met by one input's result: that input's error, not the batch's

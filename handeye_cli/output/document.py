@@ -26,7 +26,8 @@ if TYPE_CHECKING:
     from ..pipeline import Calibration
 from ..version import __version__
 
-__all__ = ["FORMATS", "calibration_document", "result_document", "render", "plain", "finite"]
+__all__ = ["FORMATS", "calibration_document", "result_document", "render", "plain", "finite", "solver_section",
+           "static_transform_command"]
 
 FORMATS = ("yaml", "json")
 
@@ -44,13 +45,25 @@ def plain(value: Any) -> Any:
     return value
 
 
-def _static_transform_command(t: FloatArray, q: FloatArray, frames: dict[str, str]) -> str:
+def static_transform_command(t: FloatArray, q: FloatArray, frames: dict[str, str]) -> str:
     """The command line, every word shell-quoted (frame names may come from a log)."""
     names = ("x", "y", "z", "qx", "qy", "qz", "qw")
     nums = " ".join(f"--{k} {float(v)!r}" for k, v in zip(names, [*t, *q], strict=True))   # repr: round-trips
     return (f"ros2 run tf2_ros static_transform_publisher {nums} "
             f"--frame-id {shlex.quote(str(frames.get('a', 'a')))} "
             f"--child-frame-id {shlex.quote(str(frames.get('b', 'b')))}")
+
+
+def solver_section(solution: Solution) -> dict[str, Any]:
+    """The result's ``solver`` block: the multipliers, iterations and convergence the solver reports, its own
+    details, and the optimality certificate."""
+    solver: dict[str, Any] = {k: v for k, v in (("lambda", solution.lam), ("mu", solution.mu),
+                                ("iterations", solution.iterations), ("converged", solution.converged))
+                              if v is not None}
+    solver.update(solution.details)
+    if solution.certificate is not None:
+        solver["certificate"] = solution.certificate.as_dict()
+    return solver
 
 
 def result_document(solution: Solution, *, frames: dict[str, str] | None = None,
@@ -63,12 +76,6 @@ def result_document(solution: Solution, *, frames: dict[str, str] | None = None,
     """
     frames = dict(frames or {"a": "a", "b": "b"})
     t, q = solution.translation, solution.quaternion_xyzw
-    solver: dict[str, Any] = {k: v for k, v in (("lambda", solution.lam), ("mu", solution.mu),
-                                ("iterations", solution.iterations), ("converged", solution.converged))
-              if v is not None}
-    solver.update(solution.details)
-    if solution.certificate is not None:
-        solver["certificate"] = solution.certificate.as_dict()
     doc = {
         "matrix": solution.matrix,
         "translation": t,
@@ -82,9 +89,9 @@ def result_document(solution: Solution, *, frames: dict[str, str] | None = None,
         "inputs": inputs or {},
         "version": __version__,
         "warnings": list(warnings or []),
-        "solver": solver,
+        "solver": solver_section(solution),
         **(diagnostics or {}),
-        "ros2_static_transform": _static_transform_command(t, q, frames),
+        "ros2_static_transform": static_transform_command(t, q, frames),
     }
     plain_doc: dict[str, Any] = plain(doc)
     return plain_doc

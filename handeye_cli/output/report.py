@@ -23,6 +23,7 @@ from __future__ import annotations
 import base64
 import html
 import math
+from collections.abc import Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -35,11 +36,12 @@ from ..analysis.residuals import pair_residuals
 from ..geometry import dualquat as dq
 from ..geometry.lie import nearest_rotation
 from ..version import __version__
-from .document import calibration_document
+from .document import plain, solver_section, static_transform_command
 from .svgplot import Chart
 from .writers import check_writable, write_output
 
 if TYPE_CHECKING:
+    from ..analysis.robust import RobustResult
     from ..pipeline import Calibration
     from ..stages.counts import SampleCounts
     from ..stages.sync import Synced
@@ -156,17 +158,6 @@ def _thin(n: int) -> IntArray:
     return np.arange(n) if n <= MAX_PLOT_POINTS else np.linspace(0, n - 1, MAX_PLOT_POINTS).astype(int)
 
 
-def _extrinsic(calibration: Calibration, document: dict[str, Any]) -> FloatArray:
-    """``T_a_b`` as the result document states it (what the user gets), else the calibration's."""
-    try:
-        X = np.asarray(document["matrix"], dtype=float)
-        if X.shape == (4, 4) and np.isfinite(X).all():
-            return X
-    except (KeyError, TypeError, ValueError):
-        pass
-    return np.asarray(calibration.matrix, dtype=float)
-
-
 # ----------------------------------------------------------------------------------------------
 # trajectories
 
@@ -237,24 +228,23 @@ def _trajectory_section(calibration: Calibration, X: FloatArray) -> str:
 # ----------------------------------------------------------------------------------------------
 # residuals over time
 
-def _rejected_mask(document: dict[str, Any], n: int) -> BoolArray:
+def _rejected_mask(robust: RobustResult | None, n: int) -> BoolArray:
+    """The pairs ``--robust`` rejected (of ``n``), as a mask."""
     mask = np.zeros(n, dtype=bool)
-    robust = document.get("robust")
-    rejected = robust.get("rejected") if isinstance(robust, dict) else None
-    if isinstance(rejected, (list, tuple, np.ndarray)):
-        idx = np.asarray([i for i in rejected if isinstance(i, (int, np.integer)) and 0 <= i < n], dtype=int)
-        mask[idx] = True
+    if robust is not None:
+        rejected = np.asarray(robust.rejected, dtype=int)
+        mask[rejected[(rejected >= 0) & (rejected < n)]] = True
     return mask
 
 
-def _residual_section(calibration: Calibration, document: dict[str, Any], X: FloatArray) -> str:
+def _residual_section(calibration: Calibration, X: FloatArray) -> str:
     pairs = calibration.pairs
     if len(pairs) == 0:
         return "<p class='note'>No motion pairs.</p>"
     res = pair_residuals(pairs.A, pairs.B, X)
     t0 = int(calibration.synced.stamps_ns[0]) if len(calibration.synced) else int(pairs.t_i_ns.min())
     t = (pairs.t_j_ns - t0) / 1e9
-    bad = _rejected_mask(document, len(pairs))
+    bad = _rejected_mask(calibration.robust, len(pairs))
     chart = Chart(12.0, 4.6)
     axes = chart.grid(2, 1, margins=(0.75, 0.12, 0.5, 0.3), gaps=(0.0, 0.12))
     k = _thin(len(t))
@@ -337,19 +327,14 @@ def _bootstrap_section(deviations: FloatArray | None) -> str:
 # ----------------------------------------------------------------------------------------------
 # header
 
-def _header(calibration: Calibration, document: dict[str, Any], X: FloatArray) -> str:
+def _header(calibration: Calibration, X: FloatArray) -> str:
     rot = Rotation.from_matrix(X[:3, :3])
     q = rot.as_quat(canonical=True)
     t = X[:3, 3]
-    given = document.get("frames")
-    frames = given if isinstance(given, dict) else calibration.frames
-    fa, fb = _esc(frames.get("a", "a")), _esc(frames.get("b", "b"))
-    sol = getattr(calibration, "solution", None)
-    facts = [("method", document.get("method", getattr(sol, "method", None))),
-             ("α [1/m]", document.get("alpha", getattr(sol, "alpha", None))),
-             ("cost", document.get("cost", getattr(sol, "cost", None))),
-             ("pairs used", document.get("pairs_used", len(calibration.pairs))),
-             ("version", document.get("version", __version__))]
+    frames, sol = calibration.frames, calibration.solution
+    fa, fb = _esc(frames["a"]), _esc(frames["b"])
+    facts = [("method", sol.method), ("α [1/m]", sol.alpha), ("cost", sol.cost), ("pairs used", sol.pairs),
+             ("version", __version__)]
     facts_html = "".join(f"<tr><th>{_esc(k)}</th><td class='num'>{_esc(_fmt(v))}</td></tr>"
                          for k, v in facts if v is not None)
     matrix = "".join("<tr>" + "".join(f"<td>{v:.6f}</td>" for v in row) + "</tr>" for row in X)
@@ -359,25 +344,25 @@ def _header(calibration: Calibration, document: dict[str, Any], X: FloatArray) -
             ("rotation vector [deg]", ", ".join(f"{v:.4f}" for v in np.rad2deg(rot.as_rotvec()))),
             ("roll, pitch, yaw [deg] (fixed x-y-z)", ", ".join(f"{v:.4f}" for v in rot.as_euler("xyz", degrees=True)))]
     pose_html = "".join(f"<tr><th>{_esc(k)}</th><td class='num'>{_esc(v)}</td></tr>" for k, v in pose)
-    inputs = document.get("inputs")
-    inputs_html = _table(inputs) if isinstance(inputs, dict) and inputs else "<p class='note'>(not recorded)</p>"
-    ros = document.get("ros2_static_transform")
-    ros_html = f"<h2>ROS 2 static transform</h2><pre>{_esc(ros)}</pre>" if ros else ""
-    stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
-    return (f"<h1>handeye calibration report</h1>"
-            f"<p class='sub'>Extrinsic T_{fa}_{fb}: the pose of frame <b>{fb}</b> in frame <b>{fa}</b> "
-            f"(maps points from {fb} to {fa}). Generated {stamp} by handeye {_esc(__version__)}.</p>"
-            f"{_warnings(document)}"
+    inputs = plain(calibration.inputs)
+    inputs_html = _table(inputs) if inputs else "<p class='note'>(not recorded)</p>"
+    ros = static_transform_command(sol.translation, sol.quaternion_xyzw, frames)
+    return (_title("handeye calibration report", f"Extrinsic T_{fa}_{fb}: the pose of frame <b>{fb}</b> in frame "
+                   f"<b>{fa}</b> (maps points from {fb} to {fa}).")
+            + f"{_warnings(calibration.warnings)}"
             f"<div class='grid'><div class='card'><h2>T_{fa}_{fb}</h2><table class='matrix'>{matrix}</table>"
             f"<table>{pose_html}</table></div>"
             f"<div class='card'><h2>Solve</h2><table>{facts_html}</table><h2>Inputs</h2>{inputs_html}</div></div>"
-            f"{ros_html}")
+            f"<h2>ROS 2 static transform</h2><pre>{_esc(ros)}</pre>")
 
 
-def _warnings(document: dict[str, Any]) -> str:
-    warnings = document.get("warnings")
-    if isinstance(warnings, str):
-        warnings = [warnings]
+def _title(title: str, what: str) -> str:
+    """The page's heading: ``title``, and ``what`` it shows (HTML), with when and by which version."""
+    stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+    return f"<h1>{title}</h1><p class='sub'>{what} Generated {stamp} by handeye {_esc(__version__)}.</p>"
+
+
+def _warnings(warnings: Sequence[str]) -> str:
     if not warnings:
         return "<div class='ok'>No warnings.</div>"
     items = "".join(f"<li>{_esc(w)}</li>" for w in warnings)
@@ -394,44 +379,58 @@ def _settings(calibration: Calibration) -> str:
     return f"<table>{head}</table><p class='note'>Options: the defaults, except:</p>{_table(changed)}"
 
 
-def _tables(calibration: Calibration, document: dict[str, Any]) -> str:
-    """A titled table per block of the result not shown in the header (empty values left out)."""
+def _tables(calibration: Calibration) -> str:
+    """A titled table per block of the result not shown in the header, in the document's order (the sample
+    counts, the solver, each diagnostic section, the settings), from the calibration; empty values left out."""
+    blocks = [("samples", calibration.samples.as_dict()), ("solver", solver_section(calibration.solution)),
+              *calibration.diagnostics.items(), ("settings", None)]
     parts = []
-    for key, value in document.items():
-        if key in _HEADER_KEYS or _empty(value):
+    for key, value in blocks:
+        value = plain(value)
+        if key in _HEADER_KEYS or (key != "settings" and _empty(value)):
             continue
-        title = _TITLES.get(key, key.replace("_", " ").capitalize())
-        table = _settings(calibration) if key == "settings" else _table(value)
-        parts.append(f"<div class='card'><h2>{_esc(title)}</h2>{table}</div>")
+        parts.append(_card(_TITLES.get(key, key.replace("_", " ").capitalize()),
+                           _settings(calibration) if key == "settings" else _table(value)))
+    return _cards(parts)
+
+
+def _card(title: str, body: str) -> str:
+    return f"<div class='card'><h2>{_esc(title)}</h2>{body}</div>"
+
+
+def _cards(parts: Sequence[str]) -> str:
     return f"<div class='grid'>{''.join(parts)}</div>" if parts else ""
 
 
-# ----------------------------------------------------------------------------------------------
-# entry points
-
-def render_report(calibration: Calibration, document: dict[str, Any],
-                  bootstrap_deviations: FloatArray | None = None) -> str:
-    """The report as one HTML string (see :func:`write_report`)."""
-    document = document if isinstance(document, dict) else {}
-    if bootstrap_deviations is not None:
-        bootstrap_deviations = np.asarray(bootstrap_deviations, dtype=float)
-        if bootstrap_deviations.ndim != 2 or bootstrap_deviations.shape[1] != 6:
-            raise ValueError(f"bootstrap_deviations must have shape (K, 6), got {bootstrap_deviations.shape}")
-    X = _extrinsic(calibration, document)
-    body = [_header(calibration, document, X),
-            "<h2>1. Trajectories after applying the extrinsic</h2>", _trajectory_section(calibration, X),
-            "<h2>2. Residuals over time</h2>", _residual_section(calibration, document, X),
-            "<h2>3. Samples kept and dropped per stage</h2>", _samples_section(calibration.samples)]
-    if bootstrap_deviations is not None:
-        body += ["<h2>4. Bootstrap spread</h2>", _bootstrap_section(bootstrap_deviations)]
-    tables = _tables(calibration, document)
-    if tables:
-        body += ["<h2>Diagnostics</h2>", tables]
+def _page(body: Sequence[str]) -> str:
+    """The self-contained HTML document around ``body``'s parts."""
     return ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
             "<meta name='viewport' content='width=device-width, initial-scale=1'>"
             f"<meta name='generator' content='handeye {_esc(__version__)}'>"
             f"<title>handeye report</title><style>{_CSS}</style></head>"
             f"<body><main>{''.join(body)}</main><script>{_SCRIPT}</script></body></html>\n")
+
+
+# ----------------------------------------------------------------------------------------------
+# entry points
+
+def render_report(calibration: Calibration, bootstrap_deviations: FloatArray | None = None) -> str:
+    """The report as one HTML string (see :func:`write_report`), from the typed calibration (not its document)."""
+    if bootstrap_deviations is not None:
+        bootstrap_deviations = np.asarray(bootstrap_deviations, dtype=float)
+        if bootstrap_deviations.ndim != 2 or bootstrap_deviations.shape[1] != 6:
+            raise ValueError(f"bootstrap_deviations must have shape (K, 6), got {bootstrap_deviations.shape}")
+    X = np.asarray(calibration.matrix, dtype=float)
+    body = [_header(calibration, X),
+            "<h2>1. Trajectories after applying the extrinsic</h2>", _trajectory_section(calibration, X),
+            "<h2>2. Residuals over time</h2>", _residual_section(calibration, X),
+            "<h2>3. Samples kept and dropped per stage</h2>", _samples_section(calibration.samples)]
+    if bootstrap_deviations is not None:
+        body += ["<h2>4. Bootstrap spread</h2>", _bootstrap_section(bootstrap_deviations)]
+    tables = _tables(calibration)
+    if tables:
+        body += ["<h2>Diagnostics</h2>", tables]
+    return _page(body)
 
 
 def write_report(path: str | Path, calibration: Calibration) -> None:
@@ -444,5 +443,5 @@ def write_report(path: str | Path, calibration: Calibration) -> None:
     replaced atomically, so a failure leaves no half-written report.
     """
     check_writable(path, "--report")           # fail before the rendering work
-    page = render_report(calibration, calibration_document(calibration), calibration.bootstrap_deviations())
+    page = render_report(calibration, calibration.bootstrap_deviations())
     write_output(path, page, "--report")

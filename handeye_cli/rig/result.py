@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from ..analysis import extrinsic_error, pair_residuals
 from ..geometry import se3
 from ..output.document import plain
+from ..output.formats import Frame
 from ..streams import PoseStream
 from ..version import __version__
 from .graph import Closure
@@ -94,6 +95,17 @@ class RigResult:
         rows += [("warning", html.escape(w)) for w in self.warnings]
         body = "".join(f"<tr><th style='text-align:left'>{k}</th><td>{v}</td></tr>" for k, v in rows)
         return f"<table>{body}</table>"
+
+    def stated(self) -> list[Frame]:
+        """Every joint ``T_ref_k`` (4x4, metres) as the document states it — its translation and x-y-z-w quaternion
+        (:func:`transform_entry`), what a user reads — the reference's first: what the verdicts and the report
+        judge."""
+        ref = self.names[self.reference]
+        entries = [transform_entry(ref, name, T) for name, T in zip(self.names, self.matrices, strict=True)
+                   if name != ref]
+        return [Frame(e["parent"], e["child"], se3.from_xyz_quat(np.asarray(e["translation"], dtype=float),
+                                                                 np.asarray(e["quaternion_xyzw"], dtype=float)))
+                for e in entries]
 
     def T(self, parent: str, child: str) -> Array:
         """``T_parent_child`` (4x4) of the joint result."""
