@@ -153,3 +153,59 @@ def test_rig_verdict_judges_significance_from_the_bootstrap_intervals(rig_doc, c
         verdicts = rig_verdicts(replace(result, uncertainty=u), nominal, 0.5, 0.01)
         assert verdicts["lidar"].drift is drift and verdicts["lidar"].translation_out
         assert verdicts["lidar"].translation_significant is drift
+
+
+def test_rig_report_shows_the_joint_extrinsics_clock_offsets_and_each_pairs_fit(calibrated, rig_doc, capsys,
+                                                                                 tmp_path) -> None:
+    """``handeye rig --report FILE`` (issue 21: refused before) writes the rig's page with calibrate's report module:
+    the numbers it shows are the result document's, read from the typed result."""
+    import base64
+    import html
+    import re
+    import xml.etree.ElementTree as ET
+
+    report = tmp_path / "rig.html"
+    code, out, err = run(capsys, "rig", RIG4, *STREAMS, "--report", report, "-q", "--format", "json")
+    assert code == 0 and json.loads(out)["transforms"] == rig_doc["transforms"], err
+    text = report.read_text(encoding="utf-8")
+    assert text.startswith("<!DOCTYPE html>") and "No warnings." in text and not re.search(r"https?:", text)
+    cells = [html.unescape(c) for c in re.findall(r"<td class='num'>([^<]*)</td>", text)]
+    for t in rig_doc["transforms"]:                                       # the joint extrinsics
+        row = cells.index(f"T_cam0_{t['child']}")
+        assert cells[row + 1] == ", ".join(f"{v:.6f}" for v in t["translation"])
+        assert cells[row + 2] == ", ".join(f"{v:.6f}" for v in t["quaternion_xyzw"])
+    for s in rig_doc["streams"]:                                          # the clock offsets
+        row = cells.index(s["name"], cells.index("cam0"))
+        assert cells[row + 1] == f"{s['time_offset']['seconds'] * 1e3:.3f}"
+    for p in rig_doc["pairwise"]:                                         # each pair: residuals and its fit test
+        row = cells.index(f"{p['parent']}–{p['child']}")
+        joint = p["residuals"]["joint"]
+        assert cells[row + 1] == str(p["pairs_used"])
+        assert cells[row + 2] == f"{joint['rotation_median_deg']:.4f} / {1e3 * joint['translation_median_m']:.3f}"
+        assert cells[row + 4].startswith("passed: ")
+    (src,) = re.findall(r"src='data:image/svg\+xml;base64,([^']*)'", text)  # one figure, well-formed SVG
+    svg = ET.fromstring(base64.b64decode(src))
+    assert svg.tag == "{http://www.w3.org/2000/svg}svg"
+    assert len(calibrated) == 1                                           # the cached calibration: no solve here
+
+
+def test_rig_report_to_a_missing_folder_fails_before_the_work(calibrated, capsys, tmp_path) -> None:
+    n_before = len(calibrated)
+    out_file = tmp_path / "rig.yaml"
+    code, out, err = run(capsys, "rig", RIG4, *STREAMS, "--report", tmp_path / "missing" / "r.html", "-o", out_file)
+    assert code == 2 and out == "" and err.count("\n") == 1 and "--report" in err and not out_file.exists()
+    assert len(calibrated) == n_before
+
+
+def test_a_failed_rig_report_keeps_the_result(calibrated, capsys, tmp_path, monkeypatch) -> None:
+    from handeye_cli.errors import WriteError
+    from handeye_cli.rig import report
+
+    def broken(path, result):
+        raise WriteError("cannot write (Read-only file system)", str(path), "choose another --report path")
+
+    monkeypatch.setattr(report, "write_rig_report", broken)
+    out_file = tmp_path / "rig.yaml"
+    code, _, err = run(capsys, "rig", RIG4, *STREAMS, "--report", tmp_path / "r.html", "-o", out_file, "-q")
+    assert code == 2 and "the result was written, but not the report: cannot write" in err
+    assert yaml.safe_load(out_file.read_text())["reference"] == "cam0"

@@ -14,7 +14,7 @@ from ..output.document import calibration_document
 from ..output.writers import check_writable
 from ..pipeline import Calibration, calibrate_files, stream_specs
 from .check import verdict_options
-from .common import CONTEXT, emit, finish, result_format
+from .common import CONTEXT, emit, finish, report_failure, result_format
 from .params import (
     command_options,
     options_from_cli,
@@ -36,14 +36,13 @@ def summary_line(doc: dict[str, Any]) -> str:
 
 
 def write_run_report(path: str, result: Calibration) -> HandEyeError | None:
-    """Write the HTML report; a failure is returned, not raised, so the result is still written."""
-    from ..output.report import write_report
+    """Write the HTML report of ``result``; a failure is returned (:func:`.common.report_failure`), not raised, so
+    the result is still written."""
+    def write() -> None:
+        from ..output.report import write_report  # the report's stack is imported only when one is asked for
 
-    try:
         write_report(path, result)
-    except HandEyeError as e:
-        return e
-    return None
+    return report_failure(write)
 
 
 @click.command("calibrate", context_settings=CONTEXT)
@@ -87,12 +86,10 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
                verdict_for(result.judged(), nominal, p["max_rotation_deg"], p["max_translation_m"]))
     if verdict is not None:
         doc["verdict"] = verdict.as_dict()
-    report_error = write_run_report(p["report_file"], result) if p["report_file"] else None
+    late = write_run_report(p["report_file"], result) if p["report_file"] else None
     emit(doc, p["output"], fmt)
     if not p["quiet"]:
         click.echo(summary_line(doc), err=True)
-    late = None if report_error is None else type(report_error)(
-        f"the result was written, but not the report: {report_error.what}", report_error.where, report_error.fix)
     finish(doc, strict=options.analysis.strict, quiet=p["quiet"],
            drift=verdict.summary() if verdict is not None and verdict.drift else None,
            within=verdict.summary() if verdict is not None else None,

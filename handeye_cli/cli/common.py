@@ -1,6 +1,7 @@
 """What the commands share: click settings, the --strict failure, printing a result and a warning."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import click
@@ -9,7 +10,7 @@ from ..errors import HandEyeError, one_line
 from ..output.formats import render_format
 from ..output.writers import check_writable, format_mismatch, output_format, write_output
 
-__all__ = ["CONTEXT", "Drifted", "StrictFailure", "emit", "finish", "result_format", "warn"]
+__all__ = ["CONTEXT", "Drifted", "StrictFailure", "emit", "finish", "report_failure", "result_format", "warn"]
 
 CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 
@@ -41,6 +42,16 @@ def warn(message: str) -> None:
     """One ``warning:`` line on stderr; names from a log or file it quotes cannot break the line
     (newlines, U+2028, terminal escapes are written as escapes)."""
     click.echo(f"warning: {one_line(message)}", err=True)
+
+
+def report_failure(write: Callable[[], None]) -> HandEyeError | None:
+    """Run ``write`` (a command's ``--report``) before the result is written: its failure is returned, worded as
+    the failure after the result it becomes (``finish(late=…)``: the result is still written, exit 2)."""
+    try:
+        write()
+    except HandEyeError as e:
+        return type(e)(f"the result was written, but not the report: {e.what}", e.where, e.fix)
+    return None
 
 
 def finish(doc: dict[str, Any], *, strict: bool, quiet: bool, drift: str | None = None, within: str | None = None,

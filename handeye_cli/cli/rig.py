@@ -10,7 +10,7 @@ consistency diagnostic — not the single ``T_a_b`` of the result schema (docs/d
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 import numpy as np
@@ -18,8 +18,9 @@ import numpy as np
 from ..analysis.verdict import Verdict
 from ..geometry import dualquat as dq
 from ..io.nominal import read_nominal
+from ..output.writers import check_writable
 from .check import verdict_options
-from .common import CONTEXT, emit, finish, result_format
+from .common import CONTEXT, emit, finish, report_failure, result_format
 from .params import (
     command_options,
     options_from_cli,
@@ -28,8 +29,11 @@ from .params import (
     per_stream_values,
     quiet_option,
     refused,
-    refused_report,
+    report_option,
 )
+
+if TYPE_CHECKING:
+    from ..rig import RigResult
 
 __all__ = ["rig"]
 
@@ -45,6 +49,13 @@ def _summary(doc: dict[str, Any]) -> str:
         lines.append(f"  worst pairwise loop closure {'-'.join(worst['streams'])}: {worst['rotation_deg']:.3f}° / "
                      f"{worst['translation_m'] * 1e3:.1f} mm (joint: identity)")
     return "\n".join(lines) + "\n"
+
+
+def _write_report(path: str, result: RigResult) -> None:
+    """The rig's HTML page (``--report``): its stack (scipy's Rotation) is imported only when one is asked for."""
+    from ..rig.report import write_rig_report
+
+    write_rig_report(path, result)
 
 
 def _drift_message(verdicts: dict[str, Verdict]) -> str:
@@ -64,7 +75,7 @@ def _drift_message(verdicts: dict[str, Verdict]) -> str:
 @command_options("rig")
 @verdict_options
 @output_options
-@refused_report("handeye rig has no report page: run 'handeye calibrate --report FILE' on a pair of its streams")
+@report_option
 @refused(("--prior",), "takes no prior", "a prior is of one T_a_b, and the rig combines its pairs by their data's "
          "covariance, which a prior on one pair would not enter: calibrate that pair with 'handeye calibrate --prior'")
 @quiet_option
@@ -89,11 +100,15 @@ def rig(log: str | None, **p: Any) -> None:
           --stream board=board.tum --invert board --wxyz board --no-invert cam0
       handeye rig log.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose --format urdf -o rig.urdf
       handeye rig log.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose --against robot.urdf  # exit 1: moved
+      handeye rig log.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose --report rig.html
 
     With --against NOMINAL (a URDF, launch file, static_transform_publisher lines, a handeye result)
     every sensor gets a verdict: T_ref_k against the nominal's transform between the frames named as
     the reference and sensor k; the document lists them under 'verdicts' and the exit code is 1 when
     any sensor drifted.
+
+    With --report FILE the rig's HTML page: the joint extrinsics, the clock offsets, and each pair's
+    residuals (joint and pairwise only), fit test and drift test.
     """
     from ..rig import RigOptions, calibrate_rig_files, parse_stream
     from ..rig.verdicts import check_sensor_names, rig_verdicts
@@ -101,6 +116,8 @@ def rig(log: str | None, **p: Any) -> None:
     options = options_from_cli(p)
     specs = [parse_stream(s) for s in p["streams"]]
     fmt = result_format(p["output"], p["fmt"])
+    if p["report_file"]:
+        check_writable(p["report_file"], "--report")
     nominal = read_nominal(p["against"]) if p["against"] else None      # a bad nominal fails before the work
     if nominal is not None:
         check_sensor_names([str(s.name) for s in specs], nominal)
@@ -114,9 +131,10 @@ def rig(log: str | None, **p: Any) -> None:
     verdicts = {} if nominal is None else rig_verdicts(result, nominal, p["max_rotation_deg"], p["max_translation_m"])
     if verdicts:
         doc["verdicts"] = {name: v.as_dict() for name, v in verdicts.items()}
+    late = report_failure(lambda: _write_report(p["report_file"], result)) if p["report_file"] else None
     emit(doc, p["output"], fmt)
     if not p["quiet"]:
         click.echo(_summary(doc), err=True, nl=False)
     finish(doc, strict=options.analysis.strict, quiet=p["quiet"],
            drift=_drift_message(verdicts) if any(v.drift for v in verdicts.values()) else None,
-           within=f"every sensor within tolerance of the nominal {p['against']}" if verdicts else None)
+           within=f"every sensor within tolerance of the nominal {p['against']}" if verdicts else None, late=late)

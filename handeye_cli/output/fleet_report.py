@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import ReadError
 from ..version import __version__
 from .records import intact_records
-from .report import _CSS, _SCRIPT, _esc, _figure
+from .report import _CSS, _SCRIPT, esc, figure
 from .svgplot import Chart
 from .writers import check_writable, write_output
 
@@ -122,15 +122,15 @@ def _pair_figure(name: str, records: list[dict[str, Any]]) -> str:
             if row == 1:
                 panel.xlabel = f"days since {start}"
     keys = "".join(f"<span class='key'><span style='color:{_COLORS[n % len(_COLORS)]}'>&#9679;</span> "
-                   f"{_esc(robot)}</span> " for n, robot in enumerate(robots))
+                   f"{esc(robot)}</span> " for n, robot in enumerate(robots))
     reference = "nominal, tolerance dashed in green" if has_nominal else "median result (no nominal given)"
-    caption = (f"{_esc(name)}: {len(records)} log(s) of {len(robots)} robot(s); deviation from the {reference}; "
+    caption = (f"{esc(name)}: {len(records)} log(s) of {len(robots)} robot(s); deviation from the {reference}; "
                f"drifted logs are red crosses.<br>{keys}")
-    return _figure(chart, f"extrinsic of {name} over time", caption)
+    return figure(chart, f"extrinsic of {name} over time", caption)
 
 
 def _row(cells: list[Any]) -> str:
-    return "<tr>" + "".join(f"<td>{_esc(c)}</td>" for c in cells) + "</tr>"
+    return "<tr>" + "".join(f"<td>{esc(c)}</td>" for c in cells) + "</tr>"
 
 
 def _drift_table(records: list[dict[str, Any]]) -> str:
@@ -163,11 +163,11 @@ def render_fleet_report(records: Iterable[dict[str, Any]]) -> str:
             f = r.get("frames") or {}
             pairs.setdefault(f"T_{f.get('a', 'a')}_{f.get('b', 'b')}", []).append(r)
     counts = {s: sum(r["status"] == s for r in records) for s in ("ok", "drift", "error")}
-    figures = "".join(f"<h2>{_esc(name)}</h2>{_pair_figure(name, rs)}" for name, rs in sorted(pairs.items()))
+    figures = "".join(f"<h2>{esc(name)}</h2>{_pair_figure(name, rs)}" for name, rs in sorted(pairs.items()))
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
     body = (f"<h1>handeye fleet report</h1><p class='sub'>{len(records)} log(s): {counts['ok']} ok, "
             f"{counts['drift']} drift, {counts['error']} error. T_a_b is the pose of frame b in frame a. "
-            f"Generated {stamp} by handeye {_esc(__version__)}.</p>"
+            f"Generated {stamp} by handeye {esc(__version__)}.</p>"
             f"{figures or '<p class=note>No calibrated log to plot.</p>'}"
             f"<h2>Drifted logs</h2>{_drift_table(records)}<h2>Failed logs</h2>{_error_table(records)}")
     return ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"

@@ -46,7 +46,8 @@ if TYPE_CHECKING:
     from ..stages.counts import SampleCounts
     from ..stages.sync import Synced
 
-__all__ = ["write_report", "world_alignment", "render_report"]
+__all__ = ["write_report", "world_alignment", "render_report", "card", "cards", "esc", "figure", "fmt", "heading",
+           "page", "table", "warnings_block"]
 
 MAX_PLOT_POINTS = 10_000
 COLOR_A, COLOR_B, COLOR_BAD = "#1f77b4", "#ff7f0e", "#d62728"
@@ -96,7 +97,7 @@ window.addEventListener("load", function () {
 # ----------------------------------------------------------------------------------------------
 # numbers and small HTML pieces
 
-def _fmt(value: Any, digits: int = 6) -> str:
+def fmt(value: Any, digits: int = 6) -> str:
     """A human-readable value: floats to ``digits`` significant digits, lists recursively."""
     if isinstance(value, (bool, np.bool_)):
         return "yes" if value else "no"
@@ -110,11 +111,11 @@ def _fmt(value: Any, digits: int = 6) -> str:
     if isinstance(value, np.ndarray):
         value = value.tolist()
     if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_fmt(v, digits) for v in value) + "]"
+        return "[" + ", ".join(fmt(v, digits) for v in value) + "]"
     return str(value)
 
 
-def _esc(value: Any) -> str:
+def esc(value: Any) -> str:
     return html.escape(str(value), quote=True)
 
 
@@ -135,21 +136,21 @@ def _flatten(d: dict[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
     return rows
 
 
-def _table(value: Any) -> str:
+def table(value: Any) -> str:
     """A two-column key/value table of a (nested) dict; other values as one line."""
     if not isinstance(value, dict):
-        return f"<p class='num'>{_esc(_fmt(value))}</p>"
+        return f"<p class='num'>{esc(fmt(value))}</p>"
     flat = _flatten(value)
     if not flat:
         return "<p class='note'>(empty)</p>"
-    rows = "".join(f"<tr><th>{_esc(k)}</th><td class='num'>{_esc(_fmt(v))}</td></tr>" for k, v in flat)
+    rows = "".join(f"<tr><th>{esc(k)}</th><td class='num'>{esc(fmt(v))}</td></tr>" for k, v in flat)
     return f"<table>{rows}</table>"
 
 
-def _figure(chart: Chart, alt: str, caption: str) -> str:
+def figure(chart: Chart, alt: str, caption: str) -> str:
     """A chart as a ``<figure>`` whose image is the SVG document in a base64 ``data:`` URI."""
     data = base64.b64encode(chart.svg().encode("utf-8")).decode("ascii")
-    return (f"<figure><img alt='{_esc(alt)}' src='data:image/svg+xml;base64,{data}'>"
+    return (f"<figure><img alt='{esc(alt)}' src='data:image/svg+xml;base64,{data}'>"
             f"<figcaption>{caption}</figcaption></figure>")
 
 
@@ -219,10 +220,10 @@ def _trajectory_section(calibration: Calibration, X: FloatArray) -> str:
     rot = Rotation.from_matrix(G[:3, :3])
     caption = (f"Stream b mapped into a's world: positions of T_wa_wb · T_wb_b(t) · X⁻¹, with T_wa_wb the "
                f"consensus of T_wa_a(t) · X · T_wb_b(t)⁻¹ over {len(synced)} synced samples "
-               f"(translation {_esc(_fmt(G[:3, 3], 4))} m, rotation {np.rad2deg(rot.magnitude()):.3f}°). "
+               f"(translation {esc(fmt(G[:3, 3], 4))} m, rotation {np.rad2deg(rot.magnitude()):.3f}°). "
                f"Position disagreement: median {np.median(err):.4g} m, 95th percentile "
                f"{np.percentile(err, 95):.4g} m.")
-    return _figure(chart, "trajectories", caption)
+    return figure(chart, "trajectories", caption)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -264,7 +265,7 @@ def _residual_section(calibration: Calibration, X: FloatArray) -> str:
     axes[0].title = f"per-pair residuals of A_i X = X B_i ({len(pairs)} pairs)"
     caption = ("Rotation: angle between R_A·R_X and R_X·R_B; translation: |R_A t_X + t_A − R_X t_B − t_X| "
                "(frame a). Plotted against the later stamp t_j of each pair.")
-    return _figure(chart, "residuals over time", caption)
+    return figure(chart, "residuals over time", caption)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -282,10 +283,10 @@ def _samples_section(samples: SampleCounts) -> str:
     for ax, data, color, title in ((axes[0], kept, COLOR_A, "what each stage read / kept"),
                                    (axes[1], drops, COLOR_BAD, "what each gate dropped")):
         names, values = list(data)[::-1], np.array(list(data.values())[::-1], dtype=float)
-        ax.barh(values, color, texts=[_fmt(v) for v in values])
+        ax.barh(values, color, texts=[fmt(v) for v in values])
         ax.yticks, ax.xlog, ax.grid, ax.title = names, True, "x", title
         ax.xlim = (0.5, top * 4.0)
-    return _figure(chart, "samples per stage", "Counts from the result's <code>samples</code>, both panels on one "
+    return figure(chart, "samples per stage", "Counts from the result's <code>samples</code>, both panels on one "
                    "log scale (a count of 0 has no bar).")
 
 
@@ -321,7 +322,7 @@ def _bootstrap_section(deviations: FloatArray | None) -> str:
     table = f"<table><tr><th></th><th>x</th><th>y</th><th>z</th></tr>{rows}</table>"
     caption = (f"{len(d)} bootstrap replicates: deviation of X per axis, rotation as a rotation vector [deg] "
                "and translation [m]; dotted lines bound the central 95 %.")
-    return _figure(chart, "bootstrap spread", caption) + f"<div class='card'>{table}</div>"
+    return figure(chart, "bootstrap spread", caption) + f"<div class='card'>{table}</div>"
 
 
 # ----------------------------------------------------------------------------------------------
@@ -332,10 +333,10 @@ def _header(calibration: Calibration, X: FloatArray) -> str:
     q = rot.as_quat(canonical=True)
     t = X[:3, 3]
     frames, sol = calibration.frames, calibration.solution
-    fa, fb = _esc(frames["a"]), _esc(frames["b"])
+    fa, fb = esc(frames["a"]), esc(frames["b"])
     facts = [("method", sol.method), ("α [1/m]", sol.alpha), ("cost", sol.cost), ("pairs used", sol.pairs),
              ("version", __version__)]
-    facts_html = "".join(f"<tr><th>{_esc(k)}</th><td class='num'>{_esc(_fmt(v))}</td></tr>"
+    facts_html = "".join(f"<tr><th>{esc(k)}</th><td class='num'>{esc(fmt(v))}</td></tr>"
                          for k, v in facts if v is not None)
     matrix = "".join("<tr>" + "".join(f"<td>{v:.6f}</td>" for v in row) + "</tr>" for row in X)
     pose = [("translation [m]", ", ".join(f"{v:.6f}" for v in t)),
@@ -343,29 +344,29 @@ def _header(calibration: Calibration, X: FloatArray) -> str:
             ("rotation angle [deg]", f"{np.rad2deg(rot.magnitude()):.4f}"),
             ("rotation vector [deg]", ", ".join(f"{v:.4f}" for v in np.rad2deg(rot.as_rotvec()))),
             ("roll, pitch, yaw [deg] (fixed x-y-z)", ", ".join(f"{v:.4f}" for v in rot.as_euler("xyz", degrees=True)))]
-    pose_html = "".join(f"<tr><th>{_esc(k)}</th><td class='num'>{_esc(v)}</td></tr>" for k, v in pose)
+    pose_html = "".join(f"<tr><th>{esc(k)}</th><td class='num'>{esc(v)}</td></tr>" for k, v in pose)
     inputs = plain(calibration.inputs)
-    inputs_html = _table(inputs) if inputs else "<p class='note'>(not recorded)</p>"
+    inputs_html = table(inputs) if inputs else "<p class='note'>(not recorded)</p>"
     ros = static_transform_command(sol.translation, sol.quaternion_xyzw, frames)
-    return (_title("handeye calibration report", f"Extrinsic T_{fa}_{fb}: the pose of frame <b>{fb}</b> in frame "
+    return (heading("handeye calibration report", f"Extrinsic T_{fa}_{fb}: the pose of frame <b>{fb}</b> in frame "
                    f"<b>{fa}</b> (maps points from {fb} to {fa}).")
-            + f"{_warnings(calibration.warnings)}"
+            + f"{warnings_block(calibration.warnings)}"
             f"<div class='grid'><div class='card'><h2>T_{fa}_{fb}</h2><table class='matrix'>{matrix}</table>"
             f"<table>{pose_html}</table></div>"
             f"<div class='card'><h2>Solve</h2><table>{facts_html}</table><h2>Inputs</h2>{inputs_html}</div></div>"
-            f"<h2>ROS 2 static transform</h2><pre>{_esc(ros)}</pre>")
+            f"<h2>ROS 2 static transform</h2><pre>{esc(ros)}</pre>")
 
 
-def _title(title: str, what: str) -> str:
+def heading(title: str, what: str) -> str:
     """The page's heading: ``title``, and ``what`` it shows (HTML), with when and by which version."""
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
-    return f"<h1>{title}</h1><p class='sub'>{what} Generated {stamp} by handeye {_esc(__version__)}.</p>"
+    return f"<h1>{title}</h1><p class='sub'>{what} Generated {stamp} by handeye {esc(__version__)}.</p>"
 
 
-def _warnings(warnings: Sequence[str]) -> str:
+def warnings_block(warnings: Sequence[str]) -> str:
     if not warnings:
         return "<div class='ok'>No warnings.</div>"
-    items = "".join(f"<li>{_esc(w)}</li>" for w in warnings)
+    items = "".join(f"<li>{esc(w)}</li>" for w in warnings)
     return f"<div class='warnings' id='warnings'><h2>⚠ {len(warnings)} warning(s)</h2><ul>{items}</ul></div>"
 
 
@@ -373,10 +374,10 @@ def _settings(calibration: Calibration) -> str:
     """The options that produced the result, as the differences from the defaults."""
     changed = calibration.options.changed()
     rows = [("configuration file", calibration.config_file), ("preset", calibration.preset)]
-    head = "".join(f"<tr><th>{k}</th><td class='num'>{_esc(v)}</td></tr>" for k, v in rows if v)
+    head = "".join(f"<tr><th>{k}</th><td class='num'>{esc(v)}</td></tr>" for k, v in rows if v)
     if not changed:
         return f"<table>{head}</table><p class='note'>Options: the defaults.</p>"
-    return f"<table>{head}</table><p class='note'>Options: the defaults, except:</p>{_table(changed)}"
+    return f"<table>{head}</table><p class='note'>Options: the defaults, except:</p>{table(changed)}"
 
 
 def _tables(calibration: Calibration) -> str:
@@ -389,24 +390,24 @@ def _tables(calibration: Calibration) -> str:
         value = plain(value)
         if key in _HEADER_KEYS or (key != "settings" and _empty(value)):
             continue
-        parts.append(_card(_TITLES.get(key, key.replace("_", " ").capitalize()),
-                           _settings(calibration) if key == "settings" else _table(value)))
-    return _cards(parts)
+        parts.append(card(_TITLES.get(key, key.replace("_", " ").capitalize()),
+                           _settings(calibration) if key == "settings" else table(value)))
+    return cards(parts)
 
 
-def _card(title: str, body: str) -> str:
-    return f"<div class='card'><h2>{_esc(title)}</h2>{body}</div>"
+def card(title: str, body: str) -> str:
+    return f"<div class='card'><h2>{esc(title)}</h2>{body}</div>"
 
 
-def _cards(parts: Sequence[str]) -> str:
+def cards(parts: Sequence[str]) -> str:
     return f"<div class='grid'>{''.join(parts)}</div>" if parts else ""
 
 
-def _page(body: Sequence[str]) -> str:
+def page(body: Sequence[str]) -> str:
     """The self-contained HTML document around ``body``'s parts."""
     return ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
             "<meta name='viewport' content='width=device-width, initial-scale=1'>"
-            f"<meta name='generator' content='handeye {_esc(__version__)}'>"
+            f"<meta name='generator' content='handeye {esc(__version__)}'>"
             f"<title>handeye report</title><style>{_CSS}</style></head>"
             f"<body><main>{''.join(body)}</main><script>{_SCRIPT}</script></body></html>\n")
 
@@ -430,7 +431,7 @@ def render_report(calibration: Calibration, bootstrap_deviations: FloatArray | N
     tables = _tables(calibration)
     if tables:
         body += ["<h2>Diagnostics</h2>", tables]
-    return _page(body)
+    return page(body)
 
 
 def write_report(path: str | Path, calibration: Calibration) -> None:
