@@ -246,7 +246,8 @@ def stream_specs(inputs: Sequence[Source], *, stream_a: str | StreamSpec | None 
                           "pass one log, or one file per stream (a then b); a stream named as a FILE "
                           "(--stream-a FILE) takes none")
     if not inputs and not all(own):
-        raise ConfigError("no input given", "calibrate", "pass a log, or one pose file per stream (a then b)")
+        raise ConfigError("no input given", "inputs", "pass a log, or one pose file per stream (a then b), or name "
+                          "both streams as files (--stream-a FILE --stream-b FILE)")
     if len(inputs) == 1 and not any(own) and not all(s is not None for s in sources):
         raise ConfigError("one input needs a topic or a TF chain for each stream", shown,
                           "add --stream-a/--stream-b /topic or tf:PARENT,CHILD (see 'handeye inspect "

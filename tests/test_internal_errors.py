@@ -73,8 +73,8 @@ def test_a_crash_in_one_batch_input_is_its_error_record_not_a_drift(capsys, monk
 
 
 def test_click_failures_exit_2_never_1(capsys, monkeypatch):
-    code, out, err = run(capsys, "calibrate")                                  # a usage error
-    assert code == 2 and out == "" and "Missing argument" in err
+    code, out, err = run(capsys, "calibrate", "a.tum", "--pairs")               # a usage error
+    assert code == 2 and out == "" and "requires an argument" in err
     code, _, err = run(capsys, "batch", SAMPLES / "rig.mcap", "--jobs", "0")   # a bad parameter
     assert code == 2 and "--jobs" in err
     module = importlib.import_module("handeye_cli.cli.check")

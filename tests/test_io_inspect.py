@@ -138,7 +138,7 @@ def test_inspect_text_rates_tf_tree_and_a_cut_file_as_the_user_reads_them(capsys
     assert rows["/tf_static"].endswith("1 msgs  latched (static)")
     n_tf = len(a) + len(b) + 1
     assert n_tf > 2000 and f"TF tree, from all {n_tf} TF messages" in out
-    tree = out.split("PARENT CHILD):\n", 1)[1].splitlines()
+    tree = out.split("tf:PARENT,CHILD, the parent first):\n", 1)[1].splitlines()
     assert tree == ["    world", f"      odom  {len(a)} msgs", f"        base  {len(b)} msgs", "          cam1  static"]
     data = path.read_bytes()
     path.write_bytes(data[:len(data) * 2 // 3])                       # the recorder was killed
