@@ -161,7 +161,8 @@ quiet_option = click.option("-q", "--quiet", is_flag=True, help="No progress bar
                             "(the result and errors are still written).")
 report_option = click.option("--report", "report_file", metavar="FILE", help="Also write a self-contained HTML "
                              "report of this run: calibrate and compare the log's trajectories, residuals, gates, "
-                             "uncertainty and warnings; batch the fleet trend of its records.")
+                             "uncertainty and warnings; rig the joint extrinsics, clock offsets and each pair's "
+                             "residuals and fit; batch the fleet trend of its records.")
 
 
 def options_from_cli(params: dict[str, Any]) -> Options:
