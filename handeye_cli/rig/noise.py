@@ -204,8 +204,11 @@ def _spread(M: Array, raw_ns: NDArray[np.int64], stamps_ns: NDArray[np.int64], s
 def _sample_maps(spread: _Spread, blocks: Array) -> Array:
     """(raw samples, 6, 6): Σ over motions of ``blocks`` (N, 6, 6) (∂·/∂ε) times ∂ε/∂n_raw (one
     weighted count per entry: no sparse matrix, whose import would cost ``handeye rig`` 0.15 s)."""
-    via_start = blocks @ spread.back
-    terms = np.stack((blocks, blocks, via_start, via_start)).reshape(-1, 36) * spread.share.reshape(-1, 1)
+    n = len(blocks)
+    flat, via_start = blocks.reshape(n, 36), (blocks @ spread.back).reshape(n, 36)
+    terms = np.empty((4, n, 36))                      # (end lo, end hi, start lo, start hi) × motion × entry
+    for r, part in enumerate((flat, flat, via_start, via_start)):
+        np.multiply(part, spread.share[r, :, None], out=terms[r])      # in place: no stacked copy
     at = (spread.raw.reshape(-1, 1) * 36 + np.arange(36)).ravel()
     return np.asarray(np.bincount(at, weights=terms.ravel(), minlength=36 * spread.samples), dtype=np.float64
                       ).reshape(-1, 6, 6)
