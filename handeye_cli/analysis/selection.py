@@ -157,7 +157,8 @@ def _spread(total: int, n: int, *, jitter: bool = False) -> NDArray[np.int64]:
 
 
 def _pairs(synced: Synced, i: NDArray[np.int64], j: NDArray[np.int64]) -> Pairs:
-    return Pairs(se3.relative(synced.T_a[i], synced.T_a[j]), se3.relative(synced.T_b[i], synced.T_b[j]),
+    T_a, T_b = synced.T_a, synced.T_b                          # each built once (each access builds them)
+    return Pairs(se3.relative(T_a[i], T_a[j]), se3.relative(T_b[i], T_b[j]),
                  i, j, synced.stamps_ns[i], synced.stamps_ns[j])
 
 
