@@ -42,7 +42,7 @@ from ..errors import HandEyeError
 from ..geometry import dualquat as dq
 from ..geometry import se3
 from ..solvers import Prior, solve
-from ..solvers.problem import split_forms
+from ..solvers.problem import pair_forms
 from ..stages.pairs import Pairs
 from ..stages.sync import Synced
 from .alpha import blocked_alpha, time_blocks
@@ -157,7 +157,8 @@ def _spread(total: int, n: int, *, jitter: bool = False) -> NDArray[np.int64]:
 
 
 def _pairs(synced: Synced, i: NDArray[np.int64], j: NDArray[np.int64]) -> Pairs:
-    return Pairs(se3.relative(synced.T_a[i], synced.T_a[j]), se3.relative(synced.T_b[i], synced.T_b[j]),
+    T_a, T_b = synced.T_a, synced.T_b                          # each built once (each access builds them)
+    return Pairs(se3.relative(T_a[i], T_a[j]), se3.relative(T_b[i], T_b[j]),
                  i, j, synced.stamps_ns[i], synced.stamps_ns[j])
 
 
@@ -182,8 +183,8 @@ def _level_errors(A: NDArray[np.float64], B: NDArray[np.float64], w: NDArray[np.
     tilt of the rotation axes, and its inverse (metres to tens of metres, varying from level to level
     by chance) would otherwise decide the levels, keeping one long stride whose few spans starve the
     yaw the translations alone carry."""
-    member = (level[None, :] == np.arange(len(scale))[:, None]) * w
-    Q = split_forms(A, B, member, alpha).sum(axis=1)          # each level's cost form, [q'; q] order
+    Q = np.zeros((len(scale), 8, 8))                          # each level's cost form, [q'; q] order: its pairs'
+    np.add.at(Q, level, w[:, None, None] * pair_forms(A, B, alpha).sum(axis=1))   # summed (no (L, N) product)
     P = np.eye(6) if axis is None else _without_translation_along(axis)     # δ = P η
     D = tangent_basis(*dq.from_transforms(X))[_Q_PRIME_FIRST] @ P      # dx/dη with x = [q'; q]
     cov = P @ np.linalg.pinv(scale[:, None, None] * (D.T @ Q @ D), hermitian=True) @ P.T

@@ -204,17 +204,21 @@ def _spread(M: Array, raw_ns: NDArray[np.int64], stamps_ns: NDArray[np.int64], s
 def _sample_maps(spread: _Spread, blocks: Array) -> Array:
     """(raw samples, 6, 6): Σ over motions of ``blocks`` (N, 6, 6) (∂·/∂ε) times ∂ε/∂n_raw (one
     weighted count per entry: no sparse matrix, whose import would cost ``handeye rig`` 0.15 s)."""
-    via_start = blocks @ spread.back
-    terms = np.stack((blocks, blocks, via_start, via_start)).reshape(-1, 36) * spread.share.reshape(-1, 1)
+    n = len(blocks)
+    flat, via_start = blocks.reshape(n, 36), (blocks @ spread.back).reshape(n, 36)
+    terms = np.empty((4, n, 36))                      # (end lo, end hi, start lo, start hi) × motion × entry
+    for r, part in enumerate((flat, flat, via_start, via_start)):
+        np.multiply(part, spread.share[r, :, None], out=terms[r])      # in place: no stacked copy
     at = (spread.raw.reshape(-1, 1) * 36 + np.arange(36)).ravel()
     return np.asarray(np.bincount(at, weights=terms.ravel(), minlength=36 * spread.samples), dtype=np.float64
                       ).reshape(-1, 6, 6)
 
 
-def _regressor(synced: Synced, start: NDArray[np.int64], end: NDArray[np.int64]) -> Array:
-    """``Δt Ad(T_a,end⁻¹)`` (N, 6, 6): a relative drift ``d``'s share of the motions' residuals."""
+def _regressor(synced: Synced, T_a: Array, start: NDArray[np.int64], end: NDArray[np.int64]) -> Array:
+    """``Δt Ad(T_a,end⁻¹)`` (N, 6, 6): a relative drift ``d``'s share of the motions' residuals (``T_a``: the
+    synced poses of stream a, ``synced.T_a``)."""
     return np.asarray(((synced.stamps_ns[end] - synced.stamps_ns[start]) / 1e9)[:, None, None]
-                      * adjoint(se3.inverse(synced.T_a[end])), dtype=np.float64)
+                      * adjoint(se3.inverse(T_a[end])), dtype=np.float64)
 
 
 def _strided(synced: Synced, strides: NDArray[np.int64], most: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -239,14 +243,16 @@ def _probe(synced: Synced) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     return _strided(synced, ladder(int(np.diff(np.r_[starts, len(seg)]).max())), DRIFT_PROBE)
 
 
-def _drift(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]], G_b: Array) -> EdgeDrift:
+def _drift(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]], G_b: Array,
+           poses: tuple[Array, Array]) -> EdgeDrift:
     """Fit the relative drift of the pair's streams on probe motions (module docstring);
-    ``G_b`` (N, 6, 6): ∂δ/∂ε_B of the estimator's motions, for the bias map."""
+    ``G_b`` (N, 6, 6): ∂δ/∂ε_B of the estimator's motions, for the bias map; ``poses``: the synced poses
+    ``T_a``, ``T_b``."""
     cal = edge.calibration
     syn, X, alpha = cal.synced, cal.matrix, cal.solution.alpha
-    i, j = _probe(syn)
-    A, B = se3.relative(syn.T_a[i], syn.T_a[j]), se3.relative(syn.T_b[i], syn.T_b[j])
-    H = _regressor(syn, i, j)
+    (T_a, T_b), (i, j) = poses, _probe(syn)
+    A, B = se3.relative(T_a[i], T_a[j]), se3.relative(T_b[i], T_b[j])
+    H = _regressor(syn, T_a, i, j)
     r = log_errors(se3.inverse(A) @ X @ B @ se3.inverse(X))      # ≈ Ad(X) ε_B - ε_A = H d
     W = np.repeat([1.0, alpha ** 2], 3)                            # rotation vs translation, as the pair's cost
     L = np.linalg.pinv(np.einsum("nai,a,naj->ij", H, W, H, optimize=True), hermitian=True) @ (np.swapaxes(H, 1, 2) * W)
@@ -256,7 +262,7 @@ def _drift(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]], G_b:
     for side, (M, raw) in enumerate(zip((A, B), raw_ns, strict=True)):
         maps.append(_sample_maps(_spread(M, raw, syn.stamps_ns, i, j), -L if side == 0 else L @ AdX))
     bias = np.einsum("nab,bc,ncd->ad", G_b, adjoint(se3.inverse(X)[None])[0],
-                     _regressor(syn, cal.pairs.i, cal.pairs.j), optimize=True)      # ε_B = Ad(X⁻¹) H d
+                     _regressor(syn, T_a, cal.pairs.i, cal.pairs.j), optimize=True)      # ε_B = Ad(X⁻¹) H d
     return EdgeDrift(rate, (maps[0], maps[1]), bias)
 
 
@@ -280,15 +286,17 @@ def _short_motions(synced: Synced) -> tuple[NDArray[np.int64], NDArray[np.int64]
     return _strided(synced, np.arange(1, SHORT_STRIDE + 1), SHORT_MOTIONS)
 
 
-def _short_energies(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]]) -> tuple[Array, Array]:
+def _short_energies(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]], poses: tuple[Array, Array]
+                    ) -> tuple[Array, Array]:
     """The three-cornered hat's observations of a pair: over its short motions (:func:`_short_motions`,
     where errors that grow with the span — drift, a wrong scale, a slipped mount — add least),
     the expected residual energy per unit variance of each stream (2, 3) and the observed one
-    (2,) at the pairwise estimate: rotation rows, dual rows (α-weighted as the pair was solved)."""
+    (2,) at the pairwise estimate: rotation rows, dual rows (α-weighted as the pair was solved); ``poses``:
+    the synced poses ``T_a``, ``T_b``."""
     cal = edge.calibration
     syn, alpha = cal.synced, cal.solution.alpha
-    i, j = _short_motions(syn)
-    A, B = se3.relative(syn.T_a[i], syn.T_a[j]), se3.relative(syn.T_b[i], syn.T_b[j])
+    (T_a, T_b), (i, j) = poses, _short_motions(syn)
+    A, B = se3.relative(T_a[i], T_a[j]), se3.relative(T_b[i], T_b[j])
     q, qd = dq.from_transforms(cal.matrix)
     E, F = pair_blocks(A, B, alpha)
     r = np.concatenate([E @ q, alpha * (F @ q + E @ qd)], axis=1)
@@ -316,8 +324,9 @@ def edge_noise(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]]) 
         S = _residual_sensitivity(M, q, qd, alpha, side)         # ∂r/∂ε_M
         G = -Hinv @ (np.swapaxes(KD, 1, 2) @ (w[:, None, None] * S))   # ∂δ/∂ε_M
         maps.append(_sample_maps(_spread(M, raw, cal.synced.stamps_ns, cal.pairs.i, cal.pairs.j), G))
-    energy, observed = _short_energies(edge, raw_ns)
-    return EdgeNoise((maps[0], maps[1]), energy, observed, _drift(edge, raw_ns, G))
+    poses = cal.synced.T_a, cal.synced.T_b                     # built once per pair, not on each access
+    energy, observed = _short_energies(edge, raw_ns, poses)
+    return EdgeNoise((maps[0], maps[1]), energy, observed, _drift(edge, raw_ns, G, poses))
 
 
 def stream_variances(n: int, pairs: list[tuple[int, int]], noise: list[EdgeNoise]) -> StreamNoise:

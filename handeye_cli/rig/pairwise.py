@@ -20,7 +20,7 @@ from ..analysis.stream_noise import StreamNoise, stream_noise
 from ..errors import ConfigError, HandEyeError
 from ..options import Options
 from ..pipeline import Calibration, calibrate_read
-from ..solvers.problem import split_forms
+from ..solvers.problem import pair_forms
 from ..streams import PoseStream, StreamMemo
 
 __all__ = ["ClockOffset", "Edge", "clock_offsets", "solve_edges"]
@@ -97,7 +97,8 @@ def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset],
     cal = calibrate_read(streams[j], streams[k], opts, scale_by_fit=False,   # the rig's reader applied the read
                          noise_of=noise)                      # options; a badly scaled stream is named by the rig
     A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
-    return Edge(j, k, cal, split_forms(A, B, np.ones((1, len(A))) if w is None else w[None], cal.solution.alpha)[0])
+    forms = pair_forms(A, B, cal.solution.alpha)           # weighed by einsum, not by a (threaded) matrix product
+    return Edge(j, k, cal, forms.sum(axis=0) if w is None else np.einsum("n,npij->pij", w, forms))
 
 
 def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[ClockOffset],

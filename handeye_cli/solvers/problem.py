@@ -40,7 +40,7 @@ from ..geometry import se3
 from ..geometry.dualquat import _L_INDEX, _L_SIGN
 
 __all__ = ["Prior", "Problem", "build_problem", "checked_arrays", "motion_problem", "pair_blocks",
-           "problem_from_blocks", "split_forms", "validate_motions"]
+           "pair_forms", "problem_from_blocks", "split_forms", "validate_motions"]
 
 _G = np.diag([1.0, 1.0, 1.0, 0.0])
 _UPPER8 = np.triu(np.ones((8, 8)))
@@ -388,14 +388,20 @@ def pair_blocks(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1.0
     return dq.pair_difference_blocks(motions_a, motions_b, alpha)
 
 
-def split_forms(A: FloatArray, B: FloatArray, counts: FloatArray, alpha: float) -> FloatArray:
-    """The rotational and dual 8x8 cost matrices (``[q'; q]`` order) of motion pairs ``A_i X = X B_i``
-    (N, 4, 4) weighted by each row of ``counts`` (R, N): (R, 2, 8, 8), the dual part scaled by α²."""
+def pair_forms(A: FloatArray, B: FloatArray, alpha: float) -> FloatArray:
+    """Each motion pair's rotational and dual 8x8 cost matrix (``[q'; q]`` order) of ``A_i X = X B_i``
+    (N, 4, 4): (N, 2, 8, 8), the dual part scaled by α²."""
     E, F = pair_blocks(A, B, alpha)
     rot = np.zeros((len(E), 8, 8))
     rot[:, 4:, 4:] = np.einsum("nki,nkj->nij", E, E)
     EF = np.concatenate((E, F), axis=2)                       # rows E q' + F q on [q'; q]
-    grams = np.stack((rot, alpha ** 2 * np.einsum("nki,nkj->nij", EF, EF)), axis=1).reshape(len(E), -1)
+    return np.stack((rot, alpha ** 2 * np.einsum("nki,nkj->nij", EF, EF)), axis=1)
+
+
+def split_forms(A: FloatArray, B: FloatArray, counts: FloatArray, alpha: float) -> FloatArray:
+    """The rotational and dual 8x8 cost matrices (``[q'; q]`` order) of motion pairs ``A_i X = X B_i``
+    (N, 4, 4) weighted by each row of ``counts`` (R, N): (R, 2, 8, 8), the dual part scaled by α²."""
+    grams = pair_forms(A, B, alpha).reshape(len(A), -1)
     return np.asarray((np.asarray(counts, dtype=float) @ grams).reshape(-1, 2, 8, 8), dtype=np.float64)
 
 

@@ -240,14 +240,17 @@ def _masked_ncc(f: np.ndarray, mf: np.ndarray, g: np.ndarray, mg: np.ndarray
     """
     f = np.where(mf, f - f[mf].mean(), 0.0)
     g = np.where(mg, g - g[mg].mean(), 0.0)
-    mf, mg = mf.astype(float), mg.astype(float)
+    size = _fast_len(len(f) + len(g) - 1)
+    # each signal's spectrum once (three of f's, three of g's), not once per correlation it enters (six)
+    Mf, Ff, Ff2 = (np.fft.rfft(x, size) for x in (mf.astype(float), f, f * f))
+    Mg, Gg, Gg2 = (np.fft.rfft(x, size) for x in (mg.astype(float), g, g * g))
 
-    def xc(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return _correlate(v, u)
+    def xc(U: np.ndarray, V: np.ndarray) -> np.ndarray:
+        return _from_spectra(V, U, size, len(g), len(f))
 
-    n = np.round(xc(mf, mg))
-    sf, sg = xc(f, mg), xc(mf, g)
-    sff, sgg, sfg = xc(f * f, mg), xc(mf, g * g), xc(f, g)
+    n = np.round(xc(Mf, Mg))
+    sf, sg = xc(Ff, Mg), xc(Mf, Gg)
+    sff, sgg, sfg = xc(Ff2, Mg), xc(Mf, Gg2), xc(Ff, Gg)
     safe = np.maximum(n, 1)
     cov = sfg - sf * sg / safe
     var = np.maximum(sff - sf ** 2 / safe, 0) * np.maximum(sgg - sg ** 2 / safe, 0)
@@ -260,8 +263,14 @@ def _correlate(v: np.ndarray, u: np.ndarray) -> np.ndarray:
     ``scipy.signal.correlate(v, u, mode="full", method="fft")`` computes (tests check that they agree),
     with numpy's FFTs, without importing ``scipy.signal`` (1 s of start-up) or ``scipy.fft``."""
     n = _fast_len(len(v) + len(u) - 1)
-    full = np.fft.irfft(np.fft.rfft(v, n) * np.conj(np.fft.rfft(u, n)), n)
-    return np.concatenate((full[n - len(u) + 1:], full[:len(v)]))
+    return _from_spectra(np.fft.rfft(v, n), np.fft.rfft(u, n), n, len(v), len(u))
+
+
+def _from_spectra(V: np.ndarray, U: np.ndarray, n: int, len_v: int, len_u: int) -> np.ndarray:
+    """:func:`_correlate` of ``v``, ``u`` (lengths ``len_v``, ``len_u``) from their real FFTs ``V``, ``U`` of
+    length ``n ≥ len_v + len_u - 1``."""
+    full = np.fft.irfft(V * np.conj(U), n)
+    return np.concatenate((full[n - len_u + 1:], full[:len_v]))
 
 
 def _prominent_peaks(x: np.ndarray, prominence: float, height: float) -> np.ndarray:
