@@ -97,7 +97,8 @@ def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset],
     cal = calibrate_read(streams[j], streams[k], opts, scale_by_fit=False,   # the rig's reader applied the read
                          noise_of=noise)                      # options; a badly scaled stream is named by the rig
     A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
-    return Edge(j, k, cal, split_forms(A, B, np.ones((1, len(A))) if w is None else w[None], cal.solution.alpha)[0])
+    counts = np.ones((1, len(A))) if w is None else w[None]
+    return Edge(j, k, cal, split_forms(A, B, counts, cal.solution.alpha, cal.matrix)[0])
 
 
 def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[ClockOffset],
