@@ -57,23 +57,32 @@ def dual_quaternion(T: np.ndarray, dtype=np.float64) -> tuple[np.ndarray, np.nda
     return q, qmul(t, q) / 2
 
 
-def _agree(qa: np.ndarray, qad: np.ndarray, qb: np.ndarray, qbd: np.ndarray, alpha: float
-           ) -> tuple[np.ndarray, np.ndarray]:
-    """``Q_B ~ -Q_B``: the sign whose dual scalar ``(w, α w')`` agrees with ``Q_A``'s (conjugation keeps it)."""
-    agree = np.where(qa[:, 3] * qb[:, 3] + alpha ** 2 * qad[:, 3] * qbd[:, 3] < 0, -1, 1).astype(qb.dtype)[:, None]
+def _agree(qa: np.ndarray, qad: np.ndarray, qb: np.ndarray, qbd: np.ndarray, alpha: float,
+           signs_by: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``Q_B ~ -Q_B``: the sign whose dual scalar ``(w, α w')`` agrees with ``Q_A``'s (conjugation keeps it),
+    or with ``signs_by`` (an estimate of X, 4x4) the sign whose term of cost (8) is the smaller there."""
+    if signs_by is None:
+        dot = qa[:, 3] * qb[:, 3] + alpha ** 2 * qad[:, 3] * qbd[:, 3]
+    else:
+        qx, qxd = dual_quaternion(signs_by, qa.dtype)
+        real_a, real_b = qmul(qa, qx), qmul(qx, qb)
+        dual_a, dual_b = qmul(qad, qx) + qmul(qa, qxd), qmul(qxd, qb) + qmul(qx, qbd)
+        dot = np.sum(real_a * real_b, -1) + alpha ** 2 * np.sum(dual_a * dual_b, -1)
+    agree = np.where(dot < 0, -1, 1).astype(qb.dtype)[:, None]
     return agree * qb, agree * qbd
 
 
 def cost(A: np.ndarray, B: np.ndarray, X: np.ndarray, alpha: float, weights: np.ndarray | None = None,
-         prior: tuple[np.ndarray, float, float] | None = None) -> float:
+         prior: tuple[np.ndarray, float, float] | None = None, signs_by: np.ndarray | None = None) -> float:
     """``Σ w_i |Q_A ⊗ Q_X − Q_X ⊗ Q_B|²_α`` (cost 8), plus ``a |vec δq|² + b |δq'|²`` (eq 26); the sign of
-    each ``Q_B`` agrees with ``Q_A``'s dual scalar part ``w + ε w'`` (weighed by α)."""
+    each ``Q_B`` agrees with ``Q_A``'s dual scalar part ``w + ε w'`` (weighed by α), or is the one of smaller
+    cost at ``signs_by`` (:func:`_agree`)."""
     ld = np.longdouble
     qa, qad = dual_quaternion(A, ld)
     qb, qbd = dual_quaternion(B, ld)
     qx, qxd = dual_quaternion(X, ld)
     alpha = ld(alpha)
-    qb, qbd = _agree(qa, qad, qb, qbd, alpha)
+    qb, qbd = _agree(qa, qad, qb, qbd, alpha, None if signs_by is None else np.asarray(signs_by, dtype=ld))
     real = qmul(qa, qx) - qmul(qx, qb)
     dual = qmul(qad, qx) + qmul(qa, qxd) - qmul(qxd, qb) - qmul(qx, qbd)
     w = np.ones(len(A), dtype=ld) if weights is None else np.asarray(weights, dtype=ld)
@@ -108,9 +117,9 @@ class Residuals:
     call is one product with the dual quaternion of ``transform(params)``."""
 
     def __init__(self, A: np.ndarray, B: np.ndarray, alpha: float,
-                 prior: tuple[np.ndarray, float, float] | None = None) -> None:
+                 prior: tuple[np.ndarray, float, float] | None = None, signs_by: np.ndarray | None = None) -> None:
         qa, qad = dual_quaternion(A)
-        qb, qbd = _agree(qa, qad, *dual_quaternion(B), alpha)
+        qb, qbd = _agree(qa, qad, *dual_quaternion(B), alpha, signs_by)
         cp = None
         if prior is not None:
             T_p, a, b = prior

@@ -146,9 +146,9 @@ def linear_covariance(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Float
     Hessian the pseudo-inverse is used and ``singular`` is set.
     """
     A, B, w = validate_motions(motions_a, motions_b, weights)
-    E, F = pair_blocks(A, B, alpha)
-    problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)   # the blocks serve both
     q, qd = dq.from_transforms(np.asarray(T_a_b, dtype=np.float64))
+    E, F = pair_blocks(A, B, alpha, T_a_b)                # signs agreed by T_a_b, as the solver agrees them
+    problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)   # the blocks serve both
     D, H, _ = constrained_hessian(np.block([[problem.S, problem.W], [problem.W.T, problem.M]]), q, qd)
     r_rot = E @ q                                                   # (N, 4)
     r_dual = alpha * (F @ q + E @ qd)

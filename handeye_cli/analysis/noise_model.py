@@ -69,9 +69,10 @@ def pair_features(stamps_ns: NDArray[np.int64], path_m: NDArray[np.float64], i: 
 
 def cost_residuals(motions_a: NDArray[np.float64], motions_b: NDArray[np.float64], T_a_b: NDArray[np.float64]
                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Per pair ``(2|E q|, 2|F q + E q'|)``: cost-(8) residuals in radians and metres (small errors)."""
-    E, F = pair_blocks(motions_a, motions_b)
+    """Per pair ``(2|E q|, 2|F q + E q'|)``: cost-(8) residuals in radians and metres (small errors), each
+    pair's signs agreed by ``T_a_b`` (as the solver agrees them)."""
     q, qd = dq.from_transforms(np.asarray(T_a_b, dtype=float))
+    E, F = pair_blocks(motions_a, motions_b, reference=T_a_b)
     return 2.0 * np.linalg.norm(E @ q, axis=1), 2.0 * np.linalg.norm(F @ q + E @ qd, axis=1)
 
 

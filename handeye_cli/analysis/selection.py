@@ -183,10 +183,11 @@ def _level_errors(A: NDArray[np.float64], B: NDArray[np.float64], w: NDArray[np.
     tilt of the rotation axes, and its inverse (metres to tens of metres, varying from level to level
     by chance) would otherwise decide the levels, keeping one long stride whose few spans starve the
     yaw the translations alone carry."""
+    q, qd = dq.from_transforms(X)
     Q = np.zeros((len(scale), 8, 8))                          # each level's cost form, [q'; q] order: its pairs'
-    np.add.at(Q, level, w[:, None, None] * pair_forms(A, B, alpha).sum(axis=1))   # summed (no (L, N) product)
+    np.add.at(Q, level, w[:, None, None] * pair_forms(A, B, alpha, X).sum(axis=1))   # summed (no (L, N) product)
     P = np.eye(6) if axis is None else _without_translation_along(axis)     # δ = P η
-    D = tangent_basis(*dq.from_transforms(X))[_Q_PRIME_FIRST] @ P      # dx/dη with x = [q'; q]
+    D = tangent_basis(q, qd)[_Q_PRIME_FIRST] @ P              # dx/dη with x = [q'; q]
     cov = P @ np.linalg.pinv(scale[:, None, None] * (D.T @ Q @ D), hermitian=True) @ P.T
     traces = np.stack([np.trace(cov[:, :3, :3], axis1=1, axis2=2), np.trace(cov[:, 3:, 3:], axis1=1, axis2=2)], 1)
     errors: NDArray[np.float64] = np.sqrt(np.maximum(traces, 0.0))

@@ -19,6 +19,7 @@ calibrate``'s start-up: importing ``scipy.spatial.transform`` (with the ``scipy.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .._typing import FloatArray
 
@@ -277,36 +278,57 @@ def difference_blocks(qab: FloatArray, out: FloatArray | None = None) -> FloatAr
     return np.matmul(_BLOCK, qab, out=out)
 
 
-def align_signs(both: FloatArray, alpha: float) -> FloatArray:
+def sign_flips(both: FloatArray, alpha: float, reference: FloatArray | None = None) -> NDArray[np.bool_]:
+    """Which ``Q_b`` of ``both`` (2, 4, 2n: ``[q; q']`` x-y-z-w of n motions of a, then of n motions of b) take
+    the opposite sign for their ``Q_a`` (see :func:`align_signs`): (n,) booleans.
+
+    Without ``reference``, by the invariants: conjugation keeps the dual scalar part ``(w, w')`` (the
+    screw's angle and pitch), so ``Q_b``'s sign is the one whose ``(w_b, w'_b)`` has a non-negative product
+    ``w_a w_b + α² w'_a w'_b`` with ``(w_a, w'_a)`` (α [1/m]: the cost's weight of the dual part). Away from a
+    half-turn that is the sign making ``w ≥ 0``; near a half-turn (``w ≈ 0``) noise can flip one ``w``, and
+    where the pitch is small too (a half-turn of an arm's wrist between two stations) the invariants cannot
+    tell. With ``reference``, an estimate of ``X`` (4, 4): the sign that gives the pair the smaller cost
+    at it, ``|Q_a ⊗ Q_X − Q_X ⊗ Q_b|²`` with the dual part weighed by α², which tells at every angle."""
+    n = both.shape[2] // 2
+    if reference is None:
+        flips: NDArray[np.bool_] = both[0, 3, :n] * both[0, 3, n:] + alpha * alpha * both[1, 3, :n] * both[1, 3, n:] < 0
+        return flips
+    r, rd = from_transforms(reference)
+    qa, qad, qb, qbd = both[0, :, :n], both[1, :, :n], both[0, :, n:], both[1, :, n:]
+    Rr, Lr = right(r), left(r)
+    u, ud = Rr @ qa, Rr @ qad + right(rd) @ qa                  # Q_a ⊗ Q_X
+    v, vd = Lr @ qb, left(rd) @ qb + Lr @ qbd                    # Q_X ⊗ Q_b
+    flips = np.einsum("in,in->n", u, v) + alpha * alpha * np.einsum("in,in->n", ud, vd) < 0
+    return flips
+
+
+def align_signs(both: FloatArray, alpha: float, reference: FloatArray | None = None) -> FloatArray:
     """Flip, in place, the signs of the b half of ``both`` (2, 4, 2n): ``[q; q']`` (x-y-z-w) of n motions
     of a, then of n motions of b, so that each ``Q_b`` has the sign of its ``Q_a``; returns ``both``.
 
     The blocks need the signs of ``Q_a`` and ``Q_b`` to agree (``Q_a = Q_X ⊗ Q_b ⊗ Q_X*``, not
-    ``-Q_X ⊗ Q_b ⊗ Q_X*``). Conjugation keeps the dual scalar part ``(w, w')`` (the screw's angle and
-    pitch invariants), so the sign of ``Q_b`` is the one whose ``(w_b, w'_b)`` has a non-negative
-    product ``w_a w_b + α² w'_a w'_b`` with ``(w_a, w'_a)`` (α [1/m]: the cost's weight of the dual
-    part). Away from a half-turn that is the sign making ``w ≥ 0``; near a half-turn (``w ≈ 0``) noise
-    can flip one ``w`` — a pair then costs as much as a 180° error — and the pitch part ``w' = -½ t·v``
-    decides."""
-    n = both.shape[2] // 2
-    flip = both[0, 3, :n] * both[0, 3, n:] + alpha * alpha * both[1, 3, :n] * both[1, 3, n:] < 0
+    ``-Q_X ⊗ Q_b ⊗ Q_X*``); a pair whose signs disagree costs as much as a 180° error. The sign is told
+    by the invariants at α [1/m], or by ``reference`` (an estimate of X, 4×4): :func:`sign_flips`."""
+    flip = sign_flips(both, alpha, reference)
     if flip.any():
+        n = both.shape[2] // 2
         b = both[:, :, n:]
         b[:, :, flip] *= -1.0
     return both
 
 
-def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray, alpha: float = 1.0) -> tuple[FloatArray, FloatArray]:
+def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray, alpha: float = 1.0,
+                           reference: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
     """``L(q_a) - R(q_b)`` and ``L(q'_a) - R(q'_b)`` (…, 4, 4) of the (broadcast) transforms
     ``Ta``, ``Tb`` (…, 4, 4): both stacks are converted in one pass, their signs agreed
-    (:func:`align_signs`, α [1/m]) and the blocks formed by one product."""
+    (:func:`align_signs`, α [1/m], ``reference``) and the blocks formed by one product."""
     Ta, Tb = np.asarray(Ta, dtype=np.float64), np.asarray(Tb, dtype=np.float64)
     if Ta.shape != Tb.shape:
         Ta, Tb = np.broadcast_arrays(Ta, Tb)
     shape = Ta.shape[:-2] + (4, 4)
     a, b = Ta.reshape(-1, 16), Tb.reshape(-1, 16)
     n = len(a)
-    both = align_signs(_from_rows(np.concatenate((a[:, :12], b[:, :12])).T.copy()), alpha)   # (2, 4, 2n)
+    both = align_signs(_from_rows(np.concatenate((a[:, :12], b[:, :12])).T.copy()), alpha, reference)   # (2, 4, 2n)
     pairs = np.empty((2, n, 8))                                # rows [q_a, q_b] for E, then [q'_a, q'_b] for F
     pairs[:, :, :4] = both[:, :, :n].transpose(0, 2, 1)
     pairs[:, :, 4:] = both[:, :, n:].transpose(0, 2, 1)

@@ -298,7 +298,7 @@ def _short_energies(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int6
     (T_a, T_b), (i, j) = poses, _short_motions(syn)
     A, B = se3.relative(T_a[i], T_a[j]), se3.relative(T_b[i], T_b[j])
     q, qd = dq.from_transforms(cal.matrix)
-    E, F = pair_blocks(A, B, alpha)
+    E, F = pair_blocks(A, B, alpha, cal.matrix)
     r = np.concatenate([E @ q, alpha * (F @ q + E @ qd)], axis=1)
     energy = np.stack([_white_energy(M, _residual_sensitivity(M, q, qd, alpha, side), raw, syn.stamps_ns, i, j)
                        for side, (M, raw) in enumerate(zip((A, B), raw_ns, strict=True))])
@@ -313,7 +313,7 @@ def edge_noise(edge: Edge, raw_ns: tuple[NDArray[np.int64], NDArray[np.int64]]) 
     w = np.ones(len(A)) if cal.weights is None else np.asarray(cal.weights, dtype=float)
     alpha = cal.solution.alpha
     q, qd = dq.from_transforms(cal.matrix)
-    E, F = pair_blocks(A, B, alpha)
+    E, F = pair_blocks(A, B, alpha, cal.matrix)
     Z = np.zeros_like(E)
     K = np.concatenate([np.concatenate([E, Z], axis=2), alpha * np.concatenate([F, E], axis=2)], axis=1)  # rows on x
     D, H, _ = constrained_hessian(np.einsum("n,nki,nkj->ij", w, K, K), q, qd)

@@ -97,7 +97,7 @@ def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset],
     cal = calibrate_read(streams[j], streams[k], opts, scale_by_fit=False,   # the rig's reader applied the read
                          noise_of=noise)                      # options; a badly scaled stream is named by the rig
     A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
-    forms = pair_forms(A, B, cal.solution.alpha)           # weighed by einsum, not by a (threaded) matrix product
+    forms = pair_forms(A, B, cal.solution.alpha, cal.matrix)   # weighed by einsum, not by a (threaded) product
     return Edge(j, k, cal, forms.sum(axis=0) if w is None else np.einsum("n,npij->pij", w, forms))
 
 

@@ -25,6 +25,7 @@ from .problem import (
     Problem,
     build_problem,
     checked_arrays,
+    disagreeing_signs,
     eigh,
     motion_problem,
     pair_blocks,
@@ -36,6 +37,7 @@ __all__ = ["Certificate", "METHODS", "OPTIMAL", "Prior", "Problem", "Solution", 
 
 METHODS = ("dqopt", "dq2steps", "dqconvrlx", "dq2ndord", "dqitr", "daniilidis", *CLASSICAL)
 OPTIMAL = ("dqopt", "dqitr")
+_SIGN_ROUNDS = 3         # re-solves with the signs of the estimate (one suffices but for a chain of half-turns)
 """The methods that claim the global minimum of cost (8): a failed certificate of theirs is a warning."""
 
 
@@ -173,11 +175,29 @@ def solve(motions_a: FloatArray, motions_b: FloatArray, method: str = "dqopt", a
         raise ConfigError(f"unknown method {method!r}", "method", f"choose one of {', '.join(METHODS)}")
     if method == "daniilidis":                                 # needs the per-pair blocks: few pairs
         A, B, w = validate_motions(motions_a, motions_b, weights)
-        E, F = pair_blocks(A, B, alpha)
-        problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)
     else:
         A, B, w = checked_arrays(motions_a, motions_b, weights)
-        problem = motion_problem(A, B, w, alpha=alpha, prior=prior)    # the one pass over the motions
+    solution = _solved(A, B, w, method, alpha, prior, None)
+    # A half-turn's pair whose signs the invariants told wrong costs as much as a 180° error: agree them by the
+    # estimate and solve again, until the estimate's signs stand (each round lowers cost (8) at the estimate).
+    before = None
+    for _ in range(_SIGN_ROUNDS):
+        reference = solution.matrix
+        if not disagreeing_signs(A, B, alpha, reference, before):
+            break
+        solution, before = _solved(A, B, w, method, alpha, prior, reference), reference
+    return solution
+
+
+def _solved(A: FloatArray, B: FloatArray, w: FloatArray, method: str, alpha: float, prior: Prior | None,
+            reference: FloatArray | None) -> Solution:
+    """:func:`solve` on checked motions, each pair's signs agreed at α or by ``reference`` (an estimate of X,
+    4×4: :func:`~handeye_cli.geometry.dualquat.sign_flips`)."""
+    if method == "daniilidis":
+        E, F = pair_blocks(A, B, alpha, reference)
+        problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)
+    else:
+        problem = motion_problem(A, B, w, alpha=alpha, prior=prior, reference=reference)   # one pass over them
     if prior is None:
         _check_determined(problem)
     common = partial(Solution, method=method, alpha=float(alpha), pairs=len(A), problem=problem)

@@ -381,17 +381,18 @@ def validate_motions(motions_a: FloatArray, motions_b: FloatArray,
     return A, B, w
 
 
-def pair_blocks(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1.0) -> tuple[FloatArray, FloatArray]:
+def pair_blocks(motions_a: FloatArray, motions_b: FloatArray, alpha: float = 1.0,
+                reference: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
     """The per-pair blocks ``E_i = L(q_C) - R(q_H)`` and ``F_i = L(q'_C) - R(q'_H)`` (eqs 6–7), (N,4,4) each;
-    the sign of ``Q_H`` agrees with ``Q_C``'s dual scalar part weighed by α [1/m]
-    (:func:`~handeye_cli.geometry.dualquat.align_signs`)."""
-    return dq.pair_difference_blocks(motions_a, motions_b, alpha)
+    the sign of ``Q_H`` agrees with ``Q_C``'s dual scalar part weighed by α [1/m], or is the one that costs
+    less at ``reference``, an estimate of X (4, 4): :func:`~handeye_cli.geometry.dualquat.sign_flips`."""
+    return dq.pair_difference_blocks(motions_a, motions_b, alpha, reference)
 
 
-def pair_forms(A: FloatArray, B: FloatArray, alpha: float) -> FloatArray:
+def pair_forms(A: FloatArray, B: FloatArray, alpha: float, reference: FloatArray | None = None) -> FloatArray:
     """Each motion pair's rotational and dual 8x8 cost matrix (``[q'; q]`` order) of ``A_i X = X B_i``
-    (N, 4, 4): (N, 2, 8, 8), the dual part scaled by α²."""
-    E, F = pair_blocks(A, B, alpha)
+    (N, 4, 4): (N, 2, 8, 8), the dual part scaled by α²; signs as :func:`pair_blocks` agrees them."""
+    E, F = pair_blocks(A, B, alpha, reference)
     rot = np.zeros((len(E), 8, 8))
     rot[:, 4:, 4:] = np.einsum("nki,nkj->nij", E, E)
     EF = np.concatenate((E, F), axis=2)                       # rows E q' + F q on [q'; q]
@@ -405,9 +406,10 @@ def split_forms(A: FloatArray, B: FloatArray, counts: FloatArray, alpha: float) 
     return np.asarray((np.asarray(counts, dtype=float) @ grams).reshape(-1, 2, 8, 8), dtype=np.float64)
 
 
-def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float, chunk: int) -> FloatArray:
-    """The 8x8 R factor of the rows ``√w_i [E_i F_i]`` of all pairs (signs agreed at α [1/m]: see
-    :func:`~handeye_cli.geometry.dualquat.align_signs`), in one checked pass (TSQR).
+def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float, chunk: int,
+                   reference: FloatArray | None = None) -> FloatArray:
+    """The 8x8 R factor of the rows ``√w_i [E_i F_i]`` of all pairs (signs agreed at α [1/m] or by ``reference``:
+    see :func:`~handeye_cli.geometry.dualquat.sign_flips`), in one checked pass (TSQR).
 
     Per chunk, the pairs' dual quaternions give the blocks by one product
     (:func:`~handeye_cli.geometry.dualquat.difference_blocks`), laid out as the columns of Fortran-ordered
@@ -424,7 +426,7 @@ def _motion_factor(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float, ch
     k = 0
     for start, stop, X in _checked_chunks(A, B, chunk, block, work):
         m, p = stop - start, X.shape[1] // 2
-        qq = dq.align_signs(dq._from_rows(X, both[:, :, :2 * p], work[:, :2 * p]), alpha)   # a (p), then b (p)
+        qq = dq.align_signs(dq._from_rows(X, both[:, :, :2 * p], work[:, :2 * p]), alpha, reference)   # a, then b
         if sw is not None:
             qq[:, :, :m] *= sw[start:stop]
             qq[:, :, p:p + m] *= sw[start:stop]
@@ -463,10 +465,27 @@ def _reduced_problem(Rm: FloatArray, pairs: int, alpha: float, prior: Prior | No
 
 
 def motion_problem(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float = 1.0,
-                   prior: Prior | None = None, chunk: int = CHUNK) -> Problem:
+                   prior: Prior | None = None, chunk: int = CHUNK, reference: FloatArray | None = None) -> Problem:
     """:func:`build_problem` from the arrays of :func:`checked_arrays`: reads, checks and reduces the
-    motions in one pass of ``chunk`` pairs at a time."""
-    return _reduced_problem(_motion_factor(A, B, w, alpha, chunk), len(A), alpha, prior)
+    motions in one pass of ``chunk`` pairs at a time; each pair's signs agreed at α or by ``reference`` (an
+    estimate of X, 4×4: :func:`~handeye_cli.geometry.dualquat.sign_flips`)."""
+    return _reduced_problem(_motion_factor(A, B, w, alpha, chunk, reference), len(A), alpha, prior)
+
+
+def disagreeing_signs(A: FloatArray, B: FloatArray, alpha: float, reference: FloatArray,
+                      before: FloatArray | None = None) -> bool:
+    """Whether some pair's signs, agreed at α [1/m] (or by the earlier estimate ``before``), are not those
+    that cost less at the estimate ``reference`` of X (4×4; checked motions (N, 4, 4), read :data:`CHUNK`
+    pairs at a time): then that pair costs as much as a half-turn's error at the estimate, and the problem is
+    built again with ``reference``'s signs (:func:`~handeye_cli.solvers.solve`)."""
+    n = len(A)
+    Af, Bf = A.reshape(n, 16), B.reshape(n, 16)
+    for start in range(0, n, CHUNK):
+        stop = min(start + CHUNK, n)
+        both = dq._from_rows(np.concatenate((Af[start:stop, :12], Bf[start:stop, :12])).T.copy())
+        if (dq.sign_flips(both, alpha, before) != dq.sign_flips(both, alpha, reference)).any():
+            return True
+    return False
 
 
 def problem_from_blocks(E: FloatArray, F: FloatArray, w: FloatArray, alpha: float = 1.0,
