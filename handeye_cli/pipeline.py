@@ -434,7 +434,7 @@ def _with_scale(stream_a: PoseStream, stream_b: PoseStream, paired: _Paired, opt
     est = solve_with_scale(pairs.A, pairs.B, alpha=alpha, samples=(pairs.i, pairs.j),
                            translation_noise=noise.translation_variances(pairs.i, pairs.j))
     diagnostics["scale"] = {**est.as_dict(), "value": est.scale * given, "std": est.scale_std * given,
-                            "linear": est.linear_scale * given}
+                            "std_of_data": est.std_of_data * given, "linear": est.linear_scale * given}
     return (replace(kept, xyz_b=kept.xyz_b * est.scale),
             replace(pairs, B=scale_translations(pairs.B, est.scale)))
 
