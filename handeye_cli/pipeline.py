@@ -484,18 +484,24 @@ def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options, offse
     return kept, pairs, samples, stations, selection
 
 
-def _with_scale(kept: Synced, pairs: Pairs, options: Options, diagnostics: dict[str, Any],
-                selection: Selection | None = None, given: float = 1.0) -> tuple[Synced, Pairs]:
-    """``--scale auto``: estimate b's scale with T_a_b and return b's samples and motions in metres. With a
+def _with_scale(stream_a: PoseStream, stream_b: PoseStream, paired: _Paired, options: Options,
+                diagnostics: dict[str, Any], noise_of: Callable[[PoseStream], StreamNoise | None],
+                given: float = 1.0) -> tuple[Synced, Pairs]:
+    """``--scale auto``: estimate b's scale with T_a_b on ``paired`` (made of ``stream_b``, in metres per ``given``
+    unit) and return b's samples and motions in metres. The translation noise of both streams (their jitter, as
+    the fit test reads it) weighs the residuals against the errors in variables (:mod:`~.solvers.scale`). With a
     ``selection`` made on b already scaled by ``given``, its α is used and the scale refined; not its weights,
     which favour short drifting pairs whose translations are mostly noise and so bias the scale low
     (errors in variables: 0.433 ± 0.021 weighted against 0.491 ± 0.004 unweighted for kinhec's 0.5)."""
+    kept, pairs, _, stations, selection = paired
     alpha = 1.0 if options.solver.alpha == "auto" else float(options.solver.alpha)
     if selection is not None and options.solver.alpha == "auto":
         alpha = selection.alpha
-    est = solve_with_scale(pairs.A, pairs.B, alpha=alpha, samples=(pairs.i, pairs.j))
+    noise = sample_noise(stream_a, stream_b, kept, stations, options.sync.sync, noise_of)
+    est = solve_with_scale(pairs.A, pairs.B, alpha=alpha, samples=(pairs.i, pairs.j),
+                           translation_noise=noise.translation_variances(pairs.i, pairs.j))
     diagnostics["scale"] = {**est.as_dict(), "value": est.scale * given, "std": est.scale_std * given,
-                            "linear": est.linear_scale * given}
+                            "std_of_data": est.std_of_data * given, "linear": est.linear_scale * given}
     return (replace(kept, xyz_b=kept.xyz_b * est.scale),
             replace(pairs, B=scale_translations(pairs.B, est.scale)))
 
@@ -522,23 +528,25 @@ def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float,
 
 
 def _scaled(stream_a: PoseStream, stream_b: PoseStream, paired: _Paired, options: Options, offset_ns: int,
-            prior: Prior | None, diagnostics: dict[str, Any]) -> _Paired:
+            prior: Prior | None, diagnostics: dict[str, Any],
+            noise_of: Callable[[PoseStream], StreamNoise | None]) -> _Paired:
     """``--scale auto`` (and b's units found by the fit): b's scale estimated with ``T_a_b`` on ``paired``
     (:func:`pairs_of`'s); with the ``auto`` pair strategy the pairs, weights and α are then chosen again on b
     scaled by that estimate, and the scale refined on them. Returns the pairing in metres."""
-    kept, pairs, samples, stations, selection = paired
-    kept, pairs = _with_scale(kept, pairs, options, diagnostics)
+    kept, pairs = _with_scale(stream_a, stream_b, paired, options, diagnostics, noise_of)
+    _, _, samples, stations, selection = paired
     if selection is None:
         return kept, pairs, samples, stations, selection
     scale = float(diagnostics["scale"]["value"])
-    kept, pairs, samples, stations, selection = pairs_of(stream_a, replace(stream_b, xyz=stream_b.xyz * scale),
-                                                         options, offset_ns, prior)
-    kept, pairs = _with_scale(kept, pairs, options, diagnostics, selection, scale)
-    return kept, pairs, samples, stations, selection
+    scaled_b = replace(stream_b, xyz=stream_b.xyz * scale)
+    paired = pairs_of(stream_a, scaled_b, options, offset_ns, prior)
+    kept, pairs = _with_scale(stream_a, scaled_b, paired, options, diagnostics, noise_of, scale)
+    return kept, pairs, *paired[2:]
 
 
 def _scale_by_fit(stream_a: PoseStream, stream_b: PoseStream, paired: _Paired, X: np.ndarray, options: Options,
-                  offset_ns: int, prior: Prior | None, diagnostics: dict[str, Any], warnings: list[str]
+                  offset_ns: int, prior: Prior | None, diagnostics: dict[str, Any], warnings: list[str],
+                  noise_of: Callable[[PoseStream], StreamNoise | None]
                   ) -> tuple[_Paired, tuple[Solution, float, np.ndarray | None, RobustResult | None]] | None:
     """b's translations in other units, found by the fit (:func:`~.analysis.readings.scale_reading` at the
     solution ``X`` of the pairs): decisively better scaled (monocular units), the scale is estimated with
@@ -554,7 +562,7 @@ def _scale_by_fit(stream_a: PoseStream, stream_b: PoseStream, paired: _Paired, X
                            f"(median residual {reading.medians_m[0]:.3g} → {reading.medians_m[1]:.3g} m): if its "
                            "scale is off (SLAM), pass --scale auto")
         return None
-    paired = _scaled(stream_a, stream_b, paired, options, offset_ns, prior, diagnostics)
+    paired = _scaled(stream_a, stream_b, paired, options, offset_ns, prior, diagnostics, noise_of)
     solved = _solve_and_analyse(paired[1], options, prior, paired[4], diagnostics)
     warnings.insert(0, f"stream b's translations fit a rigid rig {reading.gain:.3g}× better scaled (median residual "
                        f"{reading.medians_m[0]:.3g} m as given): its scale was estimated with T_a_b, "
@@ -670,7 +678,8 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
         diagnostics["sync"] = kept.describe()
     if opts.solver.scale == "auto":
         kept, pairs, samples, stations, selection = _scaled(stream_a, stream_b, (kept, pairs, samples, stations,
-                                                            selection), opts, offset_ns, prior, diagnostics)
+                                                            selection), opts, offset_ns, prior, diagnostics,
+                                                            noise_of)
     solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, selection, diagnostics)
     verdict = _inversion(kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha,   # thresholds set at α 1
                          inputs or {})
@@ -678,7 +687,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
         diagnostics["inversion"] = verdict.as_dict()
     elif scale_by_fit and opts.solver.scale == 1.0 and prior is None:   # inverted streams also fit "better scaled"
         scaled = _scale_by_fit(stream_a, stream_b, (kept, pairs, samples, stations, selection), solution.matrix,
-                               opts, offset_ns, prior, diagnostics, warnings)
+                               opts, offset_ns, prior, diagnostics, warnings, noise_of)
         if scaled is not None:
             (kept, pairs, samples, stations, selection), (solution, alpha, weights, robust) = scaled
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)

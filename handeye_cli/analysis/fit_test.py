@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .._typing import BoolArray, FloatArray
+from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import FitRejectedError
 from ..geometry import dualquat as dq
 from ..geometry import se3
@@ -76,6 +76,14 @@ class SampleNoise:
     trans_b: FloatArray
     source: str
     streams: dict[str, Any]
+
+    def translation_variances(self, i: IntArray, j: IntArray) -> tuple[FloatArray, FloatArray] | None:
+        """Per pair of samples ``(i, j)``, the per-axis variance of a's and of b's relative translation
+        [m², or b's units² for b], ``σ_i² + σ_j²``; None when either stream's noise is only assumed
+        (sparse poses: :data:`SPARSE_SIGMA_M` is no measurement, and not in b's units)."""
+        if any(self.streams[k].get("assumed") for k in "ab"):
+            return None
+        return self.trans_a[i] ** 2 + self.trans_a[j] ** 2, self.trans_b[i] ** 2 + self.trans_b[j] ** 2
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,19 @@ minimising ``Σ w_i |E_i q|²``, the rotational half of the paper's cost (8)), t
 the residuals ``[rotvec((R_X R_Bi)ᵀ R_Ai R_X), α (R_Ai t_X + t_Ai - s R_X t_Bi - t_X)]``
 (radians and α-weighted metres, as cost (8) weighs them). Quaternions x-y-z-w.
 
+Errors in variables: b's translations carry noise and are multiplied by ``s``, so least squares on
+those residuals is pulled towards a smaller ``s`` (the noise's share of ``s² |t_B|²`` is cheaper to
+explain away by shrinking it): by about ``−Σ var_b / Σ |t_B|²``, −0.06 % on the simulated continuous arm
+of benchmarks/monocular.py (1 mm / 0.1° camera, exact kinematics; mean over 10 seeds, 1.2 of its σ),
+whose mean error over 20 seeds went from −0.68 σ to −0.03 σ with the weighting below.
+Given the per-axis variance of each pair's relative translation in a (``var_a`` [m²]) and in b
+(``var_b`` [unit²]) — the pipeline takes them from the streams' jitter, as the fit test does — each
+translation residual is divided by its standard deviation at the current ``s``, ``√(var_a + s² var_b)``
+(times the median of that at the linear ``s``, to stay in metres): the maximum-likelihood (Deming)
+weighting for noise on both sides, which reduces to regressing b's translations on a's when only b is
+noisy and to the plain residuals when only a is. Without the variances (sparse poses, whose noise is
+only assumed), the plain residuals. The linear estimate, reported beside, is not corrected.
+
 The standard deviation of ``s`` is the Gauss–Newton one, ``σ̂² (JᵀJ)⁻¹``, when the pairs are
 independent. When pairs share samples (all-pairs of N stations carry about N, not N²/2,
 independent observations, and a station's error — noise or robot kinematics — enters every pair
@@ -23,6 +36,16 @@ of error/std 1.9); the jackknife's figure is checked in tests/test_scale.py. Ten
 errors of neighbouring samples are correlated (drifting odometry, an arm's kinematic errors along its path),
 and short groups split what is shared — on 10 seeds of benchmarks/monocular.py, 30 groups covered the
 scale's error at 95 % on 7/10 (continuous arm) and 8/10 (VIO), 10 groups on 9/10 and 10/10.
+
+The scale is b's units in a's metres, and a's metres are only as right as a's own calibration: a
+robot's link lengths and joint zeros, a motion-capture volume's wand. That error is shared by every
+sample — a uniform part of it is indistinguishable from the scale — so no spread within the
+recording shows it. The std therefore adds ``_REFERENCE_RELATIVE_STD`` (0.05 %) of the scale in
+quadrature: a reference right to 0.2 mm in 0.4 m. The simulated UR5's kinematic errors (σ 0.2 mm on
+its lengths, 0.01° on twists and zeros; simulation.arm) shrink or stretch its relative translations
+by 0.056 % RMS over 20 noise-free captures, and without the term the continuous arm of
+benchmarks/monocular.py covered the scale's error on 16/20 seeds (RMS of error/std 1.5). The data's
+part alone is reported beside (``std_of_data``).
 """
 from __future__ import annotations
 
@@ -41,24 +64,41 @@ __all__ = ["ScaleSolution", "linear_scale", "scale_translations", "solve_with_sc
 
 _MAX_RELATIVE_STD = 0.5      # a scale known worse than ±50 % is not determined
 _JACKKNIFE_GROUPS = 10       # at most this many groups of samples left out in turn for the std (see the docstring)
+_REFERENCE_RELATIVE_STD = 5e-4   # a's own metric error, shared by every sample: added to the std (see the docstring)
 
 
 @dataclass(frozen=True)
 class ScaleSolution:
     """``matrix``: 4x4 ``T_a_b`` (translation in metres); ``scale``: metres per unit of stream b;
-    ``scale_std``: its standard deviation; ``linear_scale``: the linear estimate before refinement;
-    ``cost``: half the sum of squared refined residuals."""
+    ``scale_std``: its standard deviation, ``std_of_data`` the part of it the recording shows (without
+    a's own metric error); ``linear_scale``: the linear estimate before refinement; ``cost``: half the
+    sum of squared refined residuals."""
 
     matrix: NDArray[np.float64]
     scale: float
     scale_std: float
     linear_scale: float
     cost: float
+    std_of_data: float
 
     def as_dict(self) -> dict[str, float | str]:
         """The result's ``scale`` block."""
-        return {"value": self.scale, "std": self.scale_std, "linear": self.linear_scale,
-                "meaning": "metres per unit of stream b"}
+        return {"value": self.scale, "std": self.scale_std, "std_of_data": self.std_of_data,
+                "linear": self.linear_scale, "meaning": "metres per unit of stream b"}
+
+
+@dataclass(frozen=True)
+class _Noise:
+    """Per pair, the per-axis variance of a's relative translation ``var_a`` [m²] and of b's ``var_b``
+    [unit²]; ``reference`` [m²]: their combination at the linear scale (median), so that the weighted
+    translation residuals stay near metres and α keeps its meaning."""
+
+    var_a: NDArray[np.float64]
+    var_b: NDArray[np.float64]
+    reference: float
+
+    def subset(self, keep: NDArray[np.bool_]) -> _Noise:
+        return _Noise(self.var_a[keep], self.var_b[keep], self.reference)
 
 
 def scale_translations(T: NDArray[np.float64], scale: float) -> NDArray[np.float64]:
@@ -101,11 +141,15 @@ def _rotation_of(p: NDArray[np.float64], q0: NDArray[np.float64]) -> NDArray[np.
 
 
 def _residuals(p: NDArray[np.float64], A: NDArray[np.float64], B: NDArray[np.float64], q0: NDArray[np.float64],
-               alpha: float, sw: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Per-pair rotation [rad] and α-weighted translation residuals for ``p = [δθ (3), t_X (3), log s]``."""
+               alpha: float, sw: NDArray[np.float64], noise: _Noise | None) -> NDArray[np.float64]:
+    """Per-pair rotation [rad] and α-weighted translation residuals for ``p = [δθ (3), t_X (3), log s]``;
+    with ``noise``, the translation residual in units of its noise at ``s`` (module docstring)."""
     R_X = _rotation_of(p, q0)
+    s = np.exp(p[6])
     rot = dq.to_rotvec(dq.from_matrix(np.swapaxes(R_X @ B[:, :3, :3], 1, 2) @ A[:, :3, :3] @ R_X))
-    trans = A[:, :3, :3] @ p[3:6] + A[:, :3, 3] - np.exp(p[6]) * B[:, :3, 3] @ R_X.T - p[3:6]
+    trans = A[:, :3, :3] @ p[3:6] + A[:, :3, 3] - s * B[:, :3, 3] @ R_X.T - p[3:6]
+    if noise is not None:
+        trans = trans * np.sqrt(noise.reference / (noise.var_a + s ** 2 * noise.var_b))[:, None]
     return np.asarray(np.c_[rot, alpha * trans] * sw[:, None], dtype=np.float64).ravel()
 
 
@@ -141,9 +185,24 @@ def _jackknife_variance(samples: tuple[NDArray[np.int64], NDArray[np.int64]],
     return float((len(theta) - 1) / len(theta) * np.sum((theta - theta.mean()) ** 2))
 
 
+def _noise_of(translation_noise: tuple[NDArray[np.float64], NDArray[np.float64]] | None, n: int,
+              s_lin: float) -> _Noise | None:
+    """The checked per-pair translation variances (``solve_with_scale``'s ``translation_noise``), or None
+    when not given or not positive (noise-free data: the plain residuals are then the same estimate)."""
+    if translation_noise is None:
+        return None
+    var_a, var_b = (np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)) for v in translation_noise)
+    total = var_a + s_lin ** 2 * var_b
+    if not (np.all(np.isfinite(total)) and np.all(var_a >= 0) and np.all(var_b >= 0) and np.all(total > 0)):
+        return None
+    return _Noise(var_a, var_b, float(np.median(total)))
+
+
 def solve_with_scale(motions_a: NDArray[np.float64], motions_b: NDArray[np.float64], *, alpha: float = 1.0,
                      weights: NDArray[np.float64] | None = None,
-                     samples: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None) -> ScaleSolution:
+                     samples: tuple[NDArray[np.int64], NDArray[np.int64]] | None = None,
+                     translation_noise: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+                     ) -> ScaleSolution:
     """``T_a_b`` and the scale of b's translations (see the module docstring).
 
     Parameters
@@ -152,6 +211,8 @@ def solve_with_scale(motions_a: NDArray[np.float64], motions_b: NDArray[np.float
     alpha: weight of the translational residuals [1/m], as in cost (8).
     weights: optional (N,) non-negative pair weights.
     samples: optional sample indices (i, j) of each pair, to account for pairs sharing samples.
+    translation_noise: optional per-pair (or scalar) per-axis variances of a's relative translation [m²]
+        and of b's [unit²], for the errors-in-variables weighting (module docstring).
 
     Raises
     ------
@@ -170,18 +231,21 @@ def solve_with_scale(motions_a: NDArray[np.float64], motions_b: NDArray[np.float
         raise _undetermined(f"the linear estimate is {s_lin:.3g}")
     p0 = np.r_[np.zeros(3), t_X, np.log(s_lin)]
     q0 = dq.from_matrix(R_X)
-    fit = least_squares(_residuals, p0, args=(A, B, q0, alpha, sw), method="lm", x_scale="jac")
+    noise = _noise_of(translation_noise, len(A), s_lin)
+    fit = least_squares(_residuals, p0, args=(A, B, q0, alpha, sw, noise), method="lm", x_scale="jac")
 
     def refit(keep: NDArray[np.bool_]) -> float:
-        return float(least_squares(_residuals, fit.x, args=(A[keep], B[keep], q0, alpha, sw[keep]),
+        return float(least_squares(_residuals, fit.x, args=(A[keep], B[keep], q0, alpha, sw[keep],
+                                                             None if noise is None else noise.subset(keep)),
                                    method="lm", x_scale="jac").x[6])
 
     var_log_s = _gauss_newton_variance(fit) if samples is None else _jackknife_variance(samples, refit)
     scale = float(np.exp(fit.x[6]))
-    std = scale * float(np.sqrt(var_log_s))           # d s = s d(log s)
-    if not std <= _MAX_RELATIVE_STD * scale:
-        raise _undetermined(f"estimate {scale:.3g} ± {std:.2g}")
+    of_data = scale * float(np.sqrt(var_log_s))           # d s = s d(log s)
+    if not of_data <= _MAX_RELATIVE_STD * scale:
+        raise _undetermined(f"estimate {scale:.3g} ± {of_data:.2g}")
+    std = float(np.hypot(of_data, _REFERENCE_RELATIVE_STD * scale))
     X = np.eye(4)
     X[:3, :3] = _rotation_of(fit.x, q0)
     X[:3, 3] = fit.x[3:6]
-    return ScaleSolution(X, scale, std, s_lin, float(fit.cost))
+    return ScaleSolution(X, scale, std, s_lin, float(fit.cost), of_data)
