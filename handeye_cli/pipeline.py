@@ -715,7 +715,9 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
             warnings.append(check.warning())
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    noise = sample_noise(stream_a, stream_b, kept, stations, opts.sync.sync, noise_of)
+    scale = diagnostics.get("scale", {}).get("value")        # b's jitter in metres, as its samples now are
+    metric_b = stream_b if scale is None else replace(stream_b, xyz=stream_b.xyz * float(scale))
+    noise = sample_noise(stream_a, metric_b, kept, stations, opts.sync.sync, noise_of)
     fit = fit_test(pairs, res, solution.matrix, noise, mask=None if weights is None else weights > 0)   # refuses
     diagnostics["fit_test"] = fit.as_dict()                                         # what no rigid rig gives
     rejected = fit.refusal(opts, stations is not None, inverted=verdict is not None)

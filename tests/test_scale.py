@@ -111,6 +111,18 @@ def test_cli_scale_auto_recovers_the_scale(capsys, mono_files):
     assert pose_error(np.array(doc["matrix"]), X)[1] < 0.003
 
 
+def test_fit_test_reads_b_noise_in_metres_with_scale_auto(capsys, mono_files):
+    """With ``--scale auto`` the fit test judges b's samples in metres, so b's jitter is read in metres too:
+    the same σ as with the scale given as a number (it was read in b's own units, 1/0.37 too large)."""
+    _, fa, fb = mono_files
+    sigmas = []
+    for scale in ("auto", str(SCALE)):
+        code, out, err = run(capsys, "calibrate", fa, fb, "--scale", scale, "-q")
+        assert code == 0, err
+        sigmas.append(yaml.safe_load(out)["fit_test"]["noise"]["b"]["sigma_translation_m"])
+    assert sigmas[0] == pytest.approx(sigmas[1], rel=0.01)
+
+
 def test_cli_fixed_scale_number(capsys, mono_files):
     X, fa, fb = mono_files
     code, out, err = run(capsys, "calibrate", fa, fb, "--scale", str(SCALE), "-q")
