@@ -278,27 +278,34 @@ def difference_blocks(qab: FloatArray, out: FloatArray | None = None) -> FloatAr
     return np.matmul(_BLOCK, qab, out=out)
 
 
+#: below this scalar part ``w = cos(θ/2)`` (θ > 168.5°) noise of up to ~11° in a rotation can flip a pair's
+#: relative sign as the invariants tell it (dw ≈ dθ / 2 near a half-turn)
+HALF_TURN_W = 0.1
+
+
 def sign_flips(both: FloatArray, alpha: float, reference: FloatArray | None = None) -> NDArray[np.bool_]:
     """Which ``Q_b`` of ``both`` (2, 4, 2n: ``[q; q']`` x-y-z-w of n motions of a, then of n motions of b) take
     the opposite sign for their ``Q_a`` (see :func:`align_signs`): (n,) booleans.
 
-    Without ``reference``, by the invariants: conjugation keeps the dual scalar part ``(w, w')`` (the
-    screw's angle and pitch), so ``Q_b``'s sign is the one whose ``(w_b, w'_b)`` has a non-negative product
-    ``w_a w_b + α² w'_a w'_b`` with ``(w_a, w'_a)`` (α [1/m]: the cost's weight of the dual part). Away from a
-    half-turn that is the sign making ``w ≥ 0``; near a half-turn (``w ≈ 0``) noise can flip one ``w``, and
-    where the pitch is small too (a half-turn of an arm's wrist between two stations) the invariants cannot
-    tell. With ``reference``, an estimate of ``X`` (4, 4): the sign that gives the pair the smaller cost
-    at it, ``|Q_a ⊗ Q_X − Q_X ⊗ Q_b|²`` with the dual part weighed by α², which tells at every angle."""
+    By the invariants: conjugation keeps the dual scalar part ``(w, w')`` (the screw's angle and pitch), so
+    ``Q_b``'s sign is the one whose ``(w_b, w'_b)`` has a non-negative product ``w_a w_b + α² w'_a w'_b`` with
+    ``(w_a, w'_a)`` (α [1/m]: the cost's weight of the dual part). Away from a half-turn that is the sign
+    making ``w ≥ 0``; near one (``|w| <`` :data:`HALF_TURN_W` for either) noise can flip one ``w``, and where
+    the pitch is small too (a half-turn of an arm's wrist between two stations) the invariants cannot tell.
+    There, given ``reference`` (an estimate of ``X``, 4×4), the sign that gives the pair the smaller cost at
+    it, ``|Q_a ⊗ Q_X − Q_X ⊗ Q_b|²`` with the dual part weighed by α², which tells at every angle."""
     n = both.shape[2] // 2
+    flips: NDArray[np.bool_] = both[0, 3, :n] * both[0, 3, n:] + alpha * alpha * both[1, 3, :n] * both[1, 3, n:] < 0
     if reference is None:
-        flips: NDArray[np.bool_] = both[0, 3, :n] * both[0, 3, n:] + alpha * alpha * both[1, 3, :n] * both[1, 3, n:] < 0
         return flips
-    r, rd = from_transforms(reference)
-    qa, qad, qb, qbd = both[0, :, :n], both[1, :, :n], both[0, :, n:], both[1, :, n:]
-    Rr, Lr = right(r), left(r)
-    u, ud = Rr @ qa, Rr @ qad + right(rd) @ qa                  # Q_a ⊗ Q_X
-    v, vd = Lr @ qb, left(rd) @ qb + Lr @ qbd                    # Q_X ⊗ Q_b
-    flips = np.einsum("in,in->n", u, v) + alpha * alpha * np.einsum("in,in->n", ud, vd) < 0
+    near = np.flatnonzero(np.minimum(np.abs(both[0, 3, :n]), np.abs(both[0, 3, n:])) < HALF_TURN_W)
+    if len(near):
+        r, rd = from_transforms(reference)
+        qa, qad, qb, qbd = (both[k, :, near.reshape(-1) + off].T for off in (0, n) for k in (0, 1))
+        Rr, Lr = right(r), left(r)
+        u, ud = Rr @ qa, Rr @ qad + right(rd) @ qa                  # Q_a ⊗ Q_X
+        v, vd = Lr @ qb, left(rd) @ qb + Lr @ qbd                    # Q_X ⊗ Q_b
+        flips[near] = np.einsum("in,in->n", u, v) + alpha * alpha * np.einsum("in,in->n", ud, vd) < 0
     return flips
 
 

@@ -6,7 +6,7 @@ is the default. Motions follow the project convention: ``A_i = T_wa(t_i)⁻¹ T_
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property, partial
 
@@ -28,6 +28,7 @@ from .problem import (
     disagreeing_signs,
     eigh,
     motion_problem,
+    near_half_turns,
     pair_blocks,
     problem_from_blocks,
     validate_motions,
@@ -177,29 +178,48 @@ def solve(motions_a: FloatArray, motions_b: FloatArray, method: str = "dqopt", a
         A, B, w = validate_motions(motions_a, motions_b, weights)
     else:
         A, B, w = checked_arrays(motions_a, motions_b, weights)
-    solution = _solved(A, B, w, method, alpha, prior, None)
+    near = near_half_turns(A, B)
+    build = _builder(A, B, w, method, alpha, prior)
+    solution = _solution(A, B, w, method, alpha, *build(None))
     # A half-turn's pair whose signs the invariants told wrong costs as much as a 180° error: agree them by the
     # estimate and solve again, until the estimate's signs stand (each round lowers cost (8) at the estimate).
     before = None
-    for _ in range(_SIGN_ROUNDS):
+    for _ in range(_SIGN_ROUNDS if len(near) else 0):
         reference = solution.matrix
-        if not disagreeing_signs(A, B, alpha, reference, before):
+        if not disagreeing_signs(A[near], B[near], alpha, reference, before):
             break
-        solution, before = _solved(A, B, w, method, alpha, prior, reference), reference
+        solution, before = _solution(A, B, w, method, alpha, *build(reference)), reference
     return solution
 
 
-def _solved(A: FloatArray, B: FloatArray, w: FloatArray, method: str, alpha: float, prior: Prior | None,
-            reference: FloatArray | None) -> Solution:
-    """:func:`solve` on checked motions, each pair's signs agreed at α or by ``reference`` (an estimate of X,
-    4×4: :func:`~handeye_cli.geometry.dualquat.sign_flips`)."""
+_Built = tuple[Problem, tuple[FloatArray, FloatArray] | None]
+
+
+def _builder(A: FloatArray, B: FloatArray, w: FloatArray, method: str, alpha: float, prior: Prior | None
+             ) -> Callable[[FloatArray | None], _Built]:
+    """The problem of checked motions as a function of ``reference`` (an estimate of X, 4×4, that agrees the signs
+    of the pairs near a half-turn: :func:`~handeye_cli.geometry.dualquat.sign_flips`; None: the invariants),
+    with Daniilidis' per-pair blocks. Built again whole when the signs change (it is one pass over the motions,
+    and it happens only where a pair is near a half-turn and the invariants told it wrong)."""
     if method == "daniilidis":
-        E, F = pair_blocks(A, B, alpha, reference)
-        problem = problem_from_blocks(E, F, w, alpha=alpha, prior=prior)
-    else:
-        problem = motion_problem(A, B, w, alpha=alpha, prior=prior, reference=reference)   # one pass over them
+        def blocks(reference: FloatArray | None) -> _Built:
+            E, F = pair_blocks(A, B, alpha, reference)
+            return _checked(problem_from_blocks(E, F, w, alpha=alpha, prior=prior), prior), (E, F)
+        return blocks
+    return lambda reference: (_checked(motion_problem(A, B, w, alpha=alpha, prior=prior, reference=reference),
+                                       prior), None)
+
+
+def _checked(problem: Problem, prior: Prior | None) -> Problem:
+    """``problem``, refused when its motions cannot determine X without a prior (:func:`_check_determined`)."""
     if prior is None:
         _check_determined(problem)
+    return problem
+
+
+def _solution(A: FloatArray, B: FloatArray, w: FloatArray, method: str, alpha: float, problem: Problem,
+              blocks: tuple[FloatArray, FloatArray] | None) -> Solution:
+    """:func:`solve`'s method on checked motions and their ``problem`` (Daniilidis': and per-pair ``blocks``)."""
     common = partial(Solution, method=method, alpha=float(alpha), pairs=len(A), problem=problem)
     if method in ("dqopt", "dqitr"):
         r = (dqopt if method == "dqopt" else dqitr)(problem)
@@ -210,7 +230,8 @@ def _solved(A: FloatArray, B: FloatArray, w: FloatArray, method: str, alpha: flo
         X = CLASSICAL[method](A, B, w)
         return common(X, problem.cost(*dualquat.from_transforms(X)))
     if method == "daniilidis":
-        q, qd = daniilidis(E, F, alpha=alpha, weights=w)
+        assert blocks is not None
+        q, qd = daniilidis(*blocks, alpha=alpha, weights=w)
         return common(dualquat.to_transform(q, qd), problem.cost(q, qd), dual_quaternion=(q, qd))
     approx = {"dq2steps": dq2steps, "dqconvrlx": dqconvrlx, "dq2ndord": dq2ndord}[method](problem)
     return common(dualquat.to_transform(approx.q, approx.qd), problem.cost(approx.q, approx.qd), mu=approx.mu,

@@ -33,7 +33,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .._typing import FloatArray
+from .._typing import FloatArray, IntArray
 from ..errors import ConfigError, DataError
 from ..geometry import dualquat as dq
 from ..geometry import se3
@@ -472,20 +472,25 @@ def motion_problem(A: FloatArray, B: FloatArray, w: FloatArray, alpha: float = 1
     return _reduced_problem(_motion_factor(A, B, w, alpha, chunk, reference), len(A), alpha, prior)
 
 
+def near_half_turns(A: FloatArray, B: FloatArray) -> IntArray:
+    """Indices of the motion pairs (N, 4, 4) whose relative sign the invariants may tell wrong: either rotation
+    within :data:`~handeye_cli.geometry.dualquat.HALF_TURN_W` of a half-turn, found from the traces
+    (``w² = (1 + tr R) / 4``)."""
+    limit = 4.0 * dq.HALF_TURN_W ** 2 - 1.0                 # tr R below this: w below HALF_TURN_W
+    near: IntArray = np.flatnonzero((np.trace(A[:, :3, :3], axis1=1, axis2=2) < limit)
+                                             | (np.trace(B[:, :3, :3], axis1=1, axis2=2) < limit))
+    return near
+
+
 def disagreeing_signs(A: FloatArray, B: FloatArray, alpha: float, reference: FloatArray,
                       before: FloatArray | None = None) -> bool:
     """Whether some pair's signs, agreed at α [1/m] (or by the earlier estimate ``before``), are not those
-    that cost less at the estimate ``reference`` of X (4×4; checked motions (N, 4, 4), read :data:`CHUNK`
-    pairs at a time): then that pair costs as much as a half-turn's error at the estimate, and the problem is
-    built again with ``reference``'s signs (:func:`~handeye_cli.solvers.solve`)."""
-    n = len(A)
-    Af, Bf = A.reshape(n, 16), B.reshape(n, 16)
-    for start in range(0, n, CHUNK):
-        stop = min(start + CHUNK, n)
-        both = dq._from_rows(np.concatenate((Af[start:stop, :12], Bf[start:stop, :12])).T.copy())
-        if (dq.sign_flips(both, alpha, before) != dq.sign_flips(both, alpha, reference)).any():
-            return True
-    return False
+    that cost less at the estimate ``reference`` of X (4×4; checked motions (N, 4, 4), those of
+    :func:`near_half_turns`: no other pair can disagree): then that pair costs as much as a half-turn's error
+    at the estimate, and the problem is built again with ``reference``'s signs (:func:`~handeye_cli.solvers.solve`)."""
+    m = len(A)
+    both = dq._from_rows(np.concatenate((A.reshape(m, 16)[:, :12], B.reshape(m, 16)[:, :12])).T.copy())
+    return bool((dq.sign_flips(both, alpha, before) != dq.sign_flips(both, alpha, reference)).any())
 
 
 def problem_from_blocks(E: FloatArray, F: FloatArray, w: FloatArray, alpha: float = 1.0,
