@@ -538,7 +538,7 @@ def _scaled(stream_a: PoseStream, stream_b: PoseStream, paired: _Paired, options
     if selection is None:
         return kept, pairs, samples, stations, selection
     scale = float(diagnostics["scale"]["value"])
-    scaled_b = replace(stream_b, xyz=stream_b.xyz * scale)
+    scaled_b = stream_b.scaled(scale)
     paired = pairs_of(stream_a, scaled_b, options, offset_ns, prior)
     kept, pairs = _with_scale(stream_a, scaled_b, paired, options, diagnostics, noise_of, scale)
     return kept, pairs, *paired[2:]
@@ -656,7 +656,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     check_samples(stream_b, "stream b")
     given = stream_a, stream_b                                 # as read: what a second reading starts from
     if opts.solver.scale not in (1.0, "auto"):
-        stream_b = replace(stream_b, xyz=stream_b.xyz * float(opts.solver.scale))
+        stream_b = stream_b.scaled(float(opts.solver.scale))
     stream_a, stream_b, order = _quaternion_order(stream_a, stream_b, opts)
     stream_a, stream_b = inverted_as_read(stream_a, stream_b, opts.read)
     offset_ns, offset_report, offset_warnings = _time_offset(stream_a, stream_b, opts)
@@ -716,7 +716,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
     scale = diagnostics.get("scale", {}).get("value")        # b's jitter in metres, as its samples now are
-    metric_b = stream_b if scale is None else replace(stream_b, xyz=stream_b.xyz * float(scale))
+    metric_b = stream_b if scale is None else stream_b.scaled(scale)
     noise = sample_noise(stream_a, metric_b, kept, stations, opts.sync.sync, noise_of)
     fit = fit_test(pairs, res, solution.matrix, noise, mask=None if weights is None else weights > 0)   # refuses
     diagnostics["fit_test"] = fit.as_dict()                                         # what no rigid rig gives

@@ -162,6 +162,11 @@ class PoseStream:
         frame, child = (self.child_frame_id, self.frame_id) if self.frame_id else ("", self.child_frame_id)
         return replace(self, xyz=xyz, quat_xyzw=quat, frame_id=frame, child_frame_id=child, quaternion_order=None)
 
+    def scaled(self, factor: float) -> PoseStream:
+        """The same stream with its translations multiplied by ``factor`` (e.g. metres per unit of a monocular
+        stream); orientations unchanged."""
+        return replace(self, xyz=self.xyz * float(factor))
+
     def select(self, mask_or_index: np.ndarray) -> PoseStream:
         """A stream with only the samples selected by a boolean mask or index array."""
         return replace(self, stamps_ns=self.stamps_ns[mask_or_index], xyz=self.xyz[mask_or_index],

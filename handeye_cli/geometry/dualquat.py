@@ -301,7 +301,7 @@ def sign_flips(both: FloatArray, alpha: float, reference: FloatArray | None = No
     near = np.flatnonzero(np.minimum(np.abs(both[0, 3, :n]), np.abs(both[0, 3, n:])) < HALF_TURN_W)
     if len(near):
         r, rd = from_transforms(reference)
-        qa, qad, qb, qbd = (both[k, :, near.reshape(-1) + off].T for off in (0, n) for k in (0, 1))
+        qa, qad, qb, qbd = (both[k, :, near + off].T for off in (0, n) for k in (0, 1))
         Rr, Lr = right(r), left(r)
         u, ud = Rr @ qa, Rr @ qad + right(rd) @ qa                  # Q_a ⊗ Q_X
         v, vd = Lr @ qb, left(rd) @ qb + Lr @ qbd                    # Q_X ⊗ Q_b
@@ -324,6 +324,13 @@ def align_signs(both: FloatArray, alpha: float, reference: FloatArray | None = N
     return both
 
 
+def pair_quaternions(Ta: FloatArray, Tb: FloatArray) -> FloatArray:
+    """The unit dual quaternions of transforms ``Ta`` then ``Tb`` (…, 4, 4 each, the same shape), converted in
+    one pass: (2, 4, 2n) ``[q; q']`` (x-y-z-w) of the n transforms of a, then of b, each ``w ≥ 0``."""
+    a, b = np.asarray(Ta).reshape(-1, 16), np.asarray(Tb).reshape(-1, 16)
+    return _from_rows(np.concatenate((a[:, :12], b[:, :12])).T.copy())
+
+
 def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray, alpha: float = 1.0,
                            reference: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
     """``L(q_a) - R(q_b)`` and ``L(q'_a) - R(q'_b)`` (…, 4, 4) of the (broadcast) transforms
@@ -333,9 +340,8 @@ def pair_difference_blocks(Ta: FloatArray, Tb: FloatArray, alpha: float = 1.0,
     if Ta.shape != Tb.shape:
         Ta, Tb = np.broadcast_arrays(Ta, Tb)
     shape = Ta.shape[:-2] + (4, 4)
-    a, b = Ta.reshape(-1, 16), Tb.reshape(-1, 16)
-    n = len(a)
-    both = align_signs(_from_rows(np.concatenate((a[:, :12], b[:, :12])).T.copy()), alpha, reference)   # (2, 4, 2n)
+    both = align_signs(pair_quaternions(Ta, Tb), alpha, reference)   # (2, 4, 2n)
+    n = both.shape[2] // 2
     pairs = np.empty((2, n, 8))                                # rows [q_a, q_b] for E, then [q'_a, q'_b] for F
     pairs[:, :, :4] = both[:, :, :n].transpose(0, 2, 1)
     pairs[:, :, 4:] = both[:, :, n:].transpose(0, 2, 1)

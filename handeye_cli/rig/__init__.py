@@ -134,7 +134,7 @@ def _scaled(streams: list[PoseStream], names: list[str], ref: int, scales: Mappi
             report[name] = {"value": value, "std": float(est["std"]), "estimated_against": names[j]}
         else:
             report[name] = {"value": float(value)}
-        out[k] = replace(out[k], xyz=out[k].xyz * float(value))
+        out[k] = out[k].scaled(float(value))
     return out, report
 
 

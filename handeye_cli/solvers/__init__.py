@@ -38,8 +38,8 @@ __all__ = ["Certificate", "METHODS", "OPTIMAL", "Prior", "Problem", "Solution", 
 
 METHODS = ("dqopt", "dq2steps", "dqconvrlx", "dq2ndord", "dqitr", "daniilidis", *CLASSICAL)
 OPTIMAL = ("dqopt", "dqitr")
-_SIGN_ROUNDS = 3         # re-solves with the signs of the estimate (one suffices but for a chain of half-turns)
 """The methods that claim the global minimum of cost (8): a failed certificate of theirs is a warning."""
+_SIGN_ROUNDS = 3         # re-solves with the signs of the estimate (one suffices but for a chain of half-turns)
 
 
 @dataclass(frozen=True, eq=False)

@@ -488,8 +488,7 @@ def disagreeing_signs(A: FloatArray, B: FloatArray, alpha: float, reference: Flo
     that cost less at the estimate ``reference`` of X (4×4; checked motions (N, 4, 4), those of
     :func:`near_half_turns`: no other pair can disagree): then that pair costs as much as a half-turn's error
     at the estimate, and the problem is built again with ``reference``'s signs (:func:`~handeye_cli.solvers.solve`)."""
-    m = len(A)
-    both = dq._from_rows(np.concatenate((A.reshape(m, 16)[:, :12], B.reshape(m, 16)[:, :12])).T.copy())
+    both = dq.pair_quaternions(A, B)
     return bool((dq.sign_flips(both, alpha, before) != dq.sign_flips(both, alpha, reference)).any())
 
 
