@@ -209,3 +209,22 @@ def test_a_failed_rig_report_keeps_the_result(calibrated, capsys, tmp_path, monk
     code, _, err = run(capsys, "rig", RIG4, *STREAMS, "--report", tmp_path / "r.html", "-o", out_file, "-q")
     assert code == 2 and "the result was written, but not the report: cannot write" in err
     assert yaml.safe_load(out_file.read_text())["reference"] == "cam0"
+
+
+def test_rig_report_escapes_sensor_names(calibrated, rig_doc) -> None:
+    """Sensor names (a rig's NAME=, or frames read from a log) reach the page only escaped: a name holding markup
+    or a quote shows as text, in the heading, the tables and the figure."""
+    import base64
+    import re
+    import xml.etree.ElementTree as ET
+    from dataclasses import replace
+
+    from handeye_cli.rig.report import render_rig_report
+
+    result = calibrated[0]
+    hostile = [f"<script>alert({k})</script>'\"&{name}" for k, name in enumerate(result.names)]
+    text = render_rig_report(replace(result, names=hostile))
+    assert "<script>alert" not in text and "&lt;script&gt;alert(0)&lt;/script&gt;" in text
+    (src,) = re.findall(r"src='data:image/svg\+xml;base64,([^']*)'", text)
+    svg = base64.b64decode(src).decode()
+    assert "<script>alert" not in svg and ET.fromstring(svg).tag == "{http://www.w3.org/2000/svg}svg"
