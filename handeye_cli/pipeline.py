@@ -38,7 +38,14 @@ from .analysis.diagnosis import data_warning, too_few_pairs
 from .analysis.fit_test import FitTest, fit_test, sample_noise
 from .analysis.inversion import InversionVerdict, check_inversion
 from .analysis.observability import Observability
-from .analysis.readings import OrderChoice, choose_quaternion_order, median_fit, scale_reading
+from .analysis.readings import (
+    OrderChoice,
+    OrderContradiction,
+    choose_quaternion_order,
+    contradicted_order,
+    median_fit,
+    scale_reading,
+)
 from .analysis.selection import Selection, select_pairs
 from .analysis.stream_noise import StreamNoise, stream_noise
 from .analysis.subspace import ESTIMATED, Subspace, observable_subspace
@@ -527,6 +534,17 @@ def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float,
     return verdict
 
 
+def _contradicted_order(stream_a: PoseStream, stream_b: PoseStream, kept: Synced, pairs: Pairs,
+                        options: Options) -> OrderContradiction | None:
+    """The check of each quaternion order that was given, not chosen by the fit (a log's fields, ``--wxyz-*`` /
+    ``--no-wxyz-*``, a stream in memory: :func:`~.analysis.readings.contradicted_order`), on the solved pairs."""
+    read = options.read
+    orders = tuple(None if s.quaternion_order is not None else "wxyz" if w else "xyzw"
+                   for s, w in ((stream_a, read.wxyz_a), (stream_b, read.wxyz_b)))
+    return contradicted_order(kept.T_a, kept.T_b, pairs.i, pairs.j, (orders[0], orders[1]),
+                              inverted=(bool(read.invert_a), bool(read.invert_b)))
+
+
 def _scaled(stream_a: PoseStream, stream_b: PoseStream, paired: _Paired, options: Options, offset_ns: int,
             prior: Prior | None, diagnostics: dict[str, Any],
             noise_of: Callable[[PoseStream], StreamNoise | None]) -> _Paired:
@@ -683,6 +701,11 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, selection, diagnostics)
     verdict = _inversion(kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha,   # thresholds set at α 1
                          inputs or {})
+    contradiction = None if verdict is not None else _contradicted_order(stream_a, stream_b, kept, pairs, opts)
+    if contradiction is not None:
+        if not opts.analysis.accept_poor_fit:
+            raise contradiction.refusal()
+        diagnostics["interpretation"] = {**diagnostics.get("interpretation", {}), **contradiction.as_dict()}
     if verdict is not None:
         diagnostics["inversion"] = verdict.as_dict()
     elif scale_by_fit and opts.solver.scale == 1.0 and prior is None:   # inverted streams also fit "better scaled"
@@ -738,6 +761,8 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
         warnings.insert(0, f"poor fit accepted with --accept-poor-fit: {moved.what}")
     if rejected:
         warnings.insert(0, f"poor fit accepted with --accept-poor-fit: {fit.summary()}")
+    if contradiction is not None:
+        warnings.insert(0, f"poor fit accepted with --accept-poor-fit: {contradiction.message()}")
     boot = None
     if opts.analysis.bootstrap > 0:
         boot = bootstrap(A, B, opts.analysis.bootstrap, alpha=alpha, prior=prior, weights=weights,
@@ -745,7 +770,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
                          estimate=solution.matrix if opts.solver.method == "dqopt" else None)   # the same solve
         diagnostics["uncertainty"] = {"method": "bootstrap over pose samples", **boot.as_dict()}
     found = Diagnostics(MappingProxyType(diagnostics), fit=fit, observability=obs, subspace=subspace,
-                        selection=selection, poor_fit_accepted=bool(rejected or moved))
+                        selection=selection, poor_fit_accepted=bool(rejected or moved or contradiction))
     return Calibration(solution, stream_a, stream_b, kept, pairs, samples, opts, res, warnings=warnings,
                        diagnostics=found, inputs=dict(inputs or {}), weights=weights, robust=robust,
                        bootstrap=boot)

@@ -7,7 +7,7 @@ import yaml
 from _util import pose_error, run, write_tum
 
 from handeye_cli.analysis.inversion import Candidate, InversionVerdict, check_inversion
-from handeye_cli.errors import DataError
+from handeye_cli.errors import DataError, in_keywords
 from handeye_cli.simulation.arm import simulate_arm
 from handeye_cli.stages.stations import detect_stations
 
@@ -53,6 +53,7 @@ def test_an_explicit_flag_decisively_contradicted_is_refused_below_overwhelming(
     contradicted = InversionVerdict((1.02, 0.0147), (candidate,), overwhelming=False, implausible=True)
     refusal = contradicted.refusal(explicit=True)
     assert refusal is not None and "contradict the data" in str(refusal) and "--accept-poor-fit" in str(refusal)
+    assert "accept_poor_fit=True (exit code 3)" in in_keywords(refusal).fix      # the API's words, not ='keeps'
     assert contradicted.refusal(explicit=False) is None
     plausible = InversionVerdict((0.2, 0.004), (candidate,), overwhelming=False, implausible=False)
     assert plausible.refusal(explicit=True) is None

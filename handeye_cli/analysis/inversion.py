@@ -116,8 +116,8 @@ class InversionVerdict:
         if explicit:
             return DataError("the --invert-*/--no-invert-* flags given contradict the data: a stream fits far "
                              "better the other way; no result was written", self._evidence(),
-                             f"{self._fix(self.candidates)} (or drop the flag you gave); --accept-poor-fit "
-                             "keeps the result anyway (exit 3)")
+                             f"{self._fix(self.candidates)} (or drop the flag you gave); to keep the result "
+                             "anyway: --accept-poor-fit (exit code 3)")
         return DataError("a stream is almost certainly inverted (T_sensor_world instead of T_world_sensor); "
                          "no result was written", self._evidence(), self._fix(self.candidates))
 

@@ -38,13 +38,14 @@ from ..solvers import solve
 from ..streams import PoseStream
 from .residuals import extrinsic_error, pair_residuals
 
-__all__ = ["MedianFit", "OrderChoice", "ScaleReading", "choose_quaternion_order", "median_fit", "scale_reading",
-           "BETTER", "NOT_WORSE", "SCALE_GAIN", "SCALE_FLOOR"]
+__all__ = ["MedianFit", "OrderChoice", "OrderContradiction", "ScaleReading", "choose_quaternion_order",
+           "contradicted_order", "median_fit", "scale_reading", "BETTER", "NOT_WORSE", "SCALE_GAIN", "SCALE_FLOOR"]
 
 BETTER = 3.0              # a reading whose median residual is this many times lower fits decisively better
 NOT_WORSE = 1.25          # … if its other median is not higher by more than this; within it both: alike
 ALIKE_DEG, ALIKE_M = 1.0, 0.01   # alike fits whose extrinsics differ by more than this: the data cannot decide
 MAX_PAIRS = 400
+_MAX_CHECKED = 500        # pairs of a solved calibration the check of a given order compares on (spread over them)
 _TINY = (1e-9, 1e-12)     # floors [deg, m] so that noise-free fits compare as finite ratios
 SCALE_FLOOR = 0.01        # b's translations scaled by less than 1 % off 1 are metric …
 SCALE_GAIN = 1.25         # … and a scale that lowers the median translation residual less than this is not seen
@@ -236,6 +237,79 @@ def choose_quaternion_order(a: PoseStream, b: PoseStream, *, time_offset_ns: int
                             f"{rot_deg:.2g}° / {trans_m:.2g} m away", f"{a.source}, {b.source}",
                             f"say which with {flags}")
     return a, b, OrderChoice(given_orders, "format", base.medians, best.medians, best_orders)
+
+
+@dataclass(frozen=True)
+class OrderContradiction:
+    """A quaternion order that was not open to the fit (a log's named fields, the user's ``--wxyz-*`` /
+    ``--no-wxyz-*``, a :class:`PoseStream` built in memory, whose ``quat_xyzw`` is x-y-z-w by its name) and that
+    the data contradict: re-reading ``stream``'s four components in the other order fits decisively better
+    (:meth:`MedianFit.decisively_better_than`, the rule by which the fit chooses a text file's order). ``given``,
+    ``reread``: the median residuals (rotation [deg], translation [m]) as given and re-read; ``order``: the
+    order the stream was given in (``"xyzw"`` / ``"wxyz"``)."""
+
+    stream: str
+    order: str
+    given: tuple[float, float]
+    reread: tuple[float, float]
+
+    def _evidence(self) -> str:
+        other = _other(self.order)
+        return (f"stream {self.stream}'s quaternions fit a rigid rig far better read {other[0]}-{other[1]}-"
+                f"{other[2]}-{other[3]}: median residuals {self.reread[0]:.3g}° / {self.reread[1]:.3g} m, against "
+                f"{self.given[0]:.3g}° / {self.given[1]:.3g} m as given ({self.order[0]}-{self.order[1]}-"
+                f"{self.order[2]}-{self.order[3]})")
+
+    def _fix(self) -> str:
+        flag = _FLAGS[_other(self.order)].format(self.stream)
+        return (f"rerun with {flag} if its file stores them that way (a PoseStream built in memory takes x-y-z-w "
+                "quaternions, quat_xyzw; a log's message whose fields were filled out of order must be "
+                "re-recorded)")
+
+    def refusal(self) -> DataError:
+        """The error refusing the result: an extrinsic from misread quaternions is tens of degrees wrong, while
+        their residuals, on drifting odometry, can stay within the fit test's allowance for drift."""
+        return DataError("the quaternion order given contradicts the data; no result was written",
+                         self._evidence(), f"{self._fix()}; to keep the result anyway: --accept-poor-fit (exit code 3)")
+
+    def message(self) -> str:
+        """The warning when the result is kept anyway (``--accept-poor-fit``)."""
+        return f"{self._evidence()}; {self._fix()}"
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain dict for the result's ``interpretation``."""
+        return {"contradicted_quaternion_order": {"stream": self.stream, "given": self.order},
+                "fit_median": {"rotation_deg": self.given[0], "translation_m": self.given[1]},
+                "reread": {"rotation_deg": self.reread[0], "translation_m": self.reread[1]}}
+
+
+def contradicted_order(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64],
+                       j: NDArray[np.int64], orders: tuple[str | None, str | None], *, alpha: float = 1.0,
+                       inverted: tuple[bool, bool] = (False, False)) -> OrderContradiction | None:
+    """The stream whose given quaternion order the solved pairs ``(i, j)`` of the synced absolute poses
+    ``T_a``, ``T_b`` (N, 4, 4) contradict (see :class:`OrderContradiction`), or None. ``orders``: per stream the
+    order its quaternions were given in where it was not open to the fit, None where the fit already chose it
+    (:func:`choose_quaternion_order`); ``inverted``: per stream, whether its poses were inverted after reading
+    (the components are re-read in the poses as given). Dqopt at ``alpha`` on at most ``_MAX_CHECKED`` pairs
+    spread over the list."""
+    if len(i) > _MAX_CHECKED:
+        keep = np.linspace(0, len(i) - 1, _MAX_CHECKED).astype(np.int64)
+        i, j = i[keep], j[keep]
+    motions = {"a": se3.relative(T_a[i], T_a[j]), "b": se3.relative(T_b[i], T_b[j])}
+    base = median_fit(motions["a"], motions["b"], alpha=alpha)
+    if base is None:
+        return None
+    for name, T, order, flip in (("a", T_a, orders[0], inverted[0]), ("b", T_b, orders[1], inverted[1])):
+        if order is None:
+            continue
+        given = se3.inverse(T) if flip else T
+        other = se3.from_xyz_quat(given[:, :3, 3], _reread(se3.to_xyz_quat(given)[1], order))
+        other = se3.inverse(other) if flip else other
+        alt = dict(motions, **{name: se3.relative(other[i], other[j])})
+        fit = median_fit(alt["a"], alt["b"], alpha=alpha)
+        if fit is not None and fit.decisively_better_than(base):
+            return OrderContradiction(name, order, base.medians, fit.medians)
+    return None
 
 
 @dataclass(frozen=True)
