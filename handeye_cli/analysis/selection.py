@@ -18,7 +18,9 @@ did not move (pairs spanning them fit the probe's ``X`` as its noise model predi
    divided by the overlap of those pairs: pairs ``(i, i+K)`` and ``(i+m, i+m+K)`` share K − m samples
    of drift, so they count as ``1 + ρ (K/m − 1)`` times fewer independent pairs (ρ: drift share);
 5. the levels between the shortest and the longest whose predicted rotation and translation errors
-   are both within 1.5× of the best level's are kept, and every longer level whose variance is
+   are both within 1.5× of the best level's (1.2× on a drifting model: the kept levels share their drift, which
+   each level's own prediction does not count, so a wider band only adds correlated error) are kept, and
+   every longer level whose variance is
    mostly the absolute floor (short rotating spans when drift dominates, all long spread spans when
    it does not: pairs of many spans average each absolute pose's noise best); the cap is shared
    between them, and ``X`` is solved again with the weights and α.
@@ -53,6 +55,7 @@ from .observability import common_axis
 __all__ = ["Selection", "select_pairs", "ladder"]
 
 _KEEP_RATIO = 1.5           # levels within this factor of the best predicted error are kept
+_KEEP_RATIO_DRIFTING = 1.2  # ... on a drifting model (step 5)
 _ABSOLUTE_SHARE = 0.5       # ... and every longer level whose variance is mostly the absolute floor
 _MIN_LEVEL_PAIRS = 8
 _Q_PRIME_FIRST = np.r_[4:8, 0:4]   # rows of the tangent basis (x = [q; q']) in the cost forms' [q'; q] order
@@ -230,7 +233,8 @@ def _overlap(stride: int, available: int, used: int, drift_share: float) -> floa
 
 
 def _choose_levels(probe: _Probe, w: NDArray[np.float64], alpha: float, share: NDArray[np.float64],
-                   X: NDArray[np.float64], max_pairs: int, axis: NDArray[np.float64] | None) -> NDArray[np.int64]:
+                   X: NDArray[np.float64], max_pairs: int, axis: NDArray[np.float64] | None,
+                   keep_ratio: float) -> NDArray[np.int64]:
     """Ladder indices of the levels to keep (see the module docstring, step 4–5); ``axis``: the common
     rotation axis of planar motion (frame a), along which the errors are not judged."""
     counts = np.bincount(probe.level, minlength=len(probe.strides))
@@ -245,7 +249,7 @@ def _choose_levels(probe: _Probe, w: NDArray[np.float64], alpha: float, share: N
     if not np.isfinite(errors).any():
         return np.arange(len(probe.strides))
     ratio = np.max(errors / errors.min(axis=0), axis=1)
-    good = np.flatnonzero(ratio <= _KEEP_RATIO * ratio.min())
+    good = np.flatnonzero(ratio <= keep_ratio * ratio.min())
     lo, hi = int(good[0]), int(good[-1])
     while hi + 1 < len(errors) and np.isfinite(errors[hi + 1, 0]) and level_share[hi + 1] < _ABSOLUTE_SHARE:
         hi += 1                 # where drift does not dominate, longer spans only add lever and diversity
@@ -372,7 +376,8 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
         f = pair_features(synced.stamps_ns, path, pr.pairs.i, pr.pairs.j, pr.pairs.B, X)
         model = fit_noise_model(*cost_residuals(pr.pairs.A, pr.pairs.B, X), f)
         w, alpha = _ml_weights(model, f)
-        levels = _choose_levels(pr, w, alpha, model.drift_share(f), X, max_pairs, axis)
+        keep = _KEEP_RATIO_DRIFTING if model.kind == "drifting" else _KEEP_RATIO
+        levels = _choose_levels(pr, w, alpha, model.drift_share(f), X, max_pairs, axis, keep)
         if np.array_equal(levels, kept):
             break
         kept = levels
