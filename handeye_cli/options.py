@@ -354,10 +354,12 @@ class SolverOptions:
                                 "estimate it with T_a_b.", "NUMBER|auto", commands=PAIR, per_stream="scale")
     prior: str | None = option(None, path, "Nominal T_a_b (a URDF, launch file, static_transform_publisher "
                                "line, Kalibr YAML or handeye result; frames a, b as the result names them): fixes "
-                               "what the motion cannot observe.", "FILE", commands=(*PAIR, "solve"))
+                               "what the motion cannot observe. In handeye rig the nominal of every sensor, its "
+                               "frames named as the streams (as --against reads it): each pair j, k takes "
+                               "T_j_k from it.", "FILE", commands=SOLVER)
     prior_weights: tuple[float, float] = option((1.0, 1.0), weight_pair,
                                                 "Weights a,b of the prior's rotation and translation terms.", "A,B",
-                                                commands=(*PAIR, "solve"))
+                                                commands=SOLVER)
     min_pairs: int = option(3, integer(low=2), "Fewer motion pairs than this is an error.", "N")
 
 

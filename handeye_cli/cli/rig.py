@@ -28,7 +28,6 @@ from .params import (
     per_stream_options,
     per_stream_values,
     quiet_option,
-    refused,
     report_option,
 )
 
@@ -76,8 +75,6 @@ def _drift_message(verdicts: dict[str, Verdict]) -> str:
 @verdict_options
 @output_options
 @report_option
-@refused(("--prior",), "takes no prior", "a prior is of one T_a_b, and the rig combines its pairs by their data's "
-         "covariance, which a prior on one pair would not enter: calibrate that pair with 'handeye calibrate --prior'")
 @quiet_option
 def rig(log: str | None, **p: Any) -> None:
     """Calibrate every sensor of a rig from one log: T_ref_k for each stream k, jointly.
@@ -101,16 +98,21 @@ def rig(log: str | None, **p: Any) -> None:
       handeye rig log.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose --format urdf -o rig.urdf
       handeye rig log.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose --against robot.urdf  # exit 1: moved
       handeye rig log.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose --report rig.html
+      handeye rig --stream base_link=base.tum --stream lidar=lidar.tum --prior robot.urdf  # planar: z from it
 
     With --against NOMINAL (a URDF, launch file, static_transform_publisher lines, a handeye result)
     every sensor gets a verdict: T_ref_k against the nominal's transform between the frames named as
     the reference and sensor k; the document lists them under 'verdicts' and the exit code is 1 when
     any sensor drifted.
 
+    With --prior NOMINAL (read as --against reads it: frames named as the streams) each pair takes from the
+    nominal what its motion leaves open, as calibrate --prior does (a planar rig's z), and the joint
+    result keeps it.
+
     With --report FILE the rig's HTML page: the joint extrinsics, the clock offsets, and each pair's
     residuals (joint and pairwise only), fit test and drift test.
     """
-    from ..rig import RigOptions, calibrate_rig_files, parse_stream
+    from ..rig import RigOptions, calibrate_rig_files, check_prior, parse_stream
     from ..rig.verdicts import check_sensor_names, rig_verdicts
 
     options = options_from_cli(p)
@@ -121,6 +123,7 @@ def rig(log: str | None, **p: Any) -> None:
     nominal = read_nominal(p["against"]) if p["against"] else None      # a bad nominal fails before the work
     if nominal is not None:
         check_sensor_names([str(s.name) for s in specs], nominal)
+    check_prior([str(s.name) for s in specs], options)             # ... and so does a bad prior
     inverted = per_stream_values(p, "invert")
     opts = RigOptions(reference=p["reference"], time_offsets=per_stream_values(p, "time_offset"),
                       invert=tuple(n for n, v in inverted.items() if v),
