@@ -117,6 +117,18 @@ def test_rig_takes_wxyz_and_no_invert_per_stream_and_a_bare_time_offset(capsys, 
     assert code == 2 and "both --invert and --no-invert" in err
 
 
+def test_rig_refuses_name_a_naming_the_stream_flag_that_names_a_sensor(capsys, files):
+    """Issue 21 ('rig lacks --name-*'): a rig's sensor is named by --stream NAME=…, which is its frame in every
+    output; calibrate's --name-a/-b are refused in one line saying so, not click's bare 'No such option'."""
+    for side in "ab":
+        code, _, err = _rig(capsys, files, "--stream", f"a={files['a']}", "--stream", f"b={files['b']}",
+                            f"--name-{side}", "cam")
+        line = err.strip().splitlines()
+        assert code == 2 and len(line) == 1 and f"(--name-{side}):" in line[0] and "--stream NAME=SOURCE" in line[0]
+    code, doc, err = _rig(capsys, files, "--stream", f"cam={files['a']}", "--stream", f"imu={files['b']}")
+    assert code == 0 and (doc["transforms"][0]["parent"], doc["transforms"][0]["child"]) == ("cam", "imu"), err
+
+
 def test_time_offset_default_is_one_everywhere():
     default = FIELDS["time_offset"][2]
     assert default == "auto"

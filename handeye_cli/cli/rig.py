@@ -22,12 +22,14 @@ from ..output.writers import check_writable
 from .check import verdict_options
 from .common import CONTEXT, emit, finish, report_failure, result_format
 from .params import (
+    apply,
     command_options,
     options_from_cli,
     output_options,
     per_stream_options,
     per_stream_values,
     quiet_option,
+    refused,
     report_option,
 )
 
@@ -75,6 +77,8 @@ def _drift_message(verdicts: dict[str, Verdict]) -> str:
 @verdict_options
 @output_options
 @report_option
+@apply(*(refused((f"--name-{side}",), f"names no stream {side}", "a rig's sensor is named once, by --stream "
+                 "NAME=SOURCE: NAME is its frame in every output (calibrate's --name-a/-b)") for side in "ab"))
 @quiet_option
 def rig(log: str | None, **p: Any) -> None:
     """Calibrate every sensor of a rig from one log: T_ref_k for each stream k, jointly.
