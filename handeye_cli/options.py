@@ -335,7 +335,8 @@ class PairOptions:
     stations: str = option("auto", choice("auto", "off"), "Station captures (sparse poses, or dwells of both "
                            "sensors): auto detects them and pairs the averaged stations all with all, without the "
                            "pose-jump gate; off treats every capture as continuous tracking.")
-    seed: int = option(0, integer(), "Seed of random:N and of the bootstrap.", "N")
+    seed: int = option(0, integer(), "Seed of random:N, of --robust's sampling and of the bootstrap.", "N",
+                       commands=SOLVER)
 
 
 @dataclass(frozen=True)
@@ -367,8 +368,8 @@ class SolverOptions:
 class AnalysisOptions:
     """What is checked after the solve."""
 
-    robust: bool = option(False, flag, "Reject outlier pairs before the final solve.")
-    bootstrap: int = option(0, integer(), "Uncertainty from N bootstrap resamples (0: off).", "N")
+    robust: bool = option(False, flag, "Reject outlier pairs before the final solve.", commands=SOLVER)
+    bootstrap: int = option(0, integer(), "Uncertainty from N bootstrap resamples (0: off).", "N", commands=SOLVER)
     strict: bool = option(False, flag, "Exit with code 3 when there are warnings (degenerate motion, suspect "
                           "residuals, doubtful time offset).")
     accept_poor_fit: bool = option(False, flag, "Keep a result that fails the fit test (residuals far beyond "

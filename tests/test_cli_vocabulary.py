@@ -66,7 +66,7 @@ def test_rig_and_batch_and_calibrate_share_the_scope_of_pair_options():
     assert set(scoped("batch")) == set(scoped("calibrate")) == set(scoped("compare"))
     # rig: every pair option but those of stream a/b (taken per stream); its prior is the nominal of every sensor
     assert set(scoped("rig")) == {k for k in scoped("calibrate") if not FIELDS[k][1].per_stream}
-    assert set(scoped("solve")) == {"method", "alpha", "prior", "prior_weights"}
+    assert set(scoped("solve")) == {"method", "alpha", "prior", "prior_weights", "robust", "bootstrap", "seed"}
 
 
 @pytest.fixture(scope="module")
