@@ -199,7 +199,8 @@ def test_rig_fills_what_planar_motion_leaves_open_from_the_prior_as_calibrate_do
     every pair is open). ``--prior FILE`` is the nominal of every sensor, frames named as the streams (as --against
     reads it): each pair takes z from it as calibrate does, and the joint result keeps it (the drift correction
     does not move what no data observe); a nominal 3 cm off in z gives z 3 cm off, x and y stay the data's. A
-    prior without a sensor of a three-sensor rig is refused before the work, naming --prior."""
+    prior without a sensor of a three-sensor rig is refused before the work, naming --prior. Its warnings (z not
+    estimated) under --strict end as calibrate's do (one ending, cli.common.finish): exit 3, the result written."""
     g = simulate_ground("diff-drive", seed=2, duration_s=DURATION / 2)
     a, b = write_tum(tmp_path / "base.tum", g.base), write_tum(tmp_path / "lidar.tum", g.sensor)
     streams = ("--stream", f"base_link={a}", "--stream", f"lidar={b}", "--format", "json", "-q")
@@ -215,5 +216,7 @@ def test_rig_fills_what_planar_motion_leaves_open_from_the_prior_as_calibrate_do
     code, out, err = run(capsys, "calibrate", a, b, "--name-a", "base_link", "--name-b", "lidar", "--prior", urdf,
                          "--format", "json", "-q")
     assert code == 0 and abs(yaml.safe_load(out)["translation"][2] - (truth[2] + 0.03)) < 1e-6, err
+    code, out, err = run(capsys, "rig", *streams, "--prior", urdf, "--strict")     # calibrate's ending: exit 3
+    assert code == 3 and "under --strict" in err and yaml.safe_load(out)["transforms"], err   # ... result written
     code, _, err = run(capsys, "rig", *streams, "--stream", f"cam={b}", "--prior", urdf)
     assert code == 2 and "sensor(s) cam not in the nominal" in err and "--prior" in err.splitlines()[-1]
