@@ -214,6 +214,22 @@ def test_the_documents_required_keys_are_a_typed_schema_built_at_the_edge(tmp_pa
         assert list(doc).index("solver") == len(required) - 2 and len(doc) > len(required)     # diagnostics
 
 
+def test_the_version_has_one_home() -> None:
+    """Issue 21 item 8: the version lives in handeye_cli/version.py alone; the package metadata reads it from there
+    (pyproject's dynamic version), --version prints it, and no other module or packaging file writes it out."""
+    from importlib.metadata import version
+
+    from handeye_cli.version import __version__
+
+    pyproject = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    assert 'dynamic = ["version"]' in pyproject and 'version = {attr = "handeye_cli.version.__version__"}' in pyproject
+    assert version("handeye-cli") == __version__
+    literal = re.compile(rf"""["']{re.escape(__version__)}["']""")
+    spelled = [p for p in [*(ROOT / "handeye_cli").rglob("*.py"), ROOT / "pyproject.toml"]
+               if p.name != "version.py" and literal.search(p.read_text(encoding="utf-8"))]
+    assert spelled == []
+
+
 def test_nothing_cites_notes_outside_the_repository() -> None:
     cited = [f"{p.relative_to(ROOT)}:{n}" for folder in ("handeye_cli", "tests", "benchmarks")
              for p in (ROOT / folder).rglob("*.py") if p.name != "test_docs.py"
