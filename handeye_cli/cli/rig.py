@@ -116,7 +116,7 @@ def rig(log: str | None, **p: Any) -> None:
     With --report FILE the rig's HTML page: the joint extrinsics, the clock offsets, and each pair's
     residuals (joint and pairwise only), fit test and drift test.
     """
-    from ..rig import RigOptions, calibrate_rig_files, check_prior, parse_stream
+    from ..rig import RigOptions, calibrate_rig_files, parse_stream
     from ..rig.verdicts import check_sensor_names, rig_verdicts
 
     options = options_from_cli(p)
@@ -127,7 +127,6 @@ def rig(log: str | None, **p: Any) -> None:
     nominal = read_nominal(p["against"]) if p["against"] else None      # a bad nominal fails before the work
     if nominal is not None:
         check_sensor_names([str(s.name) for s in specs], nominal)
-    check_prior([str(s.name) for s in specs], options)             # ... and so does a bad prior
     inverted = per_stream_values(p, "invert")
     opts = RigOptions(reference=p["reference"], time_offsets=per_stream_values(p, "time_offset"),
                       invert=tuple(n for n, v in inverted.items() if v),

@@ -269,6 +269,7 @@ def calibrate_rig_files(log: str | None, specs: Sequence[str | StreamSpec], opti
     from ..io.remote import session_of
 
     names = [s.name or "" for s in named]
+    check_prior(names, opts.options)                          # a bad prior fails before the read
     with session_of(read) as remote:
         streams = read_rig(log, named, opts.options, quiet=quiet,
                            wxyz=per_stream(opts, names)["wxyz"] if len(set(names)) == len(names) >= 2 else {})
