@@ -3,6 +3,7 @@
 Public API::
 
     handeye_cli.solve(motions_a, motions_b, method="dqopt", alpha="auto", prior=None, weights=None)
+    handeye_cli.solve_pairs(motions_a, motions_b, robust=True, bootstrap=200)  # handeye solve --robust --bootstrap
     handeye_cli.calibrate_files("a.tum", "b.tum", method="dqopt")     # files (or StreamSpec/PoseStream)
     handeye_cli.calibrate_files("log.mcap", stream_a="/cam0/pose", stream_b="tf:odom,imu_link", alpha="auto")
     handeye_cli.calibrate(stream_a, stream_b, gate="off")              # two PoseStreams → Calibration
@@ -28,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 from .version import __version__
 
 if TYPE_CHECKING:
-    from .analysis.motions import solve
+    from .analysis.motions import PairsSolution, solve, solve_pairs
     from .comparison import MethodResult, compare_methods
     from .config import load_options
     from .errors import HandEyeError
@@ -47,10 +48,12 @@ _HOMES = {
     "Calibration": "pipeline", "StreamSpec": "pipeline", "calibrate": "pipeline", "calibrate_files": "pipeline",
     "RigOptions": "rig", "RigResult": "rig", "calibrate_rig": "rig", "calibrate_rig_files": "rig",
     "METHODS": "solvers", "Prior": "solvers", "Solution": "solvers", "solve": "analysis.motions",
+    "solve_pairs": "analysis.motions", "PairsSolution": "analysis.motions",
     "PoseStream": "streams",
 }
 
-__all__ = ["HandEyeError", "METHODS", "PoseStream", "Prior", "Solution", "solve", "Calibration", "StreamSpec",
+__all__ = ["HandEyeError", "METHODS", "PoseStream", "Prior", "Solution", "solve", "solve_pairs", "PairsSolution",
+           "Calibration", "StreamSpec",
            "calibrate", "calibrate_files", "load_options", "Options", "RigOptions", "RigResult", "calibrate_rig",
            "calibrate_rig_files", "compare_methods", "MethodResult", "document", "__version__"]
 
@@ -65,8 +68,8 @@ def document(result: Calibration | RigResult) -> dict[str, Any]:
 
 
 # the functions of the Python API: their errors name keywords where the command line's name flags
-_FUNCTIONS = {"solve", "calibrate", "calibrate_files", "calibrate_rig", "calibrate_rig_files", "compare_methods",
-              "load_options"}
+_FUNCTIONS = {"solve", "solve_pairs", "calibrate", "calibrate_files", "calibrate_rig", "calibrate_rig_files",
+              "compare_methods", "load_options"}
 
 
 def _in_keywords(f: Callable[..., Any]) -> Callable[..., Any]:

@@ -335,7 +335,8 @@ class PairOptions:
     stations: str = option("auto", choice("auto", "off"), "Station captures (sparse poses, or dwells of both "
                            "sensors): auto detects them and pairs the averaged stations all with all, without the "
                            "pose-jump gate; off treats every capture as continuous tracking.")
-    seed: int = option(0, integer(), "Seed of random:N and of the bootstrap.", "N")
+    seed: int = option(0, integer(), "Seed of random:N, of --robust's sampling and of the bootstrap.", "N",
+                       commands=SOLVER)
 
 
 @dataclass(frozen=True)
@@ -354,10 +355,12 @@ class SolverOptions:
                                 "estimate it with T_a_b.", "NUMBER|auto", commands=PAIR, per_stream="scale")
     prior: str | None = option(None, path, "Nominal T_a_b (a URDF, launch file, static_transform_publisher "
                                "line, Kalibr YAML or handeye result; frames a, b as the result names them): fixes "
-                               "what the motion cannot observe.", "FILE", commands=(*PAIR, "solve"))
+                               "what the motion cannot observe. In handeye rig the nominal of every sensor, its "
+                               "frames named as the streams (as --against reads it): each pair j, k takes "
+                               "T_j_k from it.", "FILE", commands=SOLVER)
     prior_weights: tuple[float, float] = option((1.0, 1.0), weight_pair,
                                                 "Weights a,b of the prior's rotation and translation terms.", "A,B",
-                                                commands=(*PAIR, "solve"))
+                                                commands=SOLVER)
     min_pairs: int = option(3, integer(low=2), "Fewer motion pairs than this is an error.", "N")
 
 
@@ -365,8 +368,8 @@ class SolverOptions:
 class AnalysisOptions:
     """What is checked after the solve."""
 
-    robust: bool = option(False, flag, "Reject outlier pairs before the final solve.")
-    bootstrap: int = option(0, integer(), "Uncertainty from N bootstrap resamples (0: off).", "N")
+    robust: bool = option(False, flag, "Reject outlier pairs before the final solve.", commands=SOLVER)
+    bootstrap: int = option(0, integer(), "Uncertainty from N bootstrap resamples (0: off).", "N", commands=SOLVER)
     strict: bool = option(False, flag, "Exit with code 3 when there are warnings (degenerate motion, suspect "
                           "residuals, doubtful time offset).")
     accept_poor_fit: bool = option(False, flag, "Keep a result that fails the fit test (residuals far beyond "

@@ -267,6 +267,7 @@ def _tags(text: str) -> set[str]:
 
 def test_reports_escape_hostile_names(tmp_path):
     from handeye_cli.output.fleet_report import render_fleet_report
+    from handeye_cli.output.records import BatchRecord
     from handeye_cli.output.report import render_report
     from handeye_cli.pipeline import calibrate
 
@@ -281,8 +282,10 @@ def test_reports_escape_hostile_names(tmp_path):
               "log_span_ns": [1_700_000_000_000_000_000, 1_700_000_010_000_000_000]}
     failed = {"input": evil, "status": "error", "error": evil}
     benign = {**record, "input": "x", "frames": {"a": "cam", "b": "imu"}}
-    assert _tags(render_fleet_report([record, failed])) == _tags(render_fleet_report([benign, {**failed, "input": "x",
-                                                                                               "error": "x"}]))
+    def fleet(*records):
+        return _tags(render_fleet_report([BatchRecord.from_record(r) for r in records]))
+
+    assert fleet(record, failed) == fleet(benign, {**failed, "input": "x", "error": "x"})
 
 
 # --- reading: the policy is to refuse --------------------------------------------------------------

@@ -189,6 +189,47 @@ def test_result_schema_page_names_every_key() -> None:
     assert not missing, f"docs/reference/result-schema.md does not describe {missing}"
 
 
+def test_the_documents_required_keys_are_a_typed_schema_built_at_the_edge(tmp_path, capsys) -> None:
+    """Issue 21: 'the result document (a TypedDict schema) is built at the output edge'. ResultDocument names the
+    schema page's "Always present" keys in its order, and every document (calibrate's, solve's) holds them in that
+    order, the diagnostic sections after solver and ros2_static_transform last."""
+    from typing import get_type_hints
+
+    import yaml
+    from _util import run
+
+    from handeye_cli.output.document import ResultDocument
+
+    page = (DOCS / "reference" / "result-schema.md").read_text(encoding="utf-8")
+    table = page.split("## Always present", 1)[1].split("###", 1)[0]
+    required = re.findall(r"^\| `([a-z_0-9]+)` \|", table, flags=re.M)
+    assert list(get_type_hints(ResultDocument)) == required and len(required) == 14
+    code, out, err = run(capsys, "solve", ROOT / "sample_data" / "pairs.csv", "--bootstrap", "10", "-q")
+    assert code == 0, err
+    for doc in (handeye_cli.document(handeye_cli.calibrate_files(ROOT / "sample_data" / "rig_a.tum",
+                                                                 ROOT / "sample_data" / "rig_b.tum", max_pairs=150)),
+                yaml.safe_load(out)):
+        keys = [k for k in doc if k in required]
+        assert keys == required and list(doc)[-1] == "ros2_static_transform"
+        assert list(doc).index("solver") == len(required) - 2 and len(doc) > len(required)     # diagnostics
+
+
+def test_the_version_has_one_home() -> None:
+    """Issue 21 item 8: the version lives in handeye_cli/version.py alone; the package metadata reads it from there
+    (pyproject's dynamic version), --version prints it, and no other module or packaging file writes it out."""
+    from importlib.metadata import version
+
+    from handeye_cli.version import __version__
+
+    pyproject = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    assert 'dynamic = ["version"]' in pyproject and 'version = {attr = "handeye_cli.version.__version__"}' in pyproject
+    assert version("handeye-cli") == __version__
+    literal = re.compile(rf"""["']{re.escape(__version__)}["']""")
+    spelled = [p for p in [*(ROOT / "handeye_cli").rglob("*.py"), ROOT / "pyproject.toml"]
+               if p.name != "version.py" and literal.search(p.read_text(encoding="utf-8"))]
+    assert spelled == []
+
+
 def test_nothing_cites_notes_outside_the_repository() -> None:
     cited = [f"{p.relative_to(ROOT)}:{n}" for folder in ("handeye_cli", "tests", "benchmarks")
              for p in (ROOT / folder).rglob("*.py") if p.name != "test_docs.py"

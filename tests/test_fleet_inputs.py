@@ -151,3 +151,39 @@ def test_the_fleet_report_reads_a_records_file_with_a_cut_last_line(capsys, tmp_
     (tmp_path / "records.jsonl").write_text(text.rstrip("\n"))  # whole, with no final newline: kept
     code, _, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html", "-q")
     assert code == 0 and err == "" and "6 log(s)" in (tmp_path / "fleet.html").read_text()
+
+
+def test_the_summary_and_the_fleet_report_read_typed_records(capsys, tmp_path):
+    """Issue 21: 'the report and the verdicts read typed objects, not the dict parsed back'. A record (batch's
+    output format, from a worker or a records file) is parsed once into a BatchRecord; the summary and the fleet
+    report read its fields, and a record whose field has the wrong shape is one line naming its input (the report
+    crashed on such a matrix)."""
+    from handeye_cli.analysis.verdict import Verdict
+    from handeye_cli.fleet import BatchSummary
+    from handeye_cli.output.records import BatchRecord
+
+    verdict = {"drift": True, "rotation_deg": 0.1, "translation_m": 0.02, "max_rotation_deg": 0.5,
+               "max_translation_m": 0.005, "nominal": {"translation": [0, 0, 0], "quaternion_xyzw": [0, 0, 0, 1]}}
+    typed = BatchRecord.from_record({"input": "robot01.mcap", "status": "drift", "matrix": NOMINAL.tolist(),
+                                     "frames": {"a": "cam0", "b": "cam1"}, "log_span_ns": [1, 2], "verdict": verdict,
+                                     "warnings": ["w"], "seconds": 1.5})
+    assert isinstance(typed.verdict, Verdict) and typed.drifted and typed.warned
+    assert typed.matrix is not None and typed.matrix.shape == (4, 4) and typed.frames == ("cam0", "cam1")
+    assert typed.log_span_ns == (1, 2) and typed.seconds == 1.5
+    summary = BatchSummary(strict=True)
+    summary.add(typed)
+    summary.add(BatchRecord.from_record({"input": "robot02.mcap", "status": "error", "error": "bad log"}), True)
+    assert summary.exit_code == 1 and summary.reused == 1
+    text = summary.text()
+    assert "DRIFT: robot01.mcap: 0.100° (max 0.5°), 20.00 mm (max 5 mm)" in text
+    assert "robot01.mcap 1.50 s" in text and "error: robot02.mcap: bad log" in text
+
+    _fleet_records(tmp_path / "records.jsonl")
+    lines = (tmp_path / "records.jsonl").read_text().splitlines()
+    bad = json.loads(lines[2])
+    bad["matrix"] = bad["matrix"][:3]                        # 3 rows: not a T_a_b
+    (tmp_path / "records.jsonl").write_text("\n".join([*lines[:2], json.dumps(bad), *lines[3:]]) + "\n")
+    code, _, err = run(capsys, "report", tmp_path / "records.jsonl", "-o", tmp_path / "fleet.html", "-q")
+    line = err.strip().splitlines()
+    assert code == 2 and len(line) == 1 and "bad batch record" in line[0] and f"({bad['input']})" in line[0]
+    assert not (tmp_path / "fleet.html").exists()

@@ -192,3 +192,29 @@ def test_pair_selection_does_not_starve_yaw(seed, variant):
     yaw, fit_yaw = (dof_values(M)[5] - dof_values(g.truth)[5] for M in (c.matrix, fit.matrix))
     assert abs(yaw) <= 0.05 and abs(yaw - fit_yaw) < 0.01, (yaw, fit_yaw)
     assert min(c.diagnostics["noise_model"]["strides"]) <= 4       # short spans kept: what drifting odometry needs
+
+
+def test_rig_fills_what_planar_motion_leaves_open_from_the_prior_as_calibrate_does(tmp_path, capsys):
+    """Issue 21: ``handeye rig`` refused ``--prior``, although a planar rig's pairs warn 'pass --prior FILE' (z of
+    every pair is open). ``--prior FILE`` is the nominal of every sensor, frames named as the streams (as --against
+    reads it): each pair takes z from it as calibrate does, and the joint result keeps it (the drift correction
+    does not move what no data observe); a nominal 3 cm off in z gives z 3 cm off, x and y stay the data's. A
+    prior without a sensor of a three-sensor rig is refused before the work, naming --prior. Its warnings (z not
+    estimated) under --strict end as calibrate's do (one ending, cli.common.finish): exit 3, the result written."""
+    g = simulate_ground("diff-drive", seed=2, duration_s=DURATION / 2)
+    a, b = write_tum(tmp_path / "base.tum", g.base), write_tum(tmp_path / "lidar.tum", g.sensor)
+    streams = ("--stream", f"base_link={a}", "--stream", f"lidar={b}", "--format", "json", "-q")
+    truth = dof_values(LIDAR_MOUNT)
+    for dz, strict in ((0.0, ()), (0.03, ("--strict",))):          # calibrate's ending: warnings under --strict
+        urdf = _urdf(tmp_path / f"robot{dz}.urdf", _shifted(LIDAR_MOUNT, z=dz))
+        code, out, err = run(capsys, "rig", *streams, "--prior", urdf, *strict)
+        assert code == (3 if strict else 0) and ("under --strict" in err) == bool(strict), err   # ... exit 3, written
+        t = yaml.safe_load(out)["transforms"][0]
+        assert (t["parent"], t["child"]) == ("base_link", "lidar")
+        assert abs(t["translation"][2] - (truth[2] + dz)) < 1e-4          # 0.1 mm: the drift correction kept off z
+        assert np.hypot(*(np.asarray(t["translation"][:2]) - truth[:2])) < 1e-3
+    code, out, err = run(capsys, "calibrate", a, b, "--name-a", "base_link", "--name-b", "lidar", "--prior", urdf,
+                         "--format", "json", "-q")
+    assert code == 0 and abs(yaml.safe_load(out)["translation"][2] - (truth[2] + 0.03)) < 1e-6, err
+    code, _, err = run(capsys, "rig", *streams, "--stream", f"cam={b}", "--prior", urdf)
+    assert code == 2 and "sensor(s) cam not in the nominal" in err and "--prior" in err.splitlines()[-1]

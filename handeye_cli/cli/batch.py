@@ -21,6 +21,7 @@ from ..fleet.overrides import read_overrides, settings_for, unmatched
 from ..io.spec import stream_source
 from ..options import number
 from ..output.formats import ALL_FORMATS
+from ..output.records import BatchRecord
 from ..output.writers import check_writable, write_stdout
 from .check import verdict_options
 from .common import CONTEXT, warn
@@ -113,19 +114,13 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
     settings = BatchSettings(nominal, o["max_rotation_deg"], o["max_translation_m"], o["output_dir"], o["fmt"],
                              o["skip_done"], options.analysis.strict, o["jobs"], o["scheduler"],
                              progress=not o["quiet"])
-    shown: list[dict[str, Any]] = []          # what the fleet report needs of each record, no more
-
-    def observe(record: dict[str, Any]) -> None:
-        shown.append(report_fields(record))
-
+    shown: list[BatchRecord] = []             # the typed records, for the fleet report
     if o["report_file"]:
-        from ..output.fleet_report import report_fields
-
         check_writable(o["report_file"], "--report")
     journal = Journal(o["records_file"], o["skip_done"], warn, "-o") if o["records_file"] else None
     try:
         summary = run_batch(jobs, settings, journal.append if journal else lambda line: write_stdout(line + "\n"),
-                            done=journal.done if journal else None, observe=observe if o["report_file"] else None)
+                            done=journal.done if journal else None, observe=shown.append if o["report_file"] else None)
     finally:
         if journal:
             journal.close()
@@ -157,5 +152,5 @@ def report(records_file: str, output: str, quiet: bool) -> None:
     records = read_records(records_file, warn)
     write_fleet_report(output, records)
     if not quiet:
-        counts = {s: sum(r.get("status") == s for r in records) for s in ("ok", "drift", "error")}
+        counts = {s: sum(r.status == s for r in records) for s in ("ok", "drift", "error")}
         click.echo(f"{output}: {len(records)} records ({', '.join(f'{n} {s}' for s, n in counts.items())})", err=True)

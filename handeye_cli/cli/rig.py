@@ -22,6 +22,7 @@ from ..output.writers import check_writable
 from .check import verdict_options
 from .common import CONTEXT, emit, finish, report_failure, result_format
 from .params import (
+    apply,
     command_options,
     options_from_cli,
     output_options,
@@ -76,8 +77,8 @@ def _drift_message(verdicts: dict[str, Verdict]) -> str:
 @verdict_options
 @output_options
 @report_option
-@refused(("--prior",), "takes no prior", "a prior is of one T_a_b, and the rig combines its pairs by their data's "
-         "covariance, which a prior on one pair would not enter: calibrate that pair with 'handeye calibrate --prior'")
+@apply(*(refused((f"--name-{side}",), f"names no stream {side}", "a rig's sensor is named once, by --stream "
+                 "NAME=SOURCE: NAME is its frame in every output (calibrate's --name-a/-b)") for side in "ab"))
 @quiet_option
 def rig(log: str | None, **p: Any) -> None:
     """Calibrate every sensor of a rig from one log: T_ref_k for each stream k, jointly.
@@ -101,11 +102,16 @@ def rig(log: str | None, **p: Any) -> None:
       handeye rig log.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose --format urdf -o rig.urdf
       handeye rig log.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose --against robot.urdf  # exit 1: moved
       handeye rig log.mcap --stream cam0=/cam0/pose --stream cam1=/cam1/pose --report rig.html
+      handeye rig --stream base_link=base.tum --stream lidar=lidar.tum --prior robot.urdf  # planar: z from it
 
     With --against NOMINAL (a URDF, launch file, static_transform_publisher lines, a handeye result)
     every sensor gets a verdict: T_ref_k against the nominal's transform between the frames named as
     the reference and sensor k; the document lists them under 'verdicts' and the exit code is 1 when
     any sensor drifted.
+
+    With --prior NOMINAL (read as --against reads it: frames named as the streams) each pair takes from the
+    nominal what its motion leaves open, as calibrate --prior does (a planar rig's z), and the joint
+    result keeps it.
 
     With --report FILE the rig's HTML page: the joint extrinsics, the clock offsets, and each pair's
     residuals (joint and pairwise only), fit test and drift test.

@@ -18,11 +18,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..analysis.verdict import Judged, verdict_for
+from ..analysis.verdict import Judged, Verdict, verdict_for
 from ..errors import HandEyeError, WriteError
 from ..io.nominal import Nominal
 from ..io.progress import Progress, progress
 from ..output.document import finite
+from ..output.records import BatchRecord
 from .cache import job_key, load_done, store
 from .engine import Job, run_jobs
 
@@ -53,8 +54,8 @@ _SHOWN_ERRORS = 5          # error lines the summary shows ("and N more" after t
 
 @dataclass
 class BatchSummary:
-    """What a batch produced, gathered record by record (:meth:`add`) without keeping the records:
-    counts, the slowest inputs, the worst verdicts, the first error lines, how many records
+    """What a batch produced, gathered record by record (:meth:`add`, typed records) without keeping the
+    records: counts, the slowest inputs, the worst verdicts, the first error lines, how many records
     ``--skip-done`` reused, the wall time [s], and whether warnings fail the batch (``--strict``)."""
 
     strict: bool = False
@@ -64,24 +65,22 @@ class BatchSummary:
     drifted: bool = False
     warned: bool = False
     slowest: list[tuple[float, str]] = field(default_factory=list)
-    worst: list[tuple[float, int, Record]] = field(default_factory=list)
+    worst: list[tuple[float, int, str, Verdict]] = field(default_factory=list)
     errors: list[tuple[str, str]] = field(default_factory=list)
 
-    def add(self, record: Record, reused: bool = False) -> None:
+    def add(self, record: BatchRecord, reused: bool = False) -> None:
         """Count one record (``reused``: taken from a result file or the records file, not run)."""
-        self.counts[record["status"]] = self.counts.get(record["status"], 0) + 1
+        self.counts[record.status] = self.counts.get(record.status, 0) + 1
         self.reused += reused
-        self.warned = self.warned or bool(record.get("warnings"))
-        self.drifted = self.drifted or bool(record.get("verdict", {}).get("drift"))
-        if not reused:
-            self.slowest = heapq.nlargest(_SHOWN, [*self.slowest, (float(record["seconds"]), record["input"])])
-        if "verdict" in record:
-            verdict = {k: record["verdict"][k] for k in ("drift", "rotation_deg", "max_rotation_deg",
-                                                          "translation_m", "max_translation_m")}
-            entry = (_excess(verdict), -self.total, {"input": record["input"], "verdict": verdict})
+        self.warned = self.warned or record.warned
+        self.drifted = self.drifted or record.drifted
+        if not reused and record.seconds is not None:
+            self.slowest = heapq.nlargest(_SHOWN, [*self.slowest, (record.seconds, record.input)])
+        if record.verdict is not None:
+            entry = (_excess(record.verdict), -self.total, record.input, record.verdict)
             self.worst = heapq.nlargest(_SHOWN, [*self.worst, entry], key=lambda e: e[:2])
-        if record["status"] == "error" and len(self.errors) < _SHOWN_ERRORS:
-            self.errors.append((record["input"], record.get("error", "")))
+        if record.status == "error" and len(self.errors) < _SHOWN_ERRORS:
+            self.errors.append((record.input, record.error))
 
     @property
     def total(self) -> int:
@@ -108,21 +107,19 @@ class BatchSummary:
                  f"{self.count('drift')} drift, {self.count('error')} error"]
         if self.slowest and self.slowest[0][0] > 0:
             lines.append("  slowest: " + ", ".join(f"{name} {s:.2f} s" for s, name in self.slowest))
-        for _, _, r in self.worst:
-            v = r["verdict"]
-            lines.append(f"  {'DRIFT' if v['drift'] else 'worst'}: {r['input']}: {v['rotation_deg']:.3f}° "
-                         f"(max {v['max_rotation_deg']:g}°), {v['translation_m'] * 1000:.2f} mm "
-                         f"(max {v['max_translation_m'] * 1000:g} mm)")
+        for _, _, name, v in self.worst:
+            lines.append(f"  {'DRIFT' if v.drift else 'worst'}: {name}: {v.rotation_deg:.3f}° "
+                         f"(max {v.max_rotation_deg:g}°), {v.translation_m * 1000:.2f} mm "
+                         f"(max {v.max_translation_m * 1000:g} mm)")
         lines += [f"  error: {message if name in message else f'{name}: {message}'}" for name, message in self.errors]
         if self.count("error") > len(self.errors):
             lines.append(f"  … and {self.count('error') - len(self.errors)} more error(s)")
         return "\n".join(lines)
 
 
-def _excess(v: dict[str, Any]) -> float:
+def _excess(v: Verdict) -> float:
     """How far beyond its tolerance a verdict is, as the larger of the two ratios."""
-    return max(float(v["rotation_deg"]) / max(float(v["max_rotation_deg"]), 1e-12),
-               float(v["translation_m"]) / max(float(v["max_translation_m"]), 1e-12))
+    return max(v.rotation_deg / max(v.max_rotation_deg, 1e-12), v.translation_m / max(v.max_translation_m, 1e-12))
 
 
 def record_line(record: Record) -> str:
@@ -151,9 +148,10 @@ def _judge(record: Record, s: BatchSettings) -> Record:
 class _Ordered:
     """Emits records in input order: a record that finishes before an earlier input's waits here
     (only those: the memory is the records finished ahead of the slowest running input, not the
-    batch's); each record, in order, also goes to the summary and to ``observe``."""
+    batch's); each record, in order, is parsed once into a :class:`BatchRecord` for the summary and
+    ``observe``."""
 
-    def __init__(self, emit: Callable[[str], None], observe: Callable[[Record], None] | None,
+    def __init__(self, emit: Callable[[str], None], observe: Callable[[BatchRecord], None] | None,
                  summary: BatchSummary, bar: Progress) -> None:
         self.waiting: dict[int, tuple[Record, bool, bool]] = {}
         self.next, self.emit, self.observe, self.summary, self.bar = 0, emit, observe, summary, bar
@@ -166,9 +164,10 @@ class _Ordered:
             record, reused, written = self.waiting.pop(self.next)
             if not written:
                 self.emit(record_line(record))
-            self.summary.add(record, reused)
+            typed = BatchRecord.from_record(record)
+            self.summary.add(typed, reused)
             if self.observe is not None:
-                self.observe(record)
+                self.observe(typed)
             self.next += 1
 
 
@@ -184,11 +183,11 @@ def _key(job: Job) -> str:
 
 
 def run_batch(jobs: Sequence[Job], settings: BatchSettings, emit: Callable[[str], None], *,
-              done: dict[str, Record] | None = None, observe: Callable[[Record], None] | None = None
+              done: dict[str, Record] | None = None, observe: Callable[[BatchRecord], None] | None = None
               ) -> BatchSummary:
     """Run ``jobs``, emitting each record line (in input order) through ``emit``. ``done`` holds
     records already in the records file (by input; ``--skip-done``): those inputs are not run and
-    their records not emitted again. ``observe`` sees every record in input order (the fleet report)."""
+    their records not emitted again. ``observe`` sees every record, typed, in input order (the fleet report)."""
     start = time.perf_counter()
     done = done or {}
     out_dir = Path(settings.output_dir) if settings.output_dir else None

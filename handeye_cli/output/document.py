@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 import math
 import shlex
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 import yaml
@@ -26,8 +26,8 @@ if TYPE_CHECKING:
     from ..pipeline import Calibration
 from ..version import __version__
 
-__all__ = ["FORMATS", "calibration_document", "result_document", "render", "plain", "finite", "solver_section",
-           "static_transform_command"]
+__all__ = ["FORMATS", "ResultDocument", "calibration_document", "result_document", "render", "plain", "finite",
+           "solver_section", "static_transform_command"]
 
 FORMATS = ("yaml", "json")
 
@@ -66,35 +66,49 @@ def solver_section(solution: Solution) -> dict[str, Any]:
     return solver
 
 
+class ResultDocument(TypedDict):
+    """The keys every result document holds, in schema order, with their plain types (the schema's "Always
+    present" table, docs/reference/result-schema.md): ``matrix`` is ``T_a_b`` (4x4, row-major, metres),
+    ``quaternion_xyzw`` Hamilton x-y-z-w with w ≥ 0. The diagnostic sections follow ``solver``, before
+    ``ros2_static_transform``."""
+
+    matrix: list[list[float]]
+    translation: list[float]
+    quaternion_xyzw: list[float]
+    frames: dict[str, str]
+    method: str
+    alpha: float
+    cost: float
+    pairs_used: int
+    samples: dict[str, Any]
+    inputs: dict[str, Any]
+    version: str
+    warnings: list[str]
+    solver: dict[str, Any]
+    ros2_static_transform: str
+
+
 def result_document(solution: Solution, *, frames: dict[str, str] | None = None,
                     inputs: dict[str, Any] | None = None, samples: dict[str, Any] | None = None,
                     warnings: list[str] | None = None, diagnostics: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The result as a plain dict in schema order (see the module docstring).
+    """The result as a plain dict in schema order (see the module docstring): the :class:`ResultDocument`
+    keys, built here from the typed solution, with ``diagnostics`` after ``solver``.
 
     ``frames`` names frames a and b (default ``{"a": "a", "b": "b"}``); ``samples`` holds the
     per-stage counts; ``diagnostics`` are appended after the required keys.
     """
     frames = dict(frames or {"a": "a", "b": "b"})
     t, q = solution.translation, solution.quaternion_xyzw
-    doc = {
-        "matrix": solution.matrix,
-        "translation": t,
-        "quaternion_xyzw": q,
-        "frames": frames,
-        "method": solution.method,
-        "alpha": solution.alpha,
-        "cost": solution.cost,
-        "pairs_used": solution.pairs,
-        "samples": samples or {"pairs": solution.pairs},
-        "inputs": inputs or {},
-        "version": __version__,
-        "warnings": list(warnings or []),
-        "solver": solver_section(solution),
-        **(diagnostics or {}),
-        "ros2_static_transform": static_transform_command(t, q, frames),
-    }
-    plain_doc: dict[str, Any] = plain(doc)
-    return plain_doc
+    core = ResultDocument(
+        matrix=plain(solution.matrix), translation=plain(t), quaternion_xyzw=plain(q), frames=frames,
+        method=solution.method, alpha=float(solution.alpha), cost=float(solution.cost), pairs_used=int(solution.pairs),
+        samples=plain(samples or {"pairs": solution.pairs}), inputs=plain(inputs or {}), version=__version__,
+        warnings=list(warnings or []), solver=plain(solver_section(solution)),
+        ros2_static_transform=static_transform_command(t, q, frames))
+    doc: dict[str, Any] = {k: v for k, v in core.items() if k != "ros2_static_transform"}
+    doc.update(plain(diagnostics or {}))
+    doc["ros2_static_transform"] = core["ros2_static_transform"]
+    return doc
 
 
 def calibration_document(calibration: Calibration) -> dict[str, Any]:

@@ -19,7 +19,6 @@ import re
 from collections.abc import Callable, Iterable
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,41 +26,31 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import ReadError
 from ..version import __version__
-from .records import intact_records
+from .records import BatchRecord, intact_records
 from .report import _CSS, _SCRIPT, esc, figure
 from .svgplot import Chart
 from .writers import check_writable, write_output
 
-__all__ = ["read_records", "render_fleet_report", "report_fields", "write_fleet_report"]
+__all__ = ["read_records", "render_fleet_report", "write_fleet_report"]
 
 _AXES = ("x", "y", "z")
 _COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf")
 _DRIFT = "#d62728"
 _TOLERANCE = "#2ca02c"
-_FIELDS = ("input", "status", "error", "matrix", "frames", "log_span_ns", "verdict")
-_VERDICT = ("drift", "nominal", "rotation_deg", "translation_m", "max_rotation_deg", "max_translation_m",
-            "rotation_significant", "translation_significant")
 _STAMP = re.compile(r"\d[\d_:.T-]{4,}\d")              # dates and times in a path: 6+ digits and separators
 _DAY_NS = 86_400e9
 
 
-def report_fields(record: dict[str, Any]) -> dict[str, Any]:
-    """What the report reads of a batch record (the batch keeps only this of each record)."""
-    out = {k: record[k] for k in _FIELDS if k in record}
-    if isinstance(out.get("verdict"), dict):
-        out["verdict"] = {k: out["verdict"][k] for k in _VERDICT if k in out["verdict"]}
-    return out
-
-
-def read_records(path: str | Path, warn: Callable[[str], None]) -> list[dict[str, Any]]:
-    """The records of a ``handeye batch`` JSON Lines file (blank lines skipped): a last line cut by
-    a batch killed mid-write is left out with a warning; a bad line before it is a ReadError."""
+def read_records(path: str | Path, warn: Callable[[str], None]) -> list[BatchRecord]:
+    """The records of a ``handeye batch`` JSON Lines file (blank lines skipped), each parsed once into a
+    :class:`BatchRecord`: a last line cut by a batch killed mid-write is left out with a warning; a bad line
+    before it is a ReadError."""
     p = Path(path)
     try:
         data = p.read_bytes()
     except OSError as e:
         raise ReadError(f"cannot read the records: {e.strerror}", str(p), "pass the output of handeye batch") from None
-    return [report_fields(r) for r in intact_records(data, str(p), warn, tail_if_whole=True)[0]]
+    return [BatchRecord.from_record(r) for r in intact_records(data, str(p), warn, tail_if_whole=True)[0]]
 
 
 def _robot(label: str) -> str:
@@ -70,11 +59,11 @@ def _robot(label: str) -> str:
     return re.sub(r"(?<=/)/+", "", _STAMP.sub("", label))
 
 
-def _deviations(records: list[dict[str, Any]]) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
+def _deviations(records: list[BatchRecord]) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
     """Per record: rotation deviation [deg] (3) and translation deviation [mm] (3) from the nominal
     (or from the median result when no record has a verdict), and whether the nominal was used."""
-    X = np.array([r["matrix"] for r in records], dtype=float)
-    nominals = [r["verdict"]["nominal"] for r in records if "verdict" in r]
+    X = np.array([r.matrix for r in records], dtype=float)
+    nominals = [r.verdict.nominal for r in records if r.verdict is not None]
     if nominals:
         nominal = nominals[0]
         N_t, N_R = np.asarray(nominal["translation"], dtype=float), Rotation.from_quat(nominal["quaternion_xyzw"])
@@ -84,22 +73,27 @@ def _deviations(records: list[dict[str, Any]]) -> tuple[NDArray[np.float64], NDA
     return rot, (X[:, :3, 3] - N_t) * 1000.0, bool(nominals)
 
 
-def _when(record: dict[str, Any]) -> datetime | None:
-    span = record.get("log_span_ns")
-    return datetime.fromtimestamp(span[0] / 1e9, timezone.utc) if span else None
+def _start(record: BatchRecord) -> int:
+    """The first synced stamp [ns] of a record the charts hold (they hold those with a span)."""
+    assert record.log_span_ns is not None
+    return record.log_span_ns[0]
 
 
-def _pair_figure(name: str, records: list[dict[str, Any]]) -> str:
+def _when(record: BatchRecord) -> datetime | None:
+    return None if record.log_span_ns is None else datetime.fromtimestamp(_start(record) / 1e9, timezone.utc)
+
+
+def _pair_figure(name: str, records: list[BatchRecord]) -> str:
     """Rotation and translation deviations over log time for one sensor pair, one line per robot."""
-    records = sorted(records, key=lambda r: (_robot(r["input"]), r["log_span_ns"][0]))
-    t0 = min(r["log_span_ns"][0] for r in records)
-    days = np.array([(r["log_span_ns"][0] - t0) / _DAY_NS for r in records])
+    records = sorted(records, key=lambda r: (_robot(r.input), _start(r)))
+    t0 = min(_start(r) for r in records)
+    days = np.array([(_start(r) - t0) / _DAY_NS for r in records])
     rot, trans, has_nominal = _deviations(records)
-    drift = np.array([r["status"] == "drift" for r in records])
-    robots = list(dict.fromkeys(_robot(r["input"]) for r in records))
-    which = np.array([robots.index(_robot(r["input"])) for r in records])
-    verdict = next((r["verdict"] for r in records if "verdict" in r), None)
-    limits = (verdict["max_rotation_deg"], verdict["max_translation_m"] * 1000) if verdict else (None, None)
+    drift = np.array([r.status == "drift" for r in records])
+    robots = list(dict.fromkeys(_robot(r.input) for r in records))
+    which = np.array([robots.index(_robot(r.input)) for r in records])
+    verdict = next((r.verdict for r in records if r.verdict is not None), None)
+    limits = (verdict.max_rotation_deg, verdict.max_translation_m * 1000) if verdict else (None, None)
     chart = Chart(10, 5.6)
     panels = chart.grid(2, 3, margins=(0.8, 0.15, 0.6, 0.35), gaps=(0.55, 0.45))
     start = datetime.fromtimestamp(t0 / 1e9, timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
@@ -129,40 +123,42 @@ def _pair_figure(name: str, records: list[dict[str, Any]]) -> str:
     return figure(chart, f"extrinsic of {name} over time", caption)
 
 
-def _row(cells: list[Any]) -> str:
+def _row(cells: list[object]) -> str:
     return "<tr>" + "".join(f"<td>{esc(c)}</td>" for c in cells) + "</tr>"
 
 
-def _drift_table(records: list[dict[str, Any]]) -> str:
-    drifted = [r for r in records if r["status"] == "drift"]
+def _significant(value: bool | None) -> object:
+    return "n/a" if value is None else value
+
+
+def _drift_table(records: list[BatchRecord]) -> str:
+    drifted = [(r, r.verdict) for r in records if r.status == "drift" and r.verdict is not None]
     if not drifted:
         return "<div class='ok'>No log drifted beyond tolerance.</div>"
-    rows = "".join(_row([r["input"], _when(r) or "", f"{r['verdict']['rotation_deg']:.3f}",
-                         f"{r['verdict']['translation_m'] * 1000:.2f}",
-                         r["verdict"].get("rotation_significant", "n/a"),
-                         r["verdict"].get("translation_significant", "n/a")]) for r in drifted)
+    rows = "".join(_row([r.input, _when(r) or "", f"{v.rotation_deg:.3f}", f"{v.translation_m * 1000:.2f}",
+                         _significant(v.rotation_significant), _significant(v.translation_significant)])
+                   for r, v in drifted)
     head = "".join(f"<th>{h}</th>" for h in ("input", "log start (UTC)", "rotation [deg]", "translation [mm]",
                                              "rotation significant", "translation significant"))
     return f"<div class='card' id='drifted'><table><tr>{head}</tr>{rows}</table></div>"
 
 
-def _error_table(records: list[dict[str, Any]]) -> str:
-    failed = [r for r in records if r["status"] == "error"]
+def _error_table(records: list[BatchRecord]) -> str:
+    failed = [r for r in records if r.status == "error"]
     if not failed:
         return "<p class='note'>Every log was calibrated.</p>"
-    rows = "".join(_row([r["input"], r.get("error", "")]) for r in failed)
+    rows = "".join(_row([r.input, r.error]) for r in failed)
     return f"<div class='card' id='failed'><table><tr><th>input</th><th>error</th></tr>{rows}</table></div>"
 
 
-def render_fleet_report(records: Iterable[dict[str, Any]]) -> str:
-    """The report as one HTML string (see the module docstring)."""
+def render_fleet_report(records: Iterable[BatchRecord]) -> str:
+    """The report as one HTML string (see the module docstring) of typed batch records."""
     records = list(records)
-    pairs: dict[str, list[dict[str, Any]]] = {}
+    pairs: dict[str, list[BatchRecord]] = {}
     for r in records:
-        if "matrix" in r and r.get("log_span_ns"):
-            f = r.get("frames") or {}
-            pairs.setdefault(f"T_{f.get('a', 'a')}_{f.get('b', 'b')}", []).append(r)
-    counts = {s: sum(r["status"] == s for r in records) for s in ("ok", "drift", "error")}
+        if r.matrix is not None and r.log_span_ns is not None:
+            pairs.setdefault(f"T_{r.frames[0]}_{r.frames[1]}", []).append(r)
+    counts = {s: sum(r.status == s for r in records) for s in ("ok", "drift", "error")}
     figures = "".join(f"<h2>{esc(name)}</h2>{_pair_figure(name, rs)}" for name, rs in sorted(pairs.items()))
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
     body = (f"<h1>handeye fleet report</h1><p class='sub'>{len(records)} log(s): {counts['ok']} ok, "
@@ -176,7 +172,7 @@ def render_fleet_report(records: Iterable[dict[str, Any]]) -> str:
             f"<body><main>{body}</main><script>{_SCRIPT}</script></body></html>\n")
 
 
-def write_fleet_report(path: str | Path, records: list[dict[str, Any]], flag: str = "-o") -> None:
+def write_fleet_report(path: str | Path, records: list[BatchRecord], flag: str = "-o") -> None:
     """Write the fleet report of batch ``records`` to ``path`` (atomically); a HandEyeError naming
     ``flag`` when it cannot be written (no file is created)."""
     check_writable(path, flag)

@@ -23,19 +23,21 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import ConfigError, DataError
+from ..analysis.subspace import DOF_NAMES, FROM_PRIOR
+from ..errors import ConfigError, DataError, HandEyeError
+from ..io.nominal import read_nominal
 from ..options import FIELDS, Options
 from ..pipeline import calibrate_read, check_samples
 from ..streams import PoseStream
 from .graph import loop_closures, synchronise
 from .joint import CONSISTENCY_P_VALUE, Consistency, JointProblem, Motions, bootstrap_rig, consistency, refine
-from .noise import bias_bound, drift_corrections, edge_covariance, edge_noise, stream_variances
+from .noise import Correction, bias_bound, drift_corrections, edge_covariance, edge_noise, stream_variances
 from .pairwise import ClockOffset, Edge, clock_offsets, solve_edges
 from .read import StreamSpec, parse_stream, read_rig
 from .result import RigResult, transform_entry
 
-__all__ = ["RigOptions", "RigResult", "StreamSpec", "calibrate_rig", "calibrate_rig_files", "parse_stream",
-           "per_stream", "read_rig", "transform_entry"]
+__all__ = ["RigOptions", "RigResult", "StreamSpec", "calibrate_rig", "calibrate_rig_files", "check_prior",
+           "parse_stream", "per_stream", "read_rig", "transform_entry"]
 
 
 def _flag(text: str) -> dict[str, str]:
@@ -61,8 +63,12 @@ class RigOptions:
     block_s: block length [s] of the bootstrap.
     options: the settings of every pairwise calibration (time source, sync, gates, pairs, solver)
         and of the rig's own analysis (``bootstrap`` replicates, ``max_time_offset``, ``seed``); the
-        single-pair keys (``time_offset``, ``invert_a/b``, ``wxyz_a/b``, ``scale``, ``name_a/b``, ``prior``)
-        are the per-stream fields above (a stream's name is its frame's: ``name_a``), ``prior`` is refused.
+        single-pair keys (``time_offset``, ``invert_a/b``, ``wxyz_a/b``, ``scale``, ``name_a/b``) are the
+        per-stream fields above (a stream's name is its frame's: ``name_a``). ``prior`` is the nominal of every
+        sensor (frames named as the streams, read as ``--against`` reads it): each pair ``j, k`` takes the
+        nominal's ``T_j_k`` as calibrate takes its prior, fixing only what that pair's motion leaves open
+        (planar motion: z, roll, pitch); the joint solve and the bootstrap weigh the pairs by their data alone,
+        so what no pair observes keeps the nominal's value.
     """
 
     reference: str | None = field(default=None, metadata=_flag("--reference"))
@@ -98,11 +104,24 @@ def per_stream(options: RigOptions, names: list[str]) -> dict[str, dict[str, Any
     if both:
         raise ConfigError(f"stream {both[0]!r} is both inverted and not inverted", "not_inverted",
                           "keep one of the two")
-    if options.options.solver.prior is not None or options.options.solver.scale != 1.0:
-        key = "prior" if options.options.solver.prior is not None else "scale"
-        raise ConfigError(f"{key} is of one pair's stream b, not of a rig's streams", key,
-                          "give a rig stream's scale by name (scales / --scale NAME=VALUE); a rig takes no prior")
+    if options.options.solver.scale != 1.0:
+        raise ConfigError("scale is of one pair's stream b, not of a rig's streams", "scale",
+                          "give a rig stream's scale by name (scales / --scale NAME=VALUE)")
     return out
+
+
+def check_prior(names: list[str], options: Options) -> None:
+    """Refuse, before the work, a rig prior (``prior``: a nominal of the sensors, frames named as the streams)
+    that names not every sensor (a rig of two may use a nominal of one transform under other names)."""
+    if options.solver.prior is None:
+        return
+    from .verdicts import check_sensor_names
+
+    try:
+        check_sensor_names(names, read_nominal(options.solver.prior))
+    except HandEyeError as e:                     # name the option that chose the file
+        fix = (e.fix or "check the file").replace("--against", "--prior")
+        raise type(e)(e.what, e.where, fix if "--prior" in fix else f"{fix}, or another --prior") from None
 
 
 def _check(names: list[str], options: RigOptions) -> int:
@@ -136,6 +155,19 @@ def _scaled(streams: list[PoseStream], names: list[str], ref: int, scales: Mappi
             report[name] = {"value": float(value)}
         out[k] = out[k].scaled(float(value))
     return out, report
+
+
+def _prior_kept(correction: Correction, edge: Edge) -> Correction:
+    """A pair's drift correction without its part along the translation the pair's motion leaves open (along the
+    common rotation axis ``axis_a`` of frame j, e.g. z of planar motion) where the pair took it from the prior:
+    there the data say nothing, and the prior's value stands."""
+    sub = edge.calibration.diagnostics.subspace
+    if sub is None or sub.axis_a is None or not any(d.status == FROM_PRIOR and d.name in DOF_NAMES[:3]
+                                                     for d in sub.dofs):
+        return correction
+    bias = correction.bias.copy()
+    bias[3:] -= (bias[3:] @ sub.axis_a) * sub.axis_a
+    return replace(correction, bias=bias)
 
 
 def _motions(edges: list[Edge], offsets: list[ClockOffset]) -> list[Motions]:
@@ -186,6 +218,7 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
         check_samples(stream, f"stream {name!r}")
     n, ref = len(names), _check(names, opts)
     given = per_stream(opts, names)
+    check_prior(names, opts.options)
     cfg = opts.options
     inverted = [name in opts.invert for name in names]
     used = [s.inverted() if inv else s for s, inv in zip(streams.values(), inverted, strict=True)]
@@ -201,7 +234,7 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
     closures = loop_closures(n, {p: e.matrix for p, e in zip(pairs, edges, strict=True)})
     noise = [edge_noise(e, _raw_stamps(used, offsets, e)) for e in edges]
     variances = stream_variances(n, pairs, noise)
-    corrections = drift_corrections(pairs, noise, variances)
+    corrections = [_prior_kept(c, e) for c, e in zip(drift_corrections(pairs, noise, variances), edges, strict=True)]
     steps = np.stack([c.step for c in corrections])
     X = steps @ np.stack([e.matrix for e in edges])
     problem = JointProblem(n, ref, pairs, X, edge_covariance(pairs, noise, variances, corrections),
@@ -236,6 +269,7 @@ def calibrate_rig_files(log: str | None, specs: Sequence[str | StreamSpec], opti
     from ..io.remote import session_of
 
     names = [s.name or "" for s in named]
+    check_prior(names, opts.options)                          # a bad prior fails before the read
     with session_of(read) as remote:
         streams = read_rig(log, named, opts.options, quiet=quiet,
                            wxyz=per_stream(opts, names)["wxyz"] if len(set(names)) == len(names) >= 2 else {})

@@ -87,13 +87,16 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
 
 
 def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset], options: Options,
-          chosen: list[bool], noise: StreamMemo[StreamNoise | None]) -> Edge:
-    # the rig's bootstrap resamples all pairs at once; a prior is of one T_a_b, not of every pair. A stream
-    # whose inversion the user gave (inverted by the rig already, or said not to be) is "not inverted (again),
-    # by the user's word": the inversion check then refuses in those words, as calibrate's --no-invert-a does
+          chosen: list[bool], noise: StreamMemo[StreamNoise | None], names: tuple[str, str]) -> Edge:
+    # the rig's bootstrap resamples all pairs at once. A stream whose inversion the user gave (inverted by the
+    # rig already, or said not to be) is "not inverted (again), by the user's word": the inversion check then
+    # refuses in those words, as calibrate's --no-invert-a does. A prior (the rig's nominal) is read for the
+    # pair's frames, the sensors' names: T_j_k = T_ref_j⁻¹ T_ref_k of the nominal
     said: dict[str, Any] = {key: False for key, c in (("invert_a", chosen[j]), ("invert_b", chosen[k])) if c}
+    if options.solver.prior is not None:
+        said.update(name_a=names[0], name_b=names[1])
     opts = Options.from_flat(options, time_offset=(offsets[k].offset_ns - offsets[j].offset_ns) / 1e9,
-                             bootstrap=0, prior=None, **said)
+                             bootstrap=0, **said)
     cal = calibrate_read(streams[j], streams[k], opts, scale_by_fit=False,   # the rig's reader applied the read
                          noise_of=noise)                      # options; a badly scaled stream is named by the rig
     A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
@@ -112,7 +115,8 @@ def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[Clock
     for j in range(len(streams)):
         for k in range(j + 1, len(streams)):
             try:
-                edge = _edge(streams, j, k, offsets, options, chosen or [False] * len(streams), noise)
+                edge = _edge(streams, j, k, offsets, options, chosen or [False] * len(streams), noise,
+                             (names[j], names[k]))
             except HandEyeError as e:
                 warnings.append(f"pair {names[j]}-{names[k]} left out: {e}")
                 continue
