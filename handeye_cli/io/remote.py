@@ -376,7 +376,7 @@ class RemoteObject:
         return data
 
     def hold(self, start: int, data: bytes) -> None:
-        """Keep ``data``, the object's bytes from ``start``, for re-reading (at most :data:`_HELD`, oldest first out)."""
+        """Keep ``data``, the object's bytes from ``start``, for re-reading (at most :data:`_HELD`: oldest out)."""
         self._held[start] = data
         while sum(map(len, self._held.values())) > _HELD and len(self._held) > 1:
             self._held.popitem(last=False)
