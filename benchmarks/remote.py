@@ -181,7 +181,7 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-class _RangeHandler(http.server.BaseHTTPRequestHandler):
+class RangeHandler(http.server.BaseHTTPRequestHandler):
     """Files of the server's folder over plain HTTP, answering ``Range: bytes=a-b`` (and the suffix
     ``bytes=-n``) with 206 and just those bytes (a request costs its bytes, not the object's: unlike
     moto, which reads the whole object for every request). The server's ``log`` gets (method, range,
@@ -236,9 +236,12 @@ class _RangeHandler(http.server.BaseHTTPRequestHandler):
         pass
 
 
-def _http_server(root: Path, latency: float = 0.0) -> http.server.ThreadingHTTPServer:
-    """The files in ``root`` served on 127.0.0.1 (:class:`_RangeHandler`), each answer ``latency`` [s] late."""
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _RangeHandler)
+def http_server(root: Path, latency: float = 0.0,
+                handler: type[RangeHandler] = RangeHandler) -> http.server.ThreadingHTTPServer:
+    """The files in ``root`` served on 127.0.0.1 (by ``handler``: :class:`RangeHandler`), each answer
+    ``latency`` [s] late (tests/test_remote.py serves with it too)."""
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    server.daemon_threads = True
     server.root = str(root)                 # type: ignore[attr-defined]
     server.latency = latency                # type: ignore[attr-defined]
     server.lock, server.active, server.log = threading.Lock(), 0, []     # type: ignore[attr-defined]
@@ -324,7 +327,7 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="handeye-bench-remote-"))
     served = tmp / "served"
     served.mkdir()
-    web = _http_server(served, args.latency_ms / 1e3)
+    web = http_server(served, args.latency_ms / 1e3)
     base = f"http://127.0.0.1:{web.server_address[1]}"
 
     def one_get(url: str, to: Path) -> None:
