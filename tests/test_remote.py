@@ -408,7 +408,8 @@ def _served(tmp_path, mode: str = "", after: int = 1 << 62):
     """A plain HTTP range server on 127.0.0.1 (benchmarks/remote.py's) serving ``tmp_path``: its
     ``log`` holds (method, range, requests under way when it came) of every request. ``mode``
     "overlap": each range request waits (at most 0.5 s) until another request is under way, so that
-    requests sent one after another are seen one at a time, and requests sent together together; "fail": ranges from byte ``after`` on are answered 500;
+    requests sent one after another are seen one at a time, and requests sent together together;
+    "fail": ranges from byte ``after`` on are answered 500;
     "stall": they are never answered."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from remote import RangeHandler, http_server
@@ -463,9 +464,8 @@ def test_ranges_ahead_are_bounded_by_bytes(tmp_path, monkeypatch):
     server, base = _served(tmp_path, "overlap")
     planned = [(k * (100 << 10), 30_000) for k in range(8)]
     monkeypatch.setattr(remote, "_AHEAD", 2 * 30_000)
-    with remote.session((), 10.0, 2) as s:
-        with s.open(f"{base}/obj.bin").ranges(planned) as ranges:
-            views = [bytes(ranges.view(a, n)) for a, n in planned]
+    with remote.session((), 10.0, 2) as s, s.open(f"{base}/obj.bin").ranges(planned) as ranges:
+        views = [bytes(ranges.view(a, n)) for a, n in planned]
     assert views == [data[a:a + n] for a, n in planned]
     assert max(active for method, _, active in server.log if method == "GET") == 2
     server.shutdown()
@@ -505,7 +505,7 @@ def test_a_chunk_request_that_fails_or_stalls_is_one_line(tmp_path, capsys, mode
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from remote import write_image_log
 
-    path = write_image_log(tmp_path / "img.mcap", seconds=4, image_bytes=20_000, own_chunks=True)
+    write_image_log(tmp_path / "img.mcap", seconds=4, image_bytes=20_000, own_chunks=True)
     server, base = _served(tmp_path, mode, after=4096)
     code, out, err = run(capsys, "calibrate", f"{base}/img.mcap", *TOPICS, "-q", "--remote-timeout", "0.5",
                          "--remote-retries", "2")
