@@ -409,8 +409,8 @@ def _served(tmp_path, mode: str = "", after: int = 1 << 62):
     ``log`` holds (method, range, requests under way when it came) of every request. ``mode``
     "overlap": each range request waits (at most 0.5 s) until another request is under way, so that
     requests sent one after another are seen one at a time, and requests sent together together;
-    "fail": ranges from byte ``after`` on are answered 500;
-    "stall": they are never answered."""
+    "fail": ranges from byte ``after`` on are answered 500; "stall": they are never answered;
+    "ignore": Range is ignored (200, the whole object)."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from remote import RangeHandler, http_server
 
@@ -418,7 +418,9 @@ def _served(tmp_path, mode: str = "", after: int = 1 << 62):
         def _answer(self, path):
             server, asked = self.server, self.headers.get("Range", "")
             start = int(asked[6:].split("-")[0] or -1) if asked.startswith("bytes=") else -1
-            if mode == "overlap" and asked:
+            if mode == "ignore":
+                del self.headers["Range"]           # answers 200 with the whole object
+            elif mode == "overlap" and asked:
                 waited = time.monotonic()
                 while server.active < 2 and time.monotonic() - waited < 0.5:
                     time.sleep(0.002)
@@ -512,4 +514,19 @@ def test_a_chunk_request_that_fails_or_stalls_is_one_line(tmp_path, capsys, mode
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
     assert f"{base}/img.mcap" in err and "failed 2 times" in err
     assert ("no answer in time" in err) == (mode == "stall")
+    server.shutdown()
+
+
+def test_over_plain_http_a_missing_object_and_a_server_ignoring_ranges_are_one_line(tmp_path, capsys):
+    """404: "no such object" at once; a server answering a Range request with the whole object: a
+    clear line, never those bytes taken for the range."""
+    (tmp_path / "rig.mcap").write_bytes((SAMPLES / "rig.mcap").read_bytes())
+    server, base = _served(tmp_path)
+    code, out, err = run(capsys, "calibrate", f"{base}/missing.mcap", *TOPICS, "-q")
+    assert code == 2 and out == "" and err.startswith("error: no such object") and len(err.splitlines()) == 1
+    server.shutdown()
+    server, base = _served(tmp_path, "ignore")
+    code, out, err = run(capsys, "calibrate", f"{base}/rig.mcap", *TOPICS, "-q")
+    assert code == 2 and out == "" and "ignores byte ranges (answered 200" in err and len(err.splitlines()) == 1
+    assert len(server.log) <= 4                 # no retries of a wrong answer
     server.shutdown()
