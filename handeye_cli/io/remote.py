@@ -355,7 +355,7 @@ class _Plain:
             with self._open(url, "GET", {"Range": asked}) as r:
                 n = int(r.headers.get("Content-Length", -1))
                 whole = -start if start < 0 else end if start == 0 else -1     # the object, when no longer
-                if r.status != 206 and not (r.status == 200 and 0 <= n and (whole is None or n <= whole)):
+                if r.status != 206 and not (r.status == 200 and n >= 0 and (whole is None or n <= whole)):
                     raise ReadError(f"the server ignores byte ranges (answered {r.status} to a Range request)",
                                     url, "serve the object where Range requests are answered, or download it "
                                     "and pass its local path")
