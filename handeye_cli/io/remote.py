@@ -11,12 +11,16 @@ credentials (``https://user:pass@host/…``) is refused.
 An object is read by byte range (:class:`RemoteObject`): every request asks for exactly the bytes
 its reader needs (at least :data:`_READAHEAD` for small reads), gets at most
 ``remote_retries`` tries of ``remote_timeout`` seconds each, and adds what it got to the
-session's :attr:`Session.bytes_fetched` (and one to :attr:`Session.requests`). The MCAP reader
-reads the footer, the summary and then only the chunks it needs; an indexed ROS 1 bag's reader
+session's :attr:`Session.bytes_fetched` (and one to :attr:`Session.requests`). Detecting the
+format asks for the object's size together with its first :data:`_READAHEAD` and last
+:data:`_TAIL` bytes (one round trip: :meth:`Session.is_folder`). The MCAP reader reads the footer,
+the summary and then only the chunks it needs; an indexed ROS 1 bag's reader
 (:class:`.rosbag1_scan.Bag1Index`) its header, its index and then only the chunks it needs. Both
 ask for chunks through :meth:`RemoteObject.ranges`, which joins ranges at most :data:`_GAP` apart
-into one request of at most :data:`_SPAN` and keeps :data:`_PARALLEL` requests under way at once,
-so memory holds a few chunks, never the object. What cannot be read by range — text files, ROS 2
+into one request of at most :data:`_SPAN` and keeps up to :data:`_PARALLEL` requests holding up to
+:data:`_AHEAD` bytes under way at once, so memory holds a few chunks, never the object. A plain
+http(s) object is read with the standard library's client (:class:`_Plain`), anything else
+through fsspec. What cannot be read by range — text files, ROS 2
 bags, a ROS 1 bag without a usable index, split ROS 1 bags, an MCAP without a summary (cut short,
 or written without one) — is downloaded once to the session's cache (:meth:`Session.cached`): at
 most :data:`CACHE_LIMIT` bytes, removed when the session ends and at exit, with a one-line note.
