@@ -181,20 +181,34 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-class _RangeHandler(http.server.BaseHTTPRequestHandler):
-    """Files of the server's folder over plain HTTP, answering ``Range: bytes=a-b`` with 206 and just
-    those bytes (a request costs its bytes, not the object's: unlike moto, which reads the whole object
-    for every request)."""
+class RangeHandler(http.server.BaseHTTPRequestHandler):
+    """Files of the server's folder over plain HTTP, answering ``Range: bytes=a-b`` (and the suffix
+    ``bytes=-n``) with 206 and just those bytes (a request costs its bytes, not the object's: unlike
+    moto, which reads the whole object for every request). The server's ``log`` gets (method, range,
+    requests under way when this one arrived) of every request."""
 
     def _target(self) -> tuple[Path, int, int] | None:
-        time.sleep(self.server.latency)                             # type: ignore[attr-defined]
-        path = Path(self.server.root) / self.path.lstrip("/")      # type: ignore[attr-defined]
+        server: Any = self.server
+        with server.lock:
+            server.active += 1
+            server.log.append((self.command, self.headers.get("Range"), server.active))
+        try:
+            time.sleep(server.latency)
+            return self._answer(Path(server.root) / self.path.lstrip("/"))
+        finally:
+            with server.lock:
+                server.active -= 1
+
+    def _answer(self, path: Path) -> tuple[Path, int, int] | None:
         if not path.is_file():
             self.send_error(404)
             return None
         size = path.stat().st_size
-        asked = re.fullmatch(r"bytes=(\d+)-(\d*)", self.headers.get("Range", ""))
-        start, stop = (int(asked[1]), min(size, int(asked[2] or size - 1) + 1)) if asked else (0, size)
+        asked = re.fullmatch(r"bytes=(\d*)-(\d*)", self.headers.get("Range", ""))
+        if asked and not asked[1]:
+            start, stop = max(0, size - int(asked[2])), size
+        else:
+            start, stop = (int(asked[1]), min(size, int(asked[2] or size - 1) + 1)) if asked else (0, size)
         self.send_response(206 if asked else 200)
         self.send_header("Content-Type", "application/octet-stream")
         self.send_header("Content-Length", str(stop - start))
@@ -222,11 +236,15 @@ class _RangeHandler(http.server.BaseHTTPRequestHandler):
         pass
 
 
-def _http_server(root: Path, latency: float = 0.0) -> http.server.ThreadingHTTPServer:
-    """The files in ``root`` served on 127.0.0.1 (:class:`_RangeHandler`), each answer ``latency`` [s] late."""
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), _RangeHandler)
+def http_server(root: Path, latency: float = 0.0,
+                handler: type[RangeHandler] = RangeHandler) -> http.server.ThreadingHTTPServer:
+    """The files in ``root`` served on 127.0.0.1 (by ``handler``: :class:`RangeHandler`), each answer
+    ``latency`` [s] late (tests/test_remote.py serves with it too)."""
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    server.daemon_threads = True
     server.root = str(root)                 # type: ignore[attr-defined]
     server.latency = latency                # type: ignore[attr-defined]
+    server.lock, server.active, server.log = threading.Lock(), 0, []     # type: ignore[attr-defined]
     threading.Thread(target=server.serve_forever, daemon=True).start()
     return server
 
@@ -309,7 +327,7 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="handeye-bench-remote-"))
     served = tmp / "served"
     served.mkdir()
-    web = _http_server(served, args.latency_ms / 1e3)
+    web = http_server(served, args.latency_ms / 1e3)
     base = f"http://127.0.0.1:{web.server_address[1]}"
 
     def one_get(url: str, to: Path) -> None:

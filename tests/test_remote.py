@@ -10,6 +10,7 @@ import sys
 import threading
 import time
 
+import numpy as np
 import pytest
 from _util import ROOT, run
 
@@ -126,13 +127,15 @@ def test_remote_and_local_mcap_streams_are_identical(s3):
 
 def test_only_the_wanted_chunks_are_fetched(tmp_path):
     """Poses in their own chunks, images beside: fetched ≤ 1.2 × (footer + summary + pose chunks with
-    their message indexes), by the file's own chunk index (served from memory://)."""
+    their message indexes), by the file's own chunk index (served from memory://). The first and last
+    bytes read ahead with the object's size add at most _READAHEAD + _TAIL (20 KiB) to any read: the
+    log is long enough (20 s) for its bound to dwarf them, as a fleet log's does."""
     import fsspec
 
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from remote import lower_bound, write_image_log
 
-    path = write_image_log(tmp_path / "img.mcap", seconds=4, image_bytes=200_000, own_chunks=True)
+    path = write_image_log(tmp_path / "img.mcap", seconds=20, image_bytes=40_000, own_chunks=True)
     with fsspec.open("memory://img/img.mcap", "wb") as f:
         f.write(path.read_bytes())
     from handeye_cli.io import read_log_streams
@@ -303,12 +306,13 @@ def test_the_readme_nightly_job_reads_s3_directly(s3, capsys, tmp_path, monkeypa
 
 
 def _image_bag(tmp_path, key: str):
-    """A small image-heavy ROS 1 bag with every second of poses in a chunk of its own, uploaded as
-    ``key``; (its path, its lower bound by its own index)."""
+    """A small image-heavy ROS 1 bag (20 s: its bound dwarfs the 20 KiB read ahead, see
+    test_only_the_wanted_chunks_are_fetched) with every second of poses in a chunk of its own, uploaded
+    as ``key``; (its path, its lower bound by its own index)."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from remote import lower_bound_bag, write_image_bag
 
-    path = write_image_bag(tmp_path / "img.bag", seconds=4, image_bytes=200_000, own_chunks=True)
+    path = write_image_bag(tmp_path / "img.bag", seconds=20, image_bytes=40_000, own_chunks=True)
     boto3.client("s3").upload_file(str(path), BUCKET, key)
     return path, lower_bound_bag(path)
 
@@ -329,7 +333,7 @@ def test_an_indexed_ros1_bag_is_read_by_range(s3, tmp_path):
     assert not s.notes and bound < 0.05 * path.stat().st_size
     assert bound <= s.bytes_fetched <= 1.2 * bound
     for x, y in zip(local, remote, strict=True):
-        assert len(x) == 200 and not y.warnings
+        assert len(x) == 1000 and not y.warnings
         assert np.array_equal(x.stamps_ns, y.stamps_ns) and np.array_equal(x.xyz, y.xyz)
         assert np.array_equal(x.quat_xyzw, y.quat_xyzw)
 
@@ -398,3 +402,131 @@ def test_planned_ranges_near_ones_joined_far_ones_apart_and_asked_ahead():
         assert views == [data[a:a + n] for a, n in planned]
         assert s.requests == 3 and s.bytes_fetched == (100 + _GAP + 50) + 4000 + 10
         assert bytes(obj.ranges([]).view(5, 3)) == data[5:8] and s.requests == 4     # outside a plan: alone
+
+
+def _served(tmp_path, mode: str = "", after: int = 1 << 62):
+    """A plain HTTP range server on 127.0.0.1 (benchmarks/remote.py's) serving ``tmp_path``: its
+    ``log`` holds (method, range, requests under way when it came) of every request. ``mode``
+    "overlap": each range request waits (at most 0.5 s) until another request is under way, so that
+    requests sent one after another are seen one at a time, and requests sent together together;
+    "fail": ranges from byte ``after`` on are answered 500; "stall": they are never answered;
+    "ignore": Range is ignored (200, the whole object)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from remote import RangeHandler, http_server
+
+    class Handler(RangeHandler):
+        def _answer(self, path):
+            server, asked = self.server, self.headers.get("Range", "")
+            start = int(asked[6:].split("-")[0] or -1) if asked.startswith("bytes=") else -1
+            if mode == "ignore":
+                del self.headers["Range"]           # answers 200 with the whole object
+            elif mode == "overlap" and asked:
+                waited = time.monotonic()
+                while server.active < 2 and time.monotonic() - waited < 0.5:
+                    time.sleep(0.002)
+            elif mode and start >= after:
+                if mode == "fail":
+                    self.send_error(500)
+                    return None
+                time.sleep(30)
+                return None
+            return super()._answer(path)
+
+    server = http_server(tmp_path, handler=Handler)
+    return server, f"http://127.0.0.1:{server.server_address[1]}"
+
+
+def test_planned_ranges_go_in_several_requests_at_once_with_the_serial_bytes(tmp_path):
+    """Far-apart ranges: each its own request, several under way at once (the server saw more than
+    one in flight), the views equal to the object's bytes in the planned order; a span of _AHEAD
+    bytes or more is the only one asked for ahead."""
+    from handeye_cli.io import remote
+
+    data = np.random.default_rng(1).bytes(3 << 20)
+    (tmp_path / "obj.bin").write_bytes(data)
+    server, base = _served(tmp_path, "overlap")
+    planned = [(k * (200 << 10), 5000 + k) for k in range(12)]
+    with remote.session((), 10.0, 2) as s:
+        obj = s.open(f"{base}/obj.bin")
+        with obj.ranges(planned) as ranges:
+            views = [bytes(ranges.view(a, n)) for a, n in planned]
+    assert views == [data[a:a + n] for a, n in planned]
+    gets = [log for log in server.log if log[0] == "GET"]
+    assert len(gets) == len(planned) and max(active for *_, active in gets) >= 2
+    assert s.bytes_fetched == sum(n for _, n in planned)
+    server.shutdown()
+
+
+def test_ranges_ahead_are_bounded_by_bytes(tmp_path, monkeypatch):
+    """With _AHEAD at two spans, at most two requests are ever under way, and the bytes are right."""
+    from handeye_cli.io import remote
+
+    data = np.random.default_rng(2).bytes(1 << 20)
+    (tmp_path / "obj.bin").write_bytes(data)
+    server, base = _served(tmp_path, "overlap")
+    planned = [(k * (100 << 10), 30_000) for k in range(8)]
+    monkeypatch.setattr(remote, "_AHEAD", 2 * 30_000)
+    with remote.session((), 10.0, 2) as s, s.open(f"{base}/obj.bin").ranges(planned) as ranges:
+        views = [bytes(ranges.view(a, n)) for a, n in planned]
+    assert views == [data[a:a + n] for a, n in planned]
+    assert max(active for method, _, active in server.log if method == "GET") == 2
+    server.shutdown()
+
+
+def test_an_mcap_over_http_asks_size_head_and_tail_at_once_then_the_chunks_together(tmp_path):
+    """Poses in their own chunks, by plain HTTP: the size, the first and the last bytes are three
+    requests under way together (no folder listing, no separate footer request), the pose chunks
+    go several at once, and the streams equal the local read."""
+    from handeye_cli.io import read_log_streams
+    from handeye_cli.io.remote import session
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from remote import write_image_log
+
+    path = write_image_log(tmp_path / "img.mcap", seconds=8, image_bytes=20_000, own_chunks=True)
+    server, base = _served(tmp_path, "overlap")
+    requests = [("/cam0/pose", None), ("/cam1/pose", None)]
+    with session((), 10.0, 2) as s:
+        remote = read_log_streams(f"{base}/img.mcap", requests)
+    local = read_log_streams(path, requests)
+    for x, y in zip(local, remote, strict=True):
+        assert np.array_equal(x.stamps_ns, y.stamps_ns) and np.array_equal(x.xyz, y.xyz)
+        assert np.array_equal(x.quat_xyzw, y.quat_xyzw)
+    first = server.log[:3]
+    assert sorted(r or "" for _, r, _ in first) == ["", "bytes=-16384", "bytes=0-4095"]
+    assert max(active for *_, active in first) >= 2 and "HEAD" in [m for m, *_ in first]
+    chunks = server.log[3:]
+    assert len(chunks) == 8 and max(active for *_, active in chunks) >= 2 and s.requests == 2 + 8
+    server.shutdown()
+
+
+@pytest.mark.parametrize("mode", ["fail", "stall"])
+def test_a_chunk_request_that_fails_or_stalls_is_one_line(tmp_path, capsys, mode):
+    """The size, head and tail answered, then every chunk request failing (500) or never answered:
+    exit 2 and one line naming the URL, after the bounded tries (no hang)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from remote import write_image_log
+
+    write_image_log(tmp_path / "img.mcap", seconds=4, image_bytes=20_000, own_chunks=True)
+    server, base = _served(tmp_path, mode, after=4096)
+    code, out, err = run(capsys, "calibrate", f"{base}/img.mcap", *TOPICS, "-q", "--remote-timeout", "0.5",
+                         "--remote-retries", "2")
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+    assert f"{base}/img.mcap" in err and "failed 2 times" in err
+    assert ("no answer in time" in err) == (mode == "stall")
+    server.shutdown()
+
+
+def test_over_plain_http_a_missing_object_and_a_server_ignoring_ranges_are_one_line(tmp_path, capsys):
+    """404: "no such object" at once; a server answering a Range request with the whole object: a
+    clear line, never those bytes taken for the range."""
+    (tmp_path / "rig.mcap").write_bytes((SAMPLES / "rig.mcap").read_bytes())
+    server, base = _served(tmp_path)
+    code, out, err = run(capsys, "calibrate", f"{base}/missing.mcap", *TOPICS, "-q")
+    assert code == 2 and out == "" and err.startswith("error: no such object") and len(err.splitlines()) == 1
+    server.shutdown()
+    server, base = _served(tmp_path, "ignore")
+    code, out, err = run(capsys, "calibrate", f"{base}/rig.mcap", *TOPICS, "-q")
+    assert code == 2 and out == "" and "ignores byte ranges (answered 200" in err and len(err.splitlines()) == 1
+    assert len(server.log) <= 4                 # no retries of a wrong answer
+    server.shutdown()

@@ -13,6 +13,7 @@ Records hold the calibrate result's keys (``matrix`` = ``T_a_b`` …, see docs/d
 from __future__ import annotations
 
 import contextlib
+import gc
 import math
 import multiprocessing
 import os
@@ -261,6 +262,7 @@ def _local(jobs: Sequence[Job], workers: int, on_done: OnDone) -> None:
                                                else "spawn")
     if context.get_start_method() == "fork":       # import once here, shared by every forked worker, rather
         from .. import pipeline  # noqa: F401     # than in each (0.3 s of CPU a worker, benchmarks/batch.py)
+        gc.freeze()     # what is imported stays put: no collection in a worker touches (copies) those pages
     waiting = list(range(len(jobs)))[::-1]
     pool: list[_Worker] = []
     finished: list[tuple[int, Record]] = []     # handed to on_done once the idle workers have new jobs

@@ -79,7 +79,7 @@ def _remote_format(url: str) -> str:
     """The format of the object (or folder) at ``url``: a log by its first bytes (one small range
     request); a folder holding a ROS 2 bag; text from its local copy (text is read whole anyway)."""
     session = current()
-    if session.is_folder(url):
+    if session.is_folder(url, read_ahead=True):     # with its first and last bytes, which the readers use
         names = [name for name, _ in session.listing(url)]
         if any(n.endswith(("/metadata.yaml", ".db3", ".mcap")) for n in names):
             return "rosbag2"

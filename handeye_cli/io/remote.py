@@ -11,12 +11,16 @@ credentials (``https://user:pass@host/…``) is refused.
 An object is read by byte range (:class:`RemoteObject`): every request asks for exactly the bytes
 its reader needs (at least :data:`_READAHEAD` for small reads), gets at most
 ``remote_retries`` tries of ``remote_timeout`` seconds each, and adds what it got to the
-session's :attr:`Session.bytes_fetched` (and one to :attr:`Session.requests`). The MCAP reader
-reads the footer, the summary and then only the chunks it needs; an indexed ROS 1 bag's reader
+session's :attr:`Session.bytes_fetched` (and one to :attr:`Session.requests`). Detecting the
+format asks for the object's size together with its first :data:`_READAHEAD` and last
+:data:`_TAIL` bytes (one round trip: :meth:`Session.is_folder`). The MCAP reader reads the footer,
+the summary and then only the chunks it needs; an indexed ROS 1 bag's reader
 (:class:`.rosbag1_scan.Bag1Index`) its header, its index and then only the chunks it needs. Both
 ask for chunks through :meth:`RemoteObject.ranges`, which joins ranges at most :data:`_GAP` apart
-into one request of at most :data:`_SPAN` and keeps :data:`_PARALLEL` requests under way at once,
-so memory holds a few chunks, never the object. What cannot be read by range — text files, ROS 2
+into one request of at most :data:`_SPAN` and keeps up to :data:`_PARALLEL` requests holding up to
+:data:`_AHEAD` bytes under way at once, so memory holds a few chunks, never the object. A plain
+http(s) object is read with the standard library's client (:class:`_Plain`), anything else
+through fsspec. What cannot be read by range — text files, ROS 2
 bags, a ROS 1 bag without a usable index, split ROS 1 bags, an MCAP without a summary (cut short,
 or written without one) — is downloaded once to the session's cache (:meth:`Session.cached`): at
 most :data:`CACHE_LIMIT` bytes, removed when the session ends and at exit, with a one-line note.
@@ -50,9 +54,12 @@ __all__ = ["is_url", "Session", "session", "session_of", "current", "RemoteObjec
 CACHE_LIMIT = 8 << 30
 """The most bytes [B] one session downloads to its cache (objects that cannot be read by range)."""
 _READAHEAD = 4 << 10        # [B] the least a request asks for (small reads: headers, records of a summary)
+_TAIL = 16 << 10            # [B] an object's last bytes, asked for with its size (an MCAP's footer and summary,
+                            # a ROS 1 bag's index: the rest, if longer, in one more request)
 _SPAN = 16 << 20            # [B] the most one request of adjacent chunks asks for
 _GAP = 64 << 10             # [B] planned ranges this close are asked for in one request (the gap's bytes with them)
-_PARALLEL = 4               # requests of one object's planned ranges under way at once
+_PARALLEL = 16              # requests of one object's planned ranges under way at once, at most …
+_AHEAD = 64 << 20           # [B] … holding at most this many bytes asked for ahead of the reader (or one span)
 _HELD = 64 << 20            # [B] the most fetched bytes kept for re-reading (footer, summary, head)
 _PIECE = 16 << 20           # [B] a download's request size
 _CLIENTS = ("botocore", "aiobotocore", "aiohttp", "urllib3", "asyncio", "gcsfs", "google", "fsspec", "s3fs")
@@ -92,6 +99,9 @@ class Session:
     notes: list[str] = field(default_factory=list)
     _objects: dict[str, RemoteObject] = field(default_factory=dict)
     _folders: dict[str, bool] = field(default_factory=dict)
+    _infos: dict[str, dict[str, Any]] = field(default_factory=dict)      # the file system's info, by URL
+    _early: dict[str, list[concurrent.futures.Future[bytes | None]]] = field(default_factory=dict)
+    _pool: concurrent.futures.ThreadPoolExecutor | None = None          # the requests sent with an info
     _cache: Path | None = None
     _cached: dict[str, Path] = field(default_factory=dict)
     _cached_bytes: int = 0
@@ -103,11 +113,15 @@ class Session:
             self.bytes_fetched += n
             self.requests += 1
 
-    def fs(self, url: str) -> tuple[Any, str]:
-        """(the fsspec file system of ``url``, its path there), with the timeouts and retries of this session."""
+    def fs(self, url: str, listing: bool = False) -> tuple[Any, str]:
+        """(the fsspec file system of ``url``, its path there), with the timeouts and retries of this
+        session; for reading a plain http(s) object (no storage options, not ``listing`` a folder
+        page) the standard library's client instead (:class:`_Plain`)."""
         if urlsplit(url).password is not None or "@" in urlsplit(url).netloc:
             raise ConfigError("a URL holding credentials is refused", scrub(url.split("@", 1)[-1]),
                               "pass credentials through the environment or --storage-option")
+        if not listing and not self.storage_options and url.split("://", 1)[0].lower() in ("http", "https"):
+            return _Plain(self.timeout), url
         try:
             import fsspec  # type: ignore[import-untyped]
             from fsspec.core import split_protocol  # type: ignore[import-untyped]
@@ -117,7 +131,8 @@ class Session:
         options: dict[str, Any] = dict(self.storage_options)
         if protocol in ("s3", "s3a"):
             options.setdefault("config_kwargs", {"connect_timeout": self.timeout, "read_timeout": self.timeout,
-                                                 "retries": {"max_attempts": 1}})
+                                                 "retries": {"max_attempts": 1},
+                                                 "max_pool_connections": _PARALLEL + 2})
         elif protocol in ("http", "https"):
             import aiohttp  # the http(s) file system's client
 
@@ -132,10 +147,12 @@ class Session:
                               "--storage-option", "pass the keyword arguments of the fsspec file system") from exc
         return fs, fs._strip_protocol(url)
 
-    def call(self, url: str, what: str, fn: Any, *args: Any) -> Any:
-        """``fn(*args)`` tried up to :attr:`retries` times; a one-line ReadError naming ``url`` when
-        the object is missing, access is denied, or every try failed or overran :attr:`timeout`."""
-        for attempt in range(1, self.retries + 1):
+    def call(self, url: str, what: str, fn: Any, *args: Any, tries: int | None = None) -> Any:
+        """``fn(*args)`` tried up to ``tries`` (default :attr:`retries`) times; a one-line ReadError
+        naming ``url`` when the object is missing, access is denied, or every try failed or overran
+        :attr:`timeout`."""
+        tries = self.retries if tries is None else tries
+        for attempt in range(1, tries + 1):
             try:
                 return _within(self.timeout * 2 + 1, fn, *args)
             except FileNotFoundError as exc:
@@ -152,36 +169,76 @@ class Session:
                 if not type(exc).__module__.startswith(_CLIENTS):
                     raise
                 error = exc
-            if attempt < self.retries:
+            if attempt < tries:
                 time.sleep(min(2.0, 0.1 * 2 ** attempt))
-        raise ReadError(f"{what} failed {self.retries} times ({_kind(error)}; {self.timeout:g} s each)", url,
+        raise ReadError(f"{what} failed {tries} times ({_kind(error)}; {self.timeout:g} s each)", url,
                         "check the endpoint (AWS_ENDPOINT_URL) and the network, or raise --remote-timeout / "
                         "--remote-retries") from error
 
     def open(self, url: str) -> RemoteObject:
-        """The object at ``url`` (its size asked once; opened once per session)."""
+        """The object at ``url`` (its size asked once; opened once per session), holding the first and
+        last bytes asked for with its size (:meth:`is_folder` with ``read_ahead``)."""
         if url not in self._objects:
             fs, path = self.fs(url)
-            info = self.call(url, "asking its size", fs.info, path)
+            info = self._info(url, read_ahead=False)
             if info.get("type") == "directory":
                 raise ReadError("a folder, not an object", url, "name an object, or give the folder to "
                                 "handeye batch")
-            self._objects[url] = RemoteObject(self, url, fs, path, int(info["size"]))
+            obj = RemoteObject(self, url, fs, path, int(info["size"]))
+            for start, asked in zip((0, -_TAIL), self._early.pop(url, []), strict=False):
+                data = asked.result()
+                if data and len(data) <= max(-start, _READAHEAD, 1) or data and len(data) == obj.size:
+                    obj.hold(start if start >= 0 else obj.size - len(data), data)
+            self._objects[url] = obj
             self.urls.append(url)
         return self._objects[url]
 
-    def is_folder(self, url: str) -> bool:
+    def is_folder(self, url: str, read_ahead: bool = False) -> bool:
         """Whether ``url`` names a folder (a prefix holding objects) rather than an object (asked once
-        a session: detecting the format and opening the input share the answer)."""
+        a session: detecting the format and opening the input share the answer). An http(s) URL names
+        a folder (a listing page) only if it ends with ``/``. ``read_ahead``: an object's first
+        :data:`_READAHEAD` and last :data:`_TAIL` bytes are asked for together with its size, in one
+        round trip (see :meth:`_info`)."""
         if url not in self._folders:
-            fs, path = self.fs(url)
-            self._folders[url] = bool(self.call(url, "listing", fs.isdir, path))
+            if url.split("://", 1)[0].lower() in ("http", "https"):
+                if url.endswith("/"):
+                    fs, path = self.fs(url, listing=True)
+                    self._folders[url] = bool(self.call(url, "listing", fs.isdir, path))
+                else:
+                    self._folders[url] = self._info(url, read_ahead)["type"] == "directory"
+            else:
+                self._folders[url] = self._info(url, read_ahead and not url.endswith("/"))["type"] == "directory"
         return self._folders[url]
+
+    def _info(self, url: str, read_ahead: bool) -> dict[str, Any]:
+        """The file system's info on ``url`` (``size`` [B], ``type``), asked once a session. With
+        ``read_ahead`` the object's first :data:`_READAHEAD` bytes (what detecting its format reads) and
+        its last :data:`_TAIL` (an MCAP's footer and summary, a ROS 1 bag's index) are asked for at the
+        same time, one try each, kept for :meth:`open`: one round trip where there were three."""
+        if url not in self._infos:
+            fs, path = self.fs(url)
+            if read_ahead:
+                if self._pool is None:
+                    self._pool = concurrent.futures.ThreadPoolExecutor(2, thread_name_prefix="handeye-ahead")
+                self._early[url] = [self._pool.submit(self._read_ahead, fs, path, url, start, stop)
+                                    for start, stop in ((0, _READAHEAD), (-_TAIL, None))]
+            self._infos[url] = self.call(url, "asking its size", fs.info, path)
+        return self._infos[url]
+
+    def _read_ahead(self, fs: Any, path: str, url: str, start: int, stop: int | None) -> bytes | None:
+        """The bytes ``[start, stop)`` (``start`` < 0: the last ``-start``) in one try, counted; None if
+        that failed (the reader asks again, with retries, and reports what is wrong)."""
+        try:
+            data: bytes = self.call(url, "reading ahead", lambda: fs.cat_file(path, start=start, end=stop), tries=1)
+        except Exception:    # a ReadError or a client's own: the reader's request says it
+            return None
+        self.count(len(data))
+        return data
 
     def listing(self, url: str, pattern: bool = False) -> list[tuple[str, bool]]:
         """(URL, whether a folder) of the objects under the folder ``url`` (recursively), or of what
         the glob ``url`` matches (``pattern``), sorted."""
-        fs, path = self.fs(url)
+        fs, path = self.fs(url, listing=True)
         found = self.call(url, "listing", lambda: (fs.glob if pattern else fs.find)(path, detail=True))
         protocol = url.split("://", 1)[0]
         return sorted((name if is_url(name) else f"{protocol}://{name}" if protocol != "memory" else f"memory://{name}",
@@ -234,16 +291,82 @@ class Session:
                             "(handeye_cli.io.remote.CACHE_LIMIT)", obj.url,
                             "download the object and pass its local path")
         self._cached_bytes += obj.size
-        with open(target, "wb") as f:
-            for start in range(0, obj.size, _PIECE):
-                f.write(obj.fetch(start, min(obj.size, start + _PIECE)))
+        pieces = [(start, min(_PIECE, obj.size - start)) for start in range(0, obj.size, _PIECE)]
+        with open(target, "wb") as f, obj.ranges(pieces) as ranges:     # several pieces under way at once
+            for start, n in pieces:
+                f.write(ranges.view(start, n))
 
     def close(self) -> None:
-        """Remove this session's downloads."""
+        """Remove this session's downloads; requests read ahead and never used are dropped."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
         if self._cache is not None:
             shutil.rmtree(self._cache, True)
             self._cache = None
         self._cached.clear()
+
+
+class _Plain:
+    """The two calls an object's reading makes of its file system — ``info`` (its size) and
+    ``cat_file`` (a byte range; ``start`` < 0: the last ``-start`` bytes) — for a plain http(s) URL,
+    on the standard library's client: no aiohttp to import (0.3 s of every command), and a body read
+    in one call (fsspec's http file system took 3-5 x as long as one GET for 200 MB of ranges from
+    the loopback server of benchmarks/remote.py). No proxy from the environment, as fsspec's;
+    storage options (headers, auth) and folder listings go through fsspec. Answers map to the errors
+    :meth:`Session.call` knows: 404/410 FileNotFoundError, 401/403 PermissionError, no answer in
+    ``timeout`` [s] TimeoutError, anything else OSError; a server that ignores ``Range`` (answers 200
+    with the whole object) is a ReadError at once, never the wrong bytes."""
+
+    def __init__(self, timeout: float) -> None:
+        import urllib.request
+
+        self._timeout = timeout
+        self._opener = urllib.request.build_opener(urllib.request.ProxyHandler({}))
+
+    def _open(self, url: str, method: str, headers: dict[str, str]) -> Any:
+        import urllib.error
+        import urllib.request
+
+        try:
+            return self._opener.open(urllib.request.Request(url, method=method, headers={
+                "Accept-Encoding": "identity", **headers}), timeout=self._timeout)
+        except urllib.error.HTTPError as exc:
+            exc.close()
+            if exc.code in (404, 410):
+                raise FileNotFoundError(url) from None
+            if exc.code in (401, 403):
+                raise PermissionError(url) from None
+            raise OSError(f"HTTP {exc.code}") from None
+        except urllib.error.URLError as exc:
+            if isinstance(exc.reason, TimeoutError):
+                raise TimeoutError from None
+            raise OSError(str(exc.reason)) from None
+
+    def info(self, url: str) -> dict[str, Any]:
+        with self._open(url, "HEAD", {}) as r:
+            size = r.headers.get("Content-Length")
+        if size is None:
+            raise ReadError("the server does not say the object's size (no Content-Length)", url,
+                            "download the object and pass its local path")
+        return {"name": url, "size": int(size), "type": "file"}
+
+    def cat_file(self, url: str, start: int = 0, end: int | None = None) -> bytes:
+        import http.client
+
+        asked = f"bytes=-{-start}" if start < 0 else f"bytes={start}-{'' if end is None else end - 1}"
+        try:
+            with self._open(url, "GET", {"Range": asked}) as r:
+                n = int(r.headers.get("Content-Length", -1))
+                whole = -start if start < 0 else end if start == 0 else -1     # the object, when no longer
+                if r.status != 206 and not (r.status == 200 and n >= 0 and (whole is None or n <= whole)):
+                    raise ReadError(f"the server ignores byte ranges (answered {r.status} to a Range request)",
+                                    url, "serve the object where Range requests are answered, or download it "
+                                    "and pass its local path")
+                data: bytes = r.read()
+        except http.client.HTTPException as exc:        # cut short: IncompleteRead, a bad status line
+            raise OSError(type(exc).__name__) from None
+        return data
 
 
 class _Overran(Exception):
@@ -322,10 +445,30 @@ class RemoteObject:
         self.session.count(len(data))
         return data
 
-    def _hold(self, start: int, data: bytes) -> None:
+    def hold(self, start: int, data: bytes) -> None:
+        """Keep ``data``, the object's bytes from ``start``, for re-reading (at most :data:`_HELD`: oldest out)."""
         self._held[start] = data
         while sum(map(len, self._held.values())) > _HELD and len(self._held) > 1:
             self._held.popitem(last=False)
+
+    def held(self, start: int, n: int) -> memoryview | None:
+        """The ``n`` bytes from ``start`` if one block held has them all, else None."""
+        for s, d in self._held.items():
+            if s <= start and start + n <= s + len(d):
+                return memoryview(d)[start - s:start - s + n]
+        return None
+
+    def unheld(self, start: int, stop: int) -> tuple[int, int]:
+        """The bytes ``[start, stop)`` less what blocks held give at either end (the object's first
+        and last bytes, read ahead): ``(a, b)``, empty (``a == b``) if nothing is left."""
+        a, b = start, stop
+        for s, d in self._held.items():
+            if s <= a < s + len(d):
+                a = min(stop, s + len(d))
+        for s, d in self._held.items():
+            if s < b <= s + len(d):
+                b = s
+        return a, max(a, b)
 
     def read_at(self, pos: int, n: int) -> bytes:
         """``n`` bytes from ``pos`` (fewer at the end): from what is held, else one request of at least
@@ -339,7 +482,7 @@ class RemoteObject:
                 data = self.fetch(pos, pos + want)
                 if not data:
                     break
-                self._hold(pos, data)
+                self.hold(pos, data)
                 block = (pos, data)
             s, d = block
             piece = d[pos - s:pos - s + n]
@@ -348,18 +491,18 @@ class RemoteObject:
         return bytes(out)
 
     def prefetch_summary(self) -> bool:
-        """Fetch the MCAP footer and the summary it points at (two requests of exactly their bytes);
-        whether there is a summary (False: no footer — cut short — or written without one)."""
+        """Hold the MCAP footer and the summary it points at (what the object's last bytes, held since
+        it was opened, do not cover: in one request); whether there is a summary (False: no footer —
+        cut short — or written without one)."""
         if self.size < len(_MCAP_MAGIC) + _FOOTER:
             return False
-        tail = self.fetch(self.size - _FOOTER, self.size)
-        self._hold(self.size - _FOOTER, tail)
+        tail = self.read_at(self.size - _FOOTER, _FOOTER)
         if tail[-8:] != _MCAP_MAGIC or tail[0] != 0x02:
             return False
         (summary_start,) = struct.unpack_from("<Q", tail, 9)
         if not 0 < summary_start < self.size - _FOOTER:
             return False
-        self._hold(summary_start, self.fetch(summary_start, self.size - _FOOTER))
+        self.read_at(summary_start, self.size - _FOOTER - summary_start)
         return True
 
     def file(self) -> RangeFile:
@@ -416,20 +559,25 @@ class RangeFile:
 
 class Ranges:
     """Byte ranges of an object asked for in a planned order (use as a context manager): ranges at
-    most :data:`_GAP` apart are fetched together, up to :data:`_SPAN` bytes a request; the next
-    :data:`_PARALLEL` spans are asked for at once, on a small thread pool, while the reader works
-    through the current one; a span is dropped once the reader moves past it (memory holds at most
-    :data:`_PARALLEL` + 1 spans: a few chunks)."""
+    most :data:`_GAP` apart are fetched together, up to :data:`_SPAN` bytes a request; the spans
+    after the one being read are asked for at once, on a small thread pool, while the reader works
+    through it — at most :data:`_PARALLEL` requests holding at most :data:`_AHEAD` bytes (or one
+    span) —, so that the requests' first-byte latencies overlap and fetching overlaps decoding; a
+    span is dropped once the reader moves past it (memory holds the span being read and
+    :data:`_AHEAD` bytes: a few chunks, never the object)."""
 
     def __init__(self, obj: RemoteObject, planned: Sequence[tuple[int, int]]) -> None:
         self._obj = obj
         self._spans: list[tuple[int, int]] = []
-        for start, n in sorted(planned):
+        for first, n in sorted(planned):
+            start, stop = obj.unheld(first, min(first + n, obj.size))   # what was read ahead is not asked again
             last = self._spans[-1] if self._spans else None
-            if last and start - last[1] <= _GAP and max(last[1], start + n) - last[0] <= _SPAN:
-                self._spans[-1] = (last[0], max(last[1], start + n))
+            if start == stop:
+                continue
+            if last and start - last[1] <= _GAP and max(last[1], stop) - last[0] <= _SPAN:
+                self._spans[-1] = (last[0], max(last[1], stop))
             else:
-                self._spans.append((start, start + n))
+                self._spans.append((start, stop))
         self._starts = [a for a, _ in self._spans]
         self._span = (0, b"")
         self._pool: concurrent.futures.ThreadPoolExecutor | None = None
@@ -447,26 +595,41 @@ class Ranges:
         self._asked.clear()
 
     def _ask(self, k: int) -> None:
-        """Spans ``k`` … ``k + _PARALLEL - 1`` asked for; earlier ones forgotten."""
+        """Span ``k`` and those after it asked for, up to :data:`_PARALLEL` requests and :data:`_AHEAD`
+        bytes [B] (at least span ``k``); earlier ones forgotten."""
         for old in [j for j in self._asked if j < k]:
             self._asked.pop(old).cancel()
         self._next = max(self._next, k)
-        while self._next < min(len(self._spans), k + _PARALLEL):
+        ahead = sum(self._spans[j][1] - self._spans[j][0] for j in self._asked)
+        while self._next < len(self._spans) and len(self._asked) < _PARALLEL:
+            start, stop = self._spans[self._next]
+            if self._asked and ahead + stop - start > _AHEAD:
+                break
             if self._pool is None:
                 self._pool = concurrent.futures.ThreadPoolExecutor(_PARALLEL, thread_name_prefix="handeye-range")
-            self._asked[self._next] = self._pool.submit(self._obj.fetch, *self._spans[self._next])
+            self._asked[self._next] = self._pool.submit(self._obj.fetch, start, stop)
+            ahead += stop - start
             self._next += 1
 
     def view(self, start: int, n: int) -> memoryview:
         """The ``n`` bytes from ``start`` (fewer where the object ends)."""
+        n = max(0, min(n, self._obj.size - start))
         s, data = self._span
-        if not (s <= start and start + n <= s + len(data)):
+        if s <= start and start + n <= s + len(data):
+            return memoryview(data)[start - s:start - s + n]
+        if (held := self._obj.held(start, n)) is not None:      # read ahead with the object's size
+            return held
+        a, b = self._obj.unheld(start, start + n)
+        if not (s <= a and b <= s + len(data)):
             self._span = (0, b"")           # the previous span goes before the next arrives
-            k = bisect.bisect_right(self._starts, start) - 1
-            if k >= 0 and start < self._spans[k][1] and start + n <= self._spans[k][1]:
+            k = bisect.bisect_right(self._starts, a) - 1
+            if k >= 0 and self._spans[k][0] <= a and b <= self._spans[k][1] and (k in self._asked or k >= self._next):
                 self._ask(k)
                 s, data = self._spans[k][0], self._asked.pop(k).result()
-            else:                           # outside the plan: asked for alone
-                s, data = start, self._obj.fetch(start, start + n)
+            else:                           # outside the plan (or read already): asked for alone
+                s, data = a, self._obj.fetch(a, b)
             self._span = (s, data)
-        return memoryview(data)[start - s:start - s + n]
+        if (a, b) == (start, start + n):
+            return memoryview(data)[start - s:start - s + n]
+        ends = self._obj.held(start, a - start), self._obj.held(b, start + n - b)     # read ahead: joined to it
+        return memoryview(b"".join((ends[0] or b"", memoryview(data)[a - s:b - s], ends[1] or b"")))

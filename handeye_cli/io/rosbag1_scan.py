@@ -253,7 +253,7 @@ def indexed(obj: RemoteObject) -> Bag1Index | str:
         return "it was never indexed"
     if not f.tell() <= index_pos < obj.size:
         return f"its index at byte {index_pos} lies past the end of the object ({obj.size} bytes)"
-    index = io.BytesIO(obj.fetch(index_pos, obj.size))
+    index = io.BytesIO(obj.read_at(index_pos, obj.size - index_pos))   # what the tail held, else one request
     conns: dict[int, tuple[str, str, str]] = {}
     infos: list[tuple[int, int, int, dict[int, int]]] = []
     try:
