@@ -23,7 +23,7 @@
    the rig's stages: clock offsets, pairwise solves, joint), and as command lines (what a user
    runs: each ``handeye`` process starts, imports and reads once). Every time is the fastest of
    ``--repeat`` runs, the rig's and the calibrate's interleaved (other load slows single runs by up
-   to 2×); the load average is printed beside it.
+   to 2×); the load average is printed beside it, and the warm runs' CPU time (steadier under load).
 
     python benchmarks/rig.py [--seeds 20] [--minutes 10] [--repeat 3] [--skip-accuracy] [--skip-detection]
                              [--skip-time]
@@ -181,15 +181,18 @@ def _cli(args: list[str]) -> float:
     return time.perf_counter() - t0
 
 
-def _fastest(runs: list[tuple[str, Callable[[], object]]], repeat: int) -> dict[str, float]:
-    """The fastest of ``repeat`` timings [s] of each named call, the calls interleaved."""
+def _fastest(runs: list[tuple[str, Callable[[], object]]], repeat: int) -> tuple[dict[str, float], dict[str, float]]:
+    """The fastest of ``repeat`` timings [s] of each named call, the calls interleaved: wall-clock time, and the
+    process's CPU time (every thread's; steadier under other load, which slows the wall clock by up to 2×)."""
     best = {name: float("inf") for name, _ in runs}
+    cpu = dict(best)
     for _ in range(repeat):
         for name, call in runs:
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             call()
             best[name] = min(best[name], time.perf_counter() - t0)
-    return best
+            cpu[name] = min(cpu[name], time.process_time() - c0)
+    return best, cpu
 
 
 def timing(minutes: float, repeat: int) -> None:
@@ -211,7 +214,7 @@ def timing(minutes: float, repeat: int) -> None:
         rig_cli = ["rig", str(log), *[a for s in STREAMS for a in ("--stream", s)], *out]
         one_cli = ["calibrate", str(log), "--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose", "--time-offset",
                    "auto", *out]
-        t = _fastest([
+        t, cpu = _fastest([
             ("read one", lambda: read_rig(str(log), specs)),
             ("read three", lambda: [read_log_streams(log, [("/cam0/pose", None), (spec.topic, spec.frames)])
                                     for spec in specs[1:]]),
@@ -236,6 +239,8 @@ def timing(minutes: float, repeat: int) -> None:
           f"{t['read three']:.2f} s")
     print(f"  calibrate: handeye rig (6 pairs, joint) {t['rig']:.2f} s   vs one calibrate cam0-cam1 {t['one']:.2f} s: "
           f"rig / one calibrate {t['rig'] / t['one']:.2f}   (3 pairwise calibrate runs {t['pairs']:.2f} s)")
+    print(f"             in CPU time rig {cpu['rig']:.2f} s vs one calibrate {cpu['one']:.2f} s: rig / one calibrate "
+          f"{cpu['rig'] / cpu['one']:.2f}")
     print(f"  rig stages: 3 clock offsets {t['offsets']:.2f} s, 6 pairwise solves {t['edges']:.2f} s, "
           f"read + noise model + joint + rest {max(t['rig'] - t['offsets'] - t['edges'], 0.0):.2f} s")
     print(f"  command lines: handeye rig {t['rig cli']:.2f} s   vs handeye calibrate cam0-cam1 --time-offset auto "

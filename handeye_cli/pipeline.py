@@ -65,8 +65,21 @@ from .stages.stations import Stations, detect_stations
 from .stages.sync import Synced, default_max_dt_ns
 from .streams import PoseStream
 
-__all__ = ["Calibration", "Diagnostics", "StreamSpec", "Uncertainty", "calibrate", "calibrate_files", "calibrate_read",
-           "check_samples", "inverted_as_read", "read_streams", "refuse_unread", "stream_specs"]
+__all__ = ["Calibration", "Checks", "Diagnostics", "StreamSpec", "Uncertainty", "calibrate", "calibrate_files",
+           "calibrate_read", "check_samples", "inverted_as_read", "read_streams", "refuse_unread", "stream_specs"]
+
+
+@dataclass(frozen=True)
+class Checks:
+    """Which of :func:`calibrate_read`'s checks after the solve run (every one by default, as ``calibrate`` runs
+    them). A rig skips those its own analysis replaces (:mod:`handeye_cli.rig.pairwise`).
+
+    inversion: the inversion check (a stream recorded as ``T_sensor_world``).
+    uncertainty: the uncertainty check (σ from blocks of time beside σ from independent samples: drift).
+    """
+
+    inversion: bool = True
+    uncertainty: bool = True
 
 
 @dataclass(frozen=True, eq=False)
@@ -656,7 +669,8 @@ def check_samples(stream: PoseStream, label: str) -> None:
 
 def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
                    inputs: dict[str, Any] | None = None, scale_by_fit: bool = True,
-                   noise_of: Callable[[PoseStream], StreamNoise | None] = stream_noise) -> Calibration:
+                   noise_of: Callable[[PoseStream], StreamNoise | None] = stream_noise,
+                   checks: Checks = Checks()) -> Calibration:
     """:func:`calibrate` streams as a reader produced them with ``opts.read`` (parsed, not yet inverted: the
     file-only read options are recorded in the settings, not applied again), e.g. by :func:`read_streams`
     or a rig's reader (which inverts its streams itself and sets no ``invert_a``/``invert_b``).
@@ -669,6 +683,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     → [bootstrap]. After the solve, b's translations found in other units by the fit are estimated with
     ``T_a_b`` (``scale_by_fit``; ``handeye rig`` passes False: its consistency test names such a stream).
     ``noise_of``: each stream's jitter for the fit test (a rig passes a memo: its streams are in several pairs).
+    ``checks``: which checks after the solve run (:class:`Checks`; the fit test always does).
     """
     check_samples(stream_a, "stream a")
     check_samples(stream_b, "stream b")
@@ -699,8 +714,8 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
                                                             selection), opts, offset_ns, prior, diagnostics,
                                                             noise_of)
     solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, selection, diagnostics)
-    verdict = _inversion(kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha,   # thresholds set at α 1
-                         inputs or {})
+    verdict = None if not checks.inversion else _inversion(
+        kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha, inputs or {})   # thresholds set at α 1
     contradiction = None if verdict is not None else _contradicted_order(stream_a, stream_b, kept, pairs, opts)
     if contradiction is not None:
         if not opts.analysis.accept_poor_fit:
@@ -730,7 +745,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
         solution = replace(solution, matrix=subspace.matrix, problem=None, dual_quaternion=None)
         warnings += [f"not estimated: {k} ({v})" for k, v in subspace.skipped.items()] + list(subspace.advice)
     diagnostics["degrees_of_freedom"] = subspace.as_dict()
-    if len(A) > 2 * TIME_BLOCKS:        # σ from independent samples beside σ from blocks of time (drift)
+    if checks.uncertainty and len(A) > 2 * TIME_BLOCKS:      # σ from independent samples beside σ from blocks (drift)
         check = drift_check(A, B, solution.matrix, time_blocks(pairs.t_i_ns, pairs.t_j_ns), alpha=alpha,
                             prior=prior, weights=weights, samples=ij)
         diagnostics["uncertainty_check"] = check.as_dict()
@@ -745,7 +760,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     diagnostics["fit_test"] = fit.as_dict()                                         # what no rigid rig gives
     rejected = fit.refusal(opts, stations is not None, inverted=verdict is not None)
     if rejected and not opts.analysis.accept_poor_fit:
-        recovered = _robust_retry(*given, opts, inputs, scale_by_fit, fit.summary(), noise_of)
+        recovered = _robust_retry(*given, opts, inputs, scale_by_fit, fit.summary(), noise_of, checks)
         if recovered is None:
             raise rejected
         return recovered
@@ -797,8 +812,8 @@ def _moved(kept: Synced, pairs: Pairs, res: Residuals, opts: Options, alpha: flo
 
 
 def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inputs: dict[str, Any] | None,
-                  scale_by_fit: bool, refused: str, noise_of: Callable[[PoseStream], StreamNoise | None]
-                  ) -> Calibration | None:
+                  scale_by_fit: bool, refused: str, noise_of: Callable[[PoseStream], StreamNoise | None],
+                  checks: Checks) -> Calibration | None:
     """A fit the fit test refused (``refused``: its figures), solved again with outliers rejected, as ``--robust``
     does (RANSAC on minimal sets, then the weighted optimal solve on the inliers): kept, with the settings saying
     ``robust`` and a first warning naming what was dropped, when at least ``RETRY_MIN_INLIERS`` of the samples
@@ -819,7 +834,7 @@ def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inp
         return None
     try:
         cal = calibrate_read(stream_a, stream_b, replace(opts, analysis=replace(opts.analysis, robust=True)),
-                             inputs=inputs, scale_by_fit=scale_by_fit, noise_of=noise_of)
+                             inputs=inputs, scale_by_fit=scale_by_fit, noise_of=noise_of, checks=checks)
     except HandEyeError:
         return None
     if (cal.robust is None or consensus_share(cal.robust.inliers, cal.pairs.i, cal.pairs.j) < RETRY_MIN_INLIERS

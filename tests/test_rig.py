@@ -402,6 +402,29 @@ def test_inversion_flag_per_stream(noisy_rig) -> None:
     assert pose_error(fixed.matrices[2], T[2])[0] < 0.2
 
 
+def test_inversion_checked_against_the_reference_and_where_it_is_not_cleared(monkeypatch) -> None:
+    """A stream's inversion is checked on its pair with the reference; its other pairs run the check only when
+    that pair did not clear it: an inverted lidar, not flagged, is refused as inverted on every one of its pairs
+    (without the check, lidar-wheels failed the fit test by 17.5× against its limit of 15×: too near to rest on),
+    while of a clean rig's six pairs only the three with the reference run it."""
+    from handeye_cli import pipeline
+    from handeye_cli.rig.pairwise import clock_offsets, solve_edges
+
+    checked: list[int] = []
+    inversion = pipeline._inversion
+    monkeypatch.setattr(pipeline, "_inversion", lambda kept, *a: checked.append(len(kept)) or inversion(kept, *a))
+    streams = simulate_streams(_sensors(_mounts(0)), duration_s=40, seed=0)
+    names, given = list(streams), {k: KNOWN_OFFSETS[n] for k, n in enumerate(streams) if n in KNOWN_OFFSETS}
+    offsets = clock_offsets(list(streams.values()), 0, given)
+    edges, _ = solve_edges(list(streams.values()), names, offsets, Options(), reference=0)
+    assert len(edges) == 6 and len(checked) == 3
+    streams["lidar"] = streams["lidar"].inverted()            # recorded as T_sensor_world, not said
+    edges, warnings = solve_edges(list(streams.values()), names, offsets, Options(), reference=0)
+    assert [(names[e.j], names[e.k]) for e in edges] == [("cam0", "cam1"), ("cam0", "wheels"), ("cam1", "wheels")]
+    refused = [w for w in warnings if "left out" in w]
+    assert len(refused) == 3 and all("lidar" in w and "almost certainly inverted" in w for w in refused)
+
+
 def test_reference_and_option_errors(noisy_rig) -> None:
     T, _ = noisy_rig
     streams = simulate_streams(_sensors(T), duration_s=10, seed=0)

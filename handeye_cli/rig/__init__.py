@@ -226,7 +226,7 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
                             cfg.sync.max_time_offset)
     used, scales = _scaled(used, names, ref, given["scales"], offsets, cfg)
     chosen = [name in opts.invert or name in opts.not_inverted for name in names]
-    edges, warnings = solve_edges(used, names, offsets, cfg, chosen)
+    edges, warnings = solve_edges(used, names, offsets, cfg, chosen, ref)
     warnings = [f"{names[k]}: time offset: {w}" for k, o in enumerate(offsets) for w in o.warnings] + warnings
     if not edges:
         raise DataError("no pair of streams could be calibrated", ", ".join(names), "see the warnings above")

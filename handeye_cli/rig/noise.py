@@ -77,7 +77,8 @@ VARIANCE_FLOOR = 1e-18      # (1 nrad)², (1 nm)²: below it a stream is noise-f
 DRIFT_P_VALUE = 0.01        # a pair's relative drift is removed when its χ² is this unlikely under "no drift"
 DRIFT_PROBE = 200           # probe motions per stride of the drift fit (evenly spread over the segments)
 SHORT_STRIDE = 4            # the three-cornered hat's motions span up to this many synced samples
-SHORT_MOTIONS = 2000        # ... at most this many per stride (all of a 30-s log's; a 10-min log's 72000 took 2 s)
+SHORT_MOTIONS = 1000        # ... at most this many per stride (all of a 30-s log's at 30 Hz; 4000 per pair fix its
+                            # energies to ~2 %: 2000 cost a 10-min rig 0.2 s more, its 72000 2 s)
 
 
 @dataclass(frozen=True, eq=False)

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from ..analysis.stream_noise import StreamNoise, stream_noise
 from ..errors import ConfigError, HandEyeError
 from ..options import Options
-from ..pipeline import Calibration, calibrate_read
+from ..pipeline import Calibration, Checks, calibrate_read
 from ..solvers.problem import pair_forms
 from ..streams import PoseStream, StreamMemo
 
@@ -87,7 +87,7 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
 
 
 def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset], options: Options,
-          chosen: list[bool], noise: StreamMemo[StreamNoise | None], names: tuple[str, str]) -> Edge:
+          chosen: list[bool], noise: StreamMemo[StreamNoise | None], names: tuple[str, str], checks: Checks) -> Edge:
     # the rig's bootstrap resamples all pairs at once. A stream whose inversion the user gave (inverted by the
     # rig already, or said not to be) is "not inverted (again), by the user's word": the inversion check then
     # refuses in those words, as calibrate's --no-invert-a does. A prior (the rig's nominal) is read for the
@@ -98,28 +98,42 @@ def _edge(streams: list[PoseStream], j: int, k: int, offsets: list[ClockOffset],
     opts = Options.from_flat(options, time_offset=(offsets[k].offset_ns - offsets[j].offset_ns) / 1e9,
                              bootstrap=0, **said)
     cal = calibrate_read(streams[j], streams[k], opts, scale_by_fit=False,   # the rig's reader applied the read
-                         noise_of=noise)                      # options; a badly scaled stream is named by the rig
+                         noise_of=noise, checks=checks)       # options; a badly scaled stream is named by the rig
     A, B, w = cal.pairs.A, cal.pairs.B, cal.weights
     forms = pair_forms(A, B, cal.solution.alpha, cal.matrix)   # weighed by einsum, not by a (threaded) product
     return Edge(j, k, cal, forms.sum(axis=0) if w is None else np.einsum("n,npij->pij", w, forms))
 
 
 def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[ClockOffset],
-                options: Options, chosen: list[bool] | None = None) -> tuple[list[Edge], list[str]]:
+                options: Options, chosen: list[bool] | None = None, reference: int = 0) -> tuple[list[Edge], list[str]]:
     """Calibrate every pair ``j < k`` with ``options`` (sync, gates, pairs, solver; the time offset
     is the pair's, from ``offsets``; ``chosen``: per stream, whether the user said whether it is inverted); a
-    pair that cannot be calibrated is left out with a warning.
-    Returns the edges and the warnings (each pair's own warnings prefixed with its names)."""
-    edges, warnings = [], []
+    pair that cannot be calibrated (the fit test or the inversion check refuses it, too few pairs, …) is left
+    out with a warning.
+
+    Each pair runs ``calibrate``'s stages and fit test, not every check after the solve
+    (:class:`~handeye_cli.pipeline.Checks`). The pairs with the ``reference`` are solved first, each with the
+    inversion check; a pair without it runs the check only when one of its streams is not cleared by its
+    pair with the reference (calibrated there with no inversion suspected): that pair tested the same stream
+    already. No pair runs calibrate's uncertainty check (σ from blocks of time): the rig's noise model,
+    drift test and bias bound are its pairs' uncertainty.
+    Returns the edges and the warnings (each pair's own warnings prefixed with its names), in the order
+    of the pairs ``j < k``."""
+    n = len(streams)
+    order = sorted(((j, k) for j in range(n) for k in range(j + 1, n)), key=lambda p: reference not in p)
+    done: dict[tuple[int, int], tuple[Edge | None, list[str]]] = {}
     noise = StreamMemo(stream_noise)                          # each stream's jitter once, not once per pair
-    for j in range(len(streams)):
-        for k in range(j + 1, len(streams)):
-            try:
-                edge = _edge(streams, j, k, offsets, options, chosen or [False] * len(streams), noise,
-                             (names[j], names[k]))
-            except HandEyeError as e:
-                warnings.append(f"pair {names[j]}-{names[k]} left out: {e}")
-                continue
-            edges.append(edge)
-            warnings += [f"pair {names[j]}-{names[k]}: {w}" for w in edge.calibration.warnings]
-    return edges, warnings
+    cleared = {reference}
+    for j, k in order:
+        checks = Checks(inversion=reference in (j, k) or not {j, k} <= cleared, uncertainty=False)
+        try:
+            edge = _edge(streams, j, k, offsets, options, chosen or [False] * n, noise, (names[j], names[k]),
+                         checks)
+        except HandEyeError as refused:
+            done[j, k] = None, [f"pair {names[j]}-{names[k]} left out: {refused}"]
+            continue
+        if reference in (j, k) and "inversion" not in edge.calibration.diagnostics:
+            cleared.add(k if j == reference else j)
+        done[j, k] = edge, [f"pair {names[j]}-{names[k]}: {w}" for w in edge.calibration.warnings]
+    return ([e for p in sorted(done) if (e := done[p][0]) is not None],
+            [w for p in sorted(done) for w in done[p][1]])
