@@ -28,10 +28,10 @@ import numpy as np
 
 from handeye_cli import calibrate
 from handeye_cli.analysis import extrinsic_error
-from handeye_cli.solvers.scale import drift_warning
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
 from handeye_cli.simulation.arm import monocular, simulate_arm
 from handeye_cli.simulation.recordings import SourceNoise, absolute, drifting, simulate_recording
+from handeye_cli.solvers.scale import drift_warning
 from handeye_cli.streams import PoseStream
 
 SCALE = 0.5                       # metres per odometry unit of stream b
