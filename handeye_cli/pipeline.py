@@ -57,7 +57,7 @@ from .io.nominal import read_nominal
 from .io.spec import StreamSpec, stream_source
 from .options import FIELDS, Options, ReadOptions
 from .solvers import Prior, Solution, solve
-from .solvers.scale import scale_translations, solve_with_scale
+from .solvers.scale import drift_warning, scale_translations, solve_with_scale
 from .stages.counts import SampleCounts
 from .stages.gates import sync_and_gate
 from .stages.pairs import Pairs, make_pairs
@@ -520,8 +520,7 @@ def _with_scale(stream_a: PoseStream, stream_b: PoseStream, paired: _Paired, opt
     noise = sample_noise(stream_a, stream_b, kept, stations, options.sync.sync, noise_of)
     est = solve_with_scale(pairs.A, pairs.B, alpha=alpha, samples=(pairs.i, pairs.j),
                            translation_noise=noise.translation_variances(pairs.i, pairs.j))
-    diagnostics["scale"] = {**est.as_dict(), "value": est.scale * given, "std": est.scale_std * given,
-                            "std_of_data": est.std_of_data * given, "linear": est.linear_scale * given}
+    diagnostics["scale"] = est.as_dict(given)
     return (replace(kept, xyz_b=kept.xyz_b * est.scale),
             replace(pairs, B=scale_translations(pairs.B, est.scale)))
 
@@ -728,6 +727,9 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
                                opts, offset_ns, prior, diagnostics, warnings, noise_of)
         if scaled is not None:
             (kept, pairs, samples, stations, selection), (solution, alpha, weights, robust) = scaled
+    drifting = drift_warning(diagnostics.get("scale", {}))
+    if drifting:
+        warnings.append(drifting)
     A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
     if prior is not None:                                     # the prior only where the data leave something open
         free = _solve_and_analyse(pairs, opts, None, selection, {})

@@ -6,6 +6,7 @@ import pytest
 import yaml
 from _util import pose_error, run, write_tum
 
+from handeye_cli import calibrate
 from handeye_cli.analysis.fit_test import sample_noise
 from handeye_cli.errors import DataError
 from handeye_cli.geometry import se3
@@ -76,6 +77,24 @@ def test_scale_of_a_noisy_camera_is_not_attenuated():
     assert np.mean(z_plain) < -1.2, z_plain                     # what the plain residuals gave
 
 
+def test_a_drifting_scale_is_found_and_its_std_covers_the_drift():
+    """b's scale drifts 0.2 %/s for 40 s (monocular odometry): the halves of the recording fit scales many of
+    their σ apart, which is a warning, and the std covers the scale at the middle of the recording and at
+    either end (without the halves' term it was 4 times smaller)."""
+    X = random_transform(np.random.default_rng(3), 0.3)
+    a, b = simulate_rig(Rig(X, 0), duration_s=40, rate_a=30, rate_b=30, sigma_r=np.deg2rad(0.1), sigma_t=0.001,
+                        seed=3)
+    cal = calibrate(a, monocular(b, SCALE, drift_per_s=0.002), scale="auto", time_offset=0.0)
+    block = cal.diagnostics["scale"]
+    first, second = block["drift"]["halves"]
+    assert first > SCALE / 1.04 > second                     # metres per unit fall as the units shrink
+    assert block["drift"]["drift_std"] > 2 * np.hypot(*block["drift"]["halves_std"])
+    assert block["std"] > block["drift"]["drift_std"]
+    assert sum("scale of stream b drifts" in w for w in cal.warnings) == 1
+    for t in (0.0, 20.0, 40.0):                              # start, middle, end of the recording
+        assert abs(block["value"] - SCALE / (1 + 0.002 * t)) < 2 * block["std"], t
+
+
 def test_no_translation_cannot_determine_a_scale():
     rng = np.random.default_rng(1)
     X = random_transform(rng, 0.3)
@@ -103,6 +122,7 @@ def test_cli_scale_auto_recovers_the_scale(capsys, mono_files):
     assert abs(doc["scale"]["value"] / SCALE - 1) < 1e-3 and 0 < doc["scale"]["std"] < 1e-3 * SCALE
     rot, trans = pose_error(np.array(doc["matrix"]), X)
     assert rot < 0.05 and trans < 0.003
+    assert doc["scale"]["drift"]["drift_std"] == 0 and not any("drifts" in w for w in doc["warnings"])
     code, out, err = run(capsys, "calibrate", fa, fb, "-q")         # by default the fit finds the other units
     assert code == 0, err
     doc = yaml.safe_load(out)
