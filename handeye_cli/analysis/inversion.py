@@ -9,7 +9,7 @@ residuals are far larger than the noise. With exactly one stream inverted, the r
 :func:`check_inversion` re-solves the same sample pairs ``(i, j)`` with each stream's poses
 inverted (relative rotation angles do not change, so the same pairs stay valid) and compares the
 median residuals (rotation [deg], translation [m]) with those of the streams as given (on at most
-``_MAX_PAIRS`` pairs spread over the list):
+``CHECKED_PAIRS`` pairs spread over the list, :func:`.readings.spread_pairs`):
 
 * **inverted**: inverting the stream lowers one median at least ``BETTER``-fold and raises
   neither by more than ``NOT_WORSE`` (:meth:`.readings.MedianFit.decisively_better_than`, the rule every
@@ -40,14 +40,13 @@ from numpy.typing import NDArray
 
 from ..errors import DataError
 from ..geometry import se3
-from .readings import BETTER, MedianFit, median_fit
+from .readings import BETTER, MedianFit, median_fit, spread_pairs
 
 __all__ = ["Candidate", "InversionVerdict", "check_inversion"]
 
 _OVERWHELMING = 10.0
 _PLAUSIBLE_DEG = 0.5
 _PLAUSIBLE_M = 0.02
-_MAX_PAIRS = 500
 
 
 @dataclass(frozen=True)
@@ -151,9 +150,7 @@ def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArr
 
     Returns the verdict (both streams as candidates when their inversions fit alike), or None.
     """
-    if len(i) > _MAX_PAIRS:                 # medians of a spread-out subset decide as well, 3 solves stay cheap
-        keep = np.linspace(0, len(i) - 1, _MAX_PAIRS).astype(np.int64)
-        i, j = i[keep], j[keep]
+    i, j = spread_pairs(i, j)
     base = _fit(T_a, T_b, i, j, method, alpha)
     if base is None:
         return None

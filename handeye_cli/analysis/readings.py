@@ -39,13 +39,14 @@ from ..streams import PoseStream
 from .residuals import extrinsic_error, pair_residuals
 
 __all__ = ["MedianFit", "OrderChoice", "OrderContradiction", "ScaleReading", "choose_quaternion_order",
-           "contradicted_order", "median_fit", "scale_reading", "BETTER", "NOT_WORSE", "SCALE_GAIN", "SCALE_FLOOR"]
+           "contradicted_order", "median_fit", "scale_reading", "spread_pairs",
+           "CHECKED_PAIRS", "BETTER", "NOT_WORSE", "SCALE_GAIN", "SCALE_FLOOR"]
 
 BETTER = 3.0              # a reading whose median residual is this many times lower fits decisively better
 NOT_WORSE = 1.25          # … if its other median is not higher by more than this; within it both: alike
 ALIKE_DEG, ALIKE_M = 1.0, 0.01   # alike fits whose extrinsics differ by more than this: the data cannot decide
 MAX_PAIRS = 400
-_MAX_CHECKED = 500        # pairs of a solved calibration the check of a given order compares on (spread over them)
+CHECKED_PAIRS = 500       # pairs of a solved calibration its checks of a reading compare on (spread over them)
 _TINY = (1e-9, 1e-12)     # floors [deg, m] so that noise-free fits compare as finite ratios
 SCALE_FLOOR = 0.01        # b's translations scaled by less than 1 % off 1 are metric …
 SCALE_GAIN = 1.25         # … and a scale that lowers the median translation residual less than this is not seen
@@ -283,6 +284,15 @@ class OrderContradiction:
                 "reread": {"rotation_deg": self.reread[0], "translation_m": self.reread[1]}}
 
 
+def spread_pairs(i: NDArray[np.int64], j: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """At most ``CHECKED_PAIRS`` of the sample pairs ``(i, j)``, evenly spread over the list: the medians of such
+    a subset decide a reading as well as all pairs do, and the comparison's solves stay cheap."""
+    if len(i) <= CHECKED_PAIRS:
+        return i, j
+    keep = np.linspace(0, len(i) - 1, CHECKED_PAIRS).astype(np.int64)
+    return i[keep], j[keep]
+
+
 def contradicted_order(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArray[np.int64],
                        j: NDArray[np.int64], orders: tuple[str | None, str | None], *, alpha: float = 1.0,
                        inverted: tuple[bool, bool] = (False, False)) -> OrderContradiction | None:
@@ -290,11 +300,9 @@ def contradicted_order(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: ND
     ``T_a``, ``T_b`` (N, 4, 4) contradict (see :class:`OrderContradiction`), or None. ``orders``: per stream the
     order its quaternions were given in where it was not open to the fit, None where the fit already chose it
     (:func:`choose_quaternion_order`); ``inverted``: per stream, whether its poses were inverted after reading
-    (the components are re-read in the poses as given). Dqopt at ``alpha`` on at most ``_MAX_CHECKED`` pairs
+    (the components are re-read in the poses as given). Dqopt at ``alpha`` on at most ``CHECKED_PAIRS`` pairs
     spread over the list."""
-    if len(i) > _MAX_CHECKED:
-        keep = np.linspace(0, len(i) - 1, _MAX_CHECKED).astype(np.int64)
-        i, j = i[keep], j[keep]
+    i, j = spread_pairs(i, j)
     motions = {"a": se3.relative(T_a[i], T_a[j]), "b": se3.relative(T_b[i], T_b[j])}
     base = median_fit(motions["a"], motions["b"], alpha=alpha)
     if base is None:
