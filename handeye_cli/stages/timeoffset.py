@@ -71,6 +71,12 @@ _SCAN_NS = 250_000_000         # grid spacing of that scan [ns]: the robust cost
 _SCAN_STEPS = 200              # steps the scan evaluates (evenly spread)
 _STEP_OUTLIER = 10.0          # steps whose residual exceeds this many medians are left out of it
 _TRUNCATE = 3.0               # the smoothing kernel reaches this many σ
+MAX_GRID_POINTS = 65_536      # ω grid points per stream at most (bounded work: the module docstring's "Long
+#                               recordings"): 328 s at _GRID_NS; a longer stream's coarse grid is coarser and
+#                               its refinement reads _WINDOWS windows holding this many points in all
+_WINDOWS = 8                  # refinement windows of a long recording, spread evenly over the streams' overlap
+_MAX_SCAN_OFFSETS = 10_000    # offsets a slow stream's scan evaluates at most a level (a range of 2,500 s at
+#                               _SCAN_NS; a wider one is scanned coarser first, each level around the last's best)
 MIN_CORRELATION = 0.5         # a lower peak correlation of the angular speeds is an error
 SIGNIFICANT_SIGMA = 3.0       # an estimate beyond this many of its σ from 0 is applied by --time-offset auto …
 NEGLIGIBLE_NS = 100_000       # … and beyond 0.1 ms (at 1 rad/s a 0.006° error: identical clocks estimate ~1 ns ± 0.1)
@@ -116,14 +122,15 @@ class TimeOffset:
 
 @dataclass(frozen=True)
 class _Signal:
-    """ω of one stream on a uniform grid: grid point k is at ``t0_ns + k·step`` (stream clock)."""
+    """ω of one stream on a uniform grid: grid point k is at ``t0_ns + k·step_ns`` (stream clock)."""
 
     t0_ns: int
     omega: np.ndarray      # (M, 3) body angular velocity [rad/s]
     valid: np.ndarray      # (M,) bool
+    step_ns: int = _GRID_NS
 
     def times_s(self) -> np.ndarray:
-        return np.arange(len(self.valid)) * (_GRID_NS / 1e9)
+        return np.arange(len(self.valid)) * (self.step_ns / 1e9)
 
 
 def _fast_len(n: int) -> int:
@@ -189,47 +196,49 @@ def _bad_steps(stream: PoseStream) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Grid:
-    """What ω needs of a stream whatever the window: its orientations SLERPed at ``stamps[0] + k·_GRID_NS``
+    """What ω needs of a stream whatever the window: its orientations SLERPed at ``stamps[0] + k·step_ns``
     (x-y-z-w, (K, 4), every grid point within its span) and the cumulative count of its bad steps
     (:func:`_bad_steps`) before each sample."""
 
     quat_xyzw: np.ndarray
     bad_before: np.ndarray
+    step_ns: int = _GRID_NS
 
 
-def grid_of(stream: PoseStream) -> Grid:
-    """:class:`Grid` of ``stream``."""
+def grid_of(stream: PoseStream, step_ns: int = _GRID_NS) -> Grid:
+    """:class:`Grid` of ``stream`` at grid step ``step_ns`` (a multiple of ``_GRID_NS``)."""
     stamps = stream.stamps_ns
-    points = stamps[0] + np.arange((int(stamps[-1]) - int(stamps[0])) // _GRID_NS + 1, dtype=np.int64) * _GRID_NS
-    return Grid(stream.sample(points).quat_xyzw, np.concatenate([[0], np.cumsum(_bad_steps(stream))]))
+    points = stamps[0] + np.arange((int(stamps[-1]) - int(stamps[0])) // step_ns + 1, dtype=np.int64) * step_ns
+    return Grid(stream.sample(points).quat_xyzw, np.concatenate([[0], np.cumsum(_bad_steps(stream))]), step_ns)
 
 
 def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float,
                      grid: Callable[[PoseStream], Grid] = grid_of) -> _Signal:
-    """Body angular velocity [rad/s] of ``stream`` on its uniform grid (see the module docstring),
-    smoothed by a Gaussian of σ = ``smooth_ns``; ``window_ns`` is a multiple of two grid steps, so
-    that the orientations at ``t ± w/2`` are those of one interpolation on the grid, ``w`` apart."""
+    """Body angular velocity [rad/s] of ``stream`` on the uniform grid ``grid`` gives (see the module
+    docstring), smoothed by a Gaussian of σ = ``smooth_ns``; ``window_ns`` is a multiple of two grid
+    steps, so that the orientations at ``t ± w/2`` are those of one interpolation on the grid, ``w`` apart."""
     stamps = stream.stamps_ns
+    on_grid = grid(stream)                              # grid point k at stamps[0] + k·step
+    step = on_grid.step_ns
     half = window_ns // 2
-    steps, rest = divmod(half, _GRID_NS)
+    steps, rest = divmod(half, step)
     if rest or not steps:
-        raise ValueError(f"window {window_ns} ns is not a positive multiple of {2 * _GRID_NS} ns")
+        raise ValueError(f"window {window_ns} ns is not a positive multiple of {2 * step} ns")
     t0 = int(stamps[0]) + half
-    centres = t0 + np.arange(max((int(stamps[-1]) - half - t0) // _GRID_NS + 1, 0), dtype=np.int64) * _GRID_NS
+    centres = t0 + np.arange(max((int(stamps[-1]) - half - t0) // step + 1, 0), dtype=np.int64) * step
     if len(centres) < 2:
         raise DataError("pose stream too short for its sample rate to estimate a time offset", stream.source,
                            "record more samples while rotating, or give a fixed --time-offset")
-    on_grid = grid(stream)                              # grid point k at t0 - half + k·_GRID_NS = stamps[0] + …
     q = on_grid.quat_xyzw[:len(centres) + 2 * steps]
     omega = dq.to_rotvec(dq.relative(q[:-2 * steps], q[2 * steps:]))     # within [stamps[0], stamps[-1]]: all inside
     omega /= 2 * half / 1e9
-    sigma = smooth_ns / _GRID_NS
+    sigma = smooth_ns / step
     omega = _gaussian_filter(omega, sigma)
     bad = on_grid.bad_before
     first = np.searchsorted(stamps, centres - half, side="right") - 1
     last = np.searchsorted(stamps, centres + half, side="left")
     reach = 2 * int(np.ceil(_TRUNCATE * sigma)) + 1       # a smoothed point mixes this many grid points
-    return _Signal(t0, omega, _erode(bad[last] == bad[first], reach))
+    return _Signal(t0, omega, _erode(bad[last] == bad[first], reach), step)
 
 
 def _masked_ncc(f: np.ndarray, mf: np.ndarray, g: np.ndarray, mg: np.ndarray
@@ -297,7 +306,7 @@ def _coarse(sa: _Signal, sb: _Signal, max_offset_ns: int | None) -> tuple[float,
     """Global search: (offset [ns] from the parabola through the peak, peak correlation, warnings)."""
     speed_a, speed_b = np.linalg.norm(sa.omega, axis=1), np.linalg.norm(sb.omega, axis=1)
     lags, ncc, n = _masked_ncc(speed_a, sa.valid, speed_b, sb.valid)
-    offsets = (sb.t0_ns - sa.t0_ns) + lags.astype(np.int64) * _GRID_NS
+    offsets = (sb.t0_ns - sa.t0_ns) + lags.astype(np.int64) * sa.step_ns
     allowed = n >= _MIN_OVERLAP * min(sa.valid.sum(), sb.valid.sum())
     if max_offset_ns is not None:
         allowed &= np.abs(offsets) <= max_offset_ns
@@ -325,7 +334,7 @@ def _coarse(sa: _Signal, sb: _Signal, max_offset_ns: int | None) -> tuple[float,
     if 0 < k < len(score) - 1 and np.isfinite(score[k - 1]) and np.isfinite(score[k + 1]):
         den = score[k - 1] - 2 * score[k] + score[k + 1]
         frac = 0.5 * (score[k - 1] - score[k + 1]) / den if den < 0 else 0.0
-    return float(offsets[k]) + frac * _GRID_NS, best, tuple(warnings)
+    return float(offsets[k]) + frac * sa.step_ns, best, tuple(warnings)
 
 
 def _interp(t: np.ndarray, grid: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -334,16 +343,17 @@ def _interp(t: np.ndarray, grid: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 
 class _Refiner:
-    """The cost ``J(τ) = min_R Σ |ω_a − R ω_b(· + τ)|²`` over a fixed set of a's grid points."""
+    """The cost ``J(τ) = min_R Σ |ω_a − R ω_b(· + τ)|²`` over a fixed set of a's grid points, those whose
+    partners in b are valid within ±``bracket_ns`` of the coarse estimate."""
 
-    def __init__(self, sa: _Signal, sb: _Signal, coarse_ns: float) -> None:
+    def __init__(self, sa: _Signal, sb: _Signal, coarse_ns: float, bracket_ns: int = _BRACKET_NS) -> None:
         self.base_ns = sb.t0_ns - sa.t0_ns          # offset = base + τ, τ in seconds below
-        self.tb, self.wb = sb.times_s(), sb.omega
-        erode = 2 * _BRACKET_NS // _GRID_NS + 3
+        self.tb, self.wb, self.step_s = sb.times_s(), sb.omega, sb.step_ns / 1e9
+        erode = 2 * bracket_ns // sb.step_ns + 3
         valid_b = _erode(sb.valid, erode)
         ta = sa.times_s()
         tau0 = (coarse_ns - self.base_ns) / 1e9
-        idx_b = np.round((ta + tau0) / (_GRID_NS / 1e9)).astype(np.int64)
+        idx_b = np.round((ta + tau0) / self.step_s).astype(np.int64)
         inside = (idx_b >= 0) & (idx_b < len(valid_b))
         keep = sa.valid & inside
         keep[keep] &= valid_b[idx_b[keep]]
@@ -364,16 +374,40 @@ class _Refiner:
         """Mean squared residual per evaluation time [rad²/s²] at offset ``base + tau_s``."""
         return self._fit(tau_s)[2]
 
-    def std_s(self, tau_s: float) -> float:
-        """1-σ of τ [s]: a sandwich estimate with residual-gradient products summed over 1 s blocks,
-        so noise that is correlated within a window (and model error) is accounted for."""
+    def sandwich(self, tau_s: float) -> tuple[float, float]:
+        """The parts of τ's sandwich variance: (Σ over 1 s blocks of the summed residual·gradient products,
+        squared; Σ of the squared gradients)."""
         R, wb, _ = self._fit(tau_s)
         resid = self.wa - wb @ R.T
-        grad = _interp(self.ta + tau_s, self.tb, np.gradient(self.wb, _GRID_NS / 1e9, axis=0)) @ R.T
+        grad = _interp(self.ta + tau_s, self.tb, np.gradient(self.wb, self.step_s, axis=0)) @ R.T
         score = np.einsum("ij,ij->i", resid, grad)
         block = np.floor(self.ta).astype(np.int64)
         per_block = np.bincount(block - block.min(), weights=score)
-        return float(np.sqrt(np.sum(per_block ** 2)) / max(np.sum(grad ** 2), 1e-300))
+        return float(np.sum(per_block ** 2)), float(np.sum(grad ** 2))
+
+
+class _Refiners:
+    """The ω refinement over one or several windows of the streams (:class:`_Refiner` each): ``J`` is the mean
+    over every window's grid points, τ that of the first window (the others' τ differ by their grid bases)."""
+
+    def __init__(self, parts: list[_Refiner]) -> None:
+        self.parts = parts
+        self.base_ns = parts[0].base_ns
+        self.shift_s = [(self.base_ns - p.base_ns) / 1e9 for p in parts]
+        self.counts = np.array([len(p.ta) for p in parts], dtype=np.float64)
+
+    def cost(self, tau_s: float) -> float:
+        """Mean squared residual per evaluation time [rad²/s²] at offset ``base + tau_s``."""
+        if len(self.parts) == 1:
+            return self.parts[0].cost(tau_s)
+        costs = [p.cost(tau_s + d) for p, d in zip(self.parts, self.shift_s, strict=True)]
+        return float(np.dot(costs, self.counts) / self.counts.sum())
+
+    def std_s(self, tau_s: float) -> float:
+        """1-σ of τ [s]: a sandwich estimate with residual-gradient products summed over 1 s blocks,
+        so noise that is correlated within a window (and model error) is accounted for."""
+        parts = np.array([p.sandwich(tau_s + d) for p, d in zip(self.parts, self.shift_s, strict=True)])
+        return float(np.sqrt(parts[:, 0].sum()) / max(parts[:, 1].sum(), 1e-300))
 
 
 class _StepRefiner:
@@ -433,15 +467,26 @@ class _StepRefiner:
     def scan(self, max_offset_ns: int | None) -> float:
         """The offset [ns] of the least median squared residual on a grid over every allowed offset.
 
-        Vectorised over blocks of offsets, on at most ``_SCAN_STEPS`` evenly spread kept steps."""
+        Vectorised over blocks of offsets, on at most ``_SCAN_STEPS`` evenly spread kept steps. Bounded work:
+        at most ``_MAX_SCAN_OFFSETS`` offsets a level: a range wider than that many ``_SCAN_NS`` is scanned at a
+        coarser spacing first, then each level within ±its spacing of its best, down to ``_SCAN_NS``."""
         lo, hi = self.offset_range(max_offset_ns)
-        spacing = _SCAN_NS
+        spacing = max(float(_SCAN_NS), (hi - lo) / _MAX_SCAN_OFFSETS)
         grid = np.arange(lo, hi + spacing, spacing)
         steps = np.flatnonzero(self.keep)
         steps = steps[np.linspace(0, len(steps) - 1, min(len(steps), _SCAN_STEPS)).astype(np.int64)]
         if len(grid) == 0 or len(steps) < 10:
             raise DataError("the streams are too short or too gappy to correlate their rotations", "time offset",
                                "give a fixed --time-offset, or widen --max-time-offset")
+        best = self._scan_grid(grid, steps)
+        while spacing > _SCAN_NS:
+            finer = max(float(_SCAN_NS), 2 * spacing / _MAX_SCAN_OFFSETS)
+            best = self._scan_grid(np.arange(max(lo, best - spacing), min(hi, best + spacing) + finer, finer), steps)
+            spacing = finer
+        return best
+
+    def _scan_grid(self, grid: np.ndarray, steps: np.ndarray) -> float:
+        """The offset of ``grid`` [ns] with the least median squared residual on ``steps``."""
         block = max(1, 50_000 // len(steps))
         costs = np.concatenate([self._median_costs(grid[i:i + block], steps) for i in range(0, len(grid), block)])
         return float(grid[int(np.argmin(costs))])
@@ -524,6 +569,35 @@ def _on_steps(a: PoseStream, b: PoseStream, max_offset_ns: int | None) -> TimeOf
                       method="scan + refinement on the slower stream's step rotations", warnings=warnings)
 
 
+def _windowed_refiners(a: PoseStream, b: PoseStream, coarse_ns: float, window_ns: int, smooth_ns: float,
+                       bracket_ns: int) -> list[_Refiner]:
+    """:class:`_Refiner` s of a long recording: ``_WINDOWS`` windows of a, ``MAX_GRID_POINTS`` grid points in
+    all, spread evenly over its overlap with b at the coarse estimate (the overlap whole when it is shorter),
+    each with the stretch of b it needs (±``bracket_ns`` and the differentiation and smoothing reach)."""
+    first = max(int(a.stamps_ns[0]), int(b.stamps_ns[0] - coarse_ns))      # the overlap, in a's clock
+    last = min(int(a.stamps_ns[-1]), int(b.stamps_ns[-1] - coarse_ns))
+    length = MAX_GRID_POINTS * _GRID_NS // _WINDOWS
+    if last - first <= MAX_GRID_POINTS * _GRID_NS:
+        spans = [(first, last)]
+    else:
+        starts = first + (np.arange(_WINDOWS) * ((last - first - length) / (_WINDOWS - 1))).astype(np.int64)
+        spans = [(int(s), int(s) + length) for s in starts]
+    reach = window_ns // 2 + int(2 * _TRUNCATE * smooth_ns) + _GRID_NS
+    out = []
+    for lo, hi in spans:
+        part_a = a.select((a.stamps_ns >= lo - reach) & (a.stamps_ns <= hi + reach))
+        lo_b, hi_b = lo + coarse_ns - reach - bracket_ns, hi + coarse_ns + reach + bracket_ns
+        part_b = b.select((b.stamps_ns >= lo_b) & (b.stamps_ns <= hi_b))
+        try:
+            out.append(_Refiner(angular_velocity(part_a, window_ns, smooth_ns),
+                                angular_velocity(part_b, window_ns, smooth_ns), coarse_ns, bracket_ns))
+        except DataError:                                  # a window too short or too gappy: the others refine
+            continue
+    if not out:
+        raise DataError("too little overlap to refine the time offset", "time offset", "give a fixed --time-offset")
+    return out
+
+
 def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | None = None,
                          grid: Callable[[PoseStream], Grid] = grid_of) -> TimeOffset:
     """Estimate how far b's clock is ahead of a's (see the module docstring for the method).
@@ -554,15 +628,26 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
     window = int(max(_MIN_WINDOW_NS, 3 * max(intervals)))
     window -= window % (2 * _GRID_NS)
     smooth = float(max(intervals))
-    sa, sb = angular_velocity(a, window, smooth, grid), angular_velocity(b, window, smooth, grid)
-    coarse_ns, corr, warnings = _coarse(sa, sb, max_ns)
-
-    ref = _Refiner(sa, sb, coarse_ns)
+    longest = max(int(s.stamps_ns[-1]) - int(s.stamps_ns[0]) for s in (a, b))
+    method = "angular-speed FFT cross-correlation + angular-velocity refinement"
+    if longest <= MAX_GRID_POINTS * _GRID_NS:
+        sa, sb = angular_velocity(a, window, smooth, grid), angular_velocity(b, window, smooth, grid)
+        coarse_ns, corr, warnings = _coarse(sa, sb, max_ns)
+        ref, bracket_ns = _Refiners([_Refiner(sa, sb, coarse_ns)]), _BRACKET_NS
+    else:                                               # bounded work: a coarser grid, then windows at full rate
+        step = _GRID_NS * -(-longest // (MAX_GRID_POINTS * _GRID_NS))
+        on_step = lambda stream: grid_of(stream, step)      # noqa: E731 - the coarse level's grid
+        wide = -(-window // (2 * step)) * 2 * step
+        sa, sb = (angular_velocity(s, wide, max(smooth, step), on_step) for s in (a, b))
+        coarse_ns, corr, warnings = _coarse(sa, sb, max_ns)
+        bracket_ns = max(_BRACKET_NS, 2 * step)
+        ref = _Refiners(_windowed_refiners(a, b, coarse_ns, window, smooth, bracket_ns))
+        method = f"angular-speed FFT cross-correlation on a {step / 1e6:g} ms grid + angular-velocity " \
+                 f"refinement on {len(ref.parts)} windows of {MAX_GRID_POINTS * _GRID_NS / 1e9 / _WINDOWS:g} s"
     tau0 = (coarse_ns - ref.base_ns) / 1e9
-    span = _BRACKET_NS / 1e9
+    span = bracket_ns / 1e9
     tau = minimize_bounded(ref.cost, tau0 - span, tau0 + span, xatol=1e-6)
     offset_ns, std_ns = int(ref.base_ns + round(tau * 1e9)), ref.std_s(tau) * 1e9
-    method = "angular-speed FFT cross-correlation + angular-velocity refinement"
     if max(intervals) > _STEP_REFINE_NS:
         offset_ns, std_ns = _StepRefiner(a, b).refine(offset_ns, _BRACKET_NS)
         method += " + refinement on the slower stream's step rotations"
