@@ -7,6 +7,8 @@ Every case is a pair of TUM files of one simulated rig (``simulate_rig``: a at 1
 start is read as a recording 10³ or 10⁶ times longer and slower. The CLI runs in a subprocess with
 ``PYTHONWARNINGS=error`` (``python -W error``: any numpy or Runtime warning is an exception, so a traceback and
 exit 4) under the adversarial corpus's address-space limit and kill timer (``test_adversarial_readers.cli``).
+The corpus's own cases that run the CLI (each a calibration or a one-line refusal) are imported and so run here
+a second time, under the same ``PYTHONWARNINGS=error`` (the autouse fixture below).
 """
 from __future__ import annotations
 
@@ -17,7 +19,19 @@ import pytest
 import yaml
 from _logs import write_tum
 from _util import pose_error
-from test_adversarial_readers import cli
+from test_adversarial_readers import (  # noqa: F401  (re-collected here: the corpus's CLI runs, under -W error)
+    cli,
+    test_bag_chunk_data_claiming_4_gb,
+    test_bag_chunk_header_claiming_4_gb,
+    test_character_device,
+    test_chunk_declaring_50_gb_without_summary,
+    test_db3_row_that_is_not_bytes,
+    test_identical_stamps,
+    test_lz4_chunk_inflating_to_2_gib,
+    test_one_256_kb_frame_id_among_1800,
+    test_zero_positions_rotation_only,
+    test_zstd_chunk_inflating_to_2_gib,
+)
 
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
 from handeye_cli.stages.timeoffset import LARGE_OFFSET_PERIODS

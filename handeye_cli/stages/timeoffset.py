@@ -17,7 +17,8 @@ Method
 2. Coarse, global: the angular speeds |ω| — equal for rigidly attached sensors whatever their
    frames — are cross-correlated over **every** lag with FFTs (masked, normalised per lag; at least
    a third of the shorter stream must overlap), so offsets of any size are found, even when the
-   raw time spans do not overlap. A parabola through the peak gives a sub-grid estimate. A peak
+   raw time spans do not overlap; ``max_offset_s`` bounds them (``"auto"``, the CLI's default: the
+   shorter stream's span, :func:`search_bound_ns`). A parabola through the peak gives a sub-grid estimate. A peak
    correlation below ``MIN_CORRELATION`` (too little rotation, or unrelated streams) is an error;
    a weak peak, or a second peak elsewhere nearly as high (repetitive motion), is a warning.
 3. Refinement: Brent's method on ``J(τ) = min_R Σ |ω_a(t) − R ω_b(t + τ)|²`` (the rotation R ≈
@@ -562,8 +563,8 @@ def _check_reachable(a: PoseStream, b: PoseStream, max_ns: int | None, auto: boo
     span = {n: f"{s.stamps_ns[0] / 1e9:.3f}–{s.stamps_ns[-1] / 1e9:.3f} s" for n, s in (("a", a), ("b", b))}
     raise DataError(f"the two streams' stamps do not overlap at any clock offset searched ({bound}): a spans "
                     f"{span['a']}, b spans {span['b']}, {need:.6g} s apart", "time offset",
-                    f"if the clocks differ by that much, search further with --max-time-offset SECONDS ({every} covers "
-                    f"every offset at which they overlap) or give the offset with --time-offset SECONDS; otherwise "
+                    f"if the clocks differ by that much, widen --max-time-offset SECONDS ({every} covers every "
+                    f"offset at which they overlap) or give the offset with --time-offset SECONDS; otherwise "
                     "the two inputs are not of one recording")
 
 
