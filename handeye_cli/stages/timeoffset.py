@@ -554,14 +554,17 @@ def search_bound_ns(a: PoseStream, b: PoseStream, max_offset_s: float | str | No
 
 
 def _check_reachable(a: PoseStream, b: PoseStream, max_ns: int | None, auto: bool) -> None:
-    """Refuse, in one line naming ``--max-time-offset``, streams that overlap at no offset within ±``max_ns``."""
+    """Refuse, in one line naming ``--max-time-offset``, streams whose spans overlap by the search's least share
+    (``_MIN_OVERLAP`` of the shorter span) at no offset within ±``max_ns``: no correlation could find one."""
     lo, hi = overlap_offsets_ns(a, b)
-    if max_ns is None or (lo <= max_ns and hi >= -max_ns):
+    least = _MIN_OVERLAP * min(int(s.stamps_ns[-1]) - int(s.stamps_ns[0]) for s in (a, b))
+    if max_ns is None or (lo + least <= max_ns and hi - least >= -max_ns):
         return
     need, every = min(abs(lo), abs(hi)) / 1e9, int(np.ceil(max(abs(lo), abs(hi)) / 1e9))   # [s]
     bound = f"±{max_ns / 1e9:.6g} s" + (", the shorter stream's span" if auto else "")
     span = {n: f"{s.stamps_ns[0] / 1e9:.3f}–{s.stamps_ns[-1] / 1e9:.3f} s" for n, s in (("a", a), ("b", b))}
-    raise DataError(f"the two streams' stamps do not overlap at any clock offset searched ({bound}): a spans "
+    raise DataError(f"the two streams' stamps do not overlap (by a third of the shorter, as the search needs) at "
+                    f"any clock offset searched ({bound}): a spans "
                     f"{span['a']}, b spans {span['b']}, {need:.6g} s apart", "time offset",
                     f"if the clocks differ by that much, widen --max-time-offset SECONDS ({every} covers every "
                     f"offset at which they overlap) or give the offset with --time-offset SECONDS; otherwise "
