@@ -46,14 +46,16 @@ def _words(value: Any) -> str | None:
     return value.strip().lower() if isinstance(value, str) else None
 
 
-def number(*, unit: str, low: float = 0.0, strict: bool = True, word: str | None = None) -> Parser:
-    """Parser of a real number ≥/> ``low``; ``word`` ('off' or 'auto') is also accepted.
+def number(*, unit: str, low: float = 0.0, strict: bool = True, word: str | tuple[str, ...] | None = None) -> Parser:
+    """Parser of a real number ≥/> ``low``; ``word`` ('off' or 'auto', or both as a tuple) is also accepted.
 
     'off' (and YAML's false/null) becomes None; 'auto' stays the string 'auto'."""
+    words = (word,) if isinstance(word, str) else word or ()
+
     def parse(value: Any, where: str) -> float | str | None:
-        if word == "off" and (value is None or value is False or _words(value) in _OFF_WORDS):
+        if "off" in words and (value is None or value is False or _words(value) in _OFF_WORDS):
             return None
-        if word == "auto" and _words(value) == "auto":
+        if "auto" in words and _words(value) == "auto":
             return "auto"
         if not isinstance(value, bool):
             try:
@@ -63,7 +65,7 @@ def number(*, unit: str, low: float = 0.0, strict: bool = True, word: str | None
             if math.isfinite(x) and (x > low if strict else x >= low):
                 return x
         rel = ">" if strict else "≥"
-        alt = f", or '{word}'" if word else ""
+        alt = "".join(f", or '{w}'" for w in words)
         raise ConfigError(f"bad value {value!r}", where, f"give a number of {unit} {rel} {low:g}{alt}")
     return parse
 
@@ -290,9 +292,10 @@ class SyncOptions:
                                       "velocities and applied when it is significant against its own uncertainty "
                                       "(else 0; both reported in the result's time_offset); 0 forces none.",
                                       "SECONDS|auto", commands=PAIR, per_stream="time_offset")
-    max_time_offset: float | None = option(None, number(unit="seconds", word="off"),
-                                           "With --time-offset auto (the default), search only ±this [s] (off: any).",
-                                           "SECONDS|off")
+    max_time_offset: float | str | None = option(
+        "auto", number(unit="seconds", word=("auto", "off")),
+        "With --time-offset auto (the default), search only clock offsets within ±this [s]; auto: within the "
+        "shorter stream's span (a larger offset only when given here); off: any lag.", "SECONDS|auto|off")
 
     @property
     def max_dt_ns(self) -> int | None:

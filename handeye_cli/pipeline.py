@@ -62,7 +62,7 @@ from .stages.counts import SampleCounts
 from .stages.gates import sync_and_gate
 from .stages.pairs import Pairs, make_pairs
 from .stages.stations import Stations, detect_stations
-from .stages.sync import Synced, default_max_dt_ns
+from .stages.sync import Synced, default_max_dt_ns, median_step_ns
 from .streams import PoseStream
 
 __all__ = ["Calibration", "Checks", "Diagnostics", "StreamSpec", "Uncertainty", "calibrate", "calibrate_files",
@@ -360,19 +360,32 @@ def _quaternion_order(a: PoseStream, b: PoseStream, options: Options) -> tuple[P
 def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, dict[str, Any], list[str]]:
     """The offset [ns] b's clock is ahead of a's, its report, and warnings about it.
 
-    ``auto`` (the default) estimates it wherever the data allow and applies the estimate when it is
-    significant against its own σ (:attr:`~handeye_cli.stages.timeoffset.TimeOffset.significant`) and
-    the correlation is unambiguous; otherwise the offset is 0 and the report says why. A significant
+    ``auto`` (the default) estimates it wherever the data allow, among the offsets within ``max_time_offset``
+    (``auto``: the shorter stream's span, :func:`~handeye_cli.stages.timeoffset.search_bound_ns`), and applies the
+    estimate when it is significant against its own σ (:attr:`~handeye_cli.stages.timeoffset.TimeOffset.significant`)
+    and the correlation is unambiguous; otherwise the offset is 0 and the report says why. A significant
     estimate that is ambiguous (a second correlation peak, a weak one) is not applied but warned about:
-    the warning names the estimate and the flag that applies it. A fixed value is used as given."""
+    the warning names the estimate and the flag that applies it. An applied offset the user must hear about
+    (:func:`_large_offset_warning`) is a warning too. A fixed value is used as given.
+
+    Raises DataError (one line naming ``--max-time-offset``) when the streams' spans overlap at no offset within
+    the bound, and when no offset could be estimated for streams that do not overlap as stamped: at 0 nothing
+    could be synchronised."""
     value = options.sync.time_offset
     if value != "auto":
         return int(round(float(value) * 1e9)), {"seconds": float(value), "method": "fixed"}, []
-    from .stages.timeoffset import SIGNIFICANT_SIGMA, estimate_time_offset
+    from .stages.timeoffset import SIGNIFICANT_SIGMA, estimate_time_offset, overlap_offsets_ns
 
+    lo, hi = overlap_offsets_ns(a, b) if len(a) and len(b) else (0, 0)
     try:
         est = estimate_time_offset(a, b, max_offset_s=options.sync.max_time_offset)
     except HandEyeError as e:                 # too short, too gappy or too little rotation to tell: none applied
+        if not lo <= 0 <= hi:                 # ... and at 0 the streams share no time: nothing to fall back on
+            if "do not overlap" in e.what:
+                raise
+            raise DataError(f"the two streams' stamps do not overlap and no clock offset could be estimated "
+                            f"({e.what})", "time offset", "give the offset with --time-offset SECONDS, or widen "
+                            "--max-time-offset") from None
         return 0, {"seconds": 0.0, "method": "not estimated", "applied": False, "reason": str(e)}, []
     applied = est.significant and not est.warnings
     report = {"seconds": est.offset_ns / 1e9 if applied else 0.0, "applied": applied,
@@ -383,6 +396,25 @@ def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, d
                 f"applied ({'; '.join(est.warnings)}): if it is right, pass --time-offset {est.offset_ns / 1e9:.6g}"
                 ] if est.significant and est.warnings else []
     return (est.offset_ns if applied else 0), report, warnings
+
+
+def _large_offset_warning(a: PoseStream, b: PoseStream, report: dict[str, Any]) -> str | None:
+    """The warning an applied clock offset earns (after the fit confirmed it): one that makes streams overlap whose
+    stamps did not, or one larger than ``LARGE_OFFSET_PERIODS`` median sample periods of the slower stream; it
+    names the offset and its σ [s] and how to refuse it. None for an offset not applied, or a small one."""
+    from .stages.timeoffset import LARGE_OFFSET_PERIODS, overlap_offsets_ns
+
+    if not report.get("applied") or "std_seconds" not in report:
+        return None
+    offset_s = float(report["seconds"])
+    lo, hi = overlap_offsets_ns(a, b)
+    period_s = max(median_step_ns(a), median_step_ns(b)) / 1e9
+    if lo <= 0 <= hi and abs(offset_s) <= LARGE_OFFSET_PERIODS * period_s:
+        return None
+    why = ("the streams' stamps did not overlap without it" if not lo <= 0 <= hi else
+           f"more than {LARGE_OFFSET_PERIODS:g} sample periods of the slower stream ({period_s:.3g} s)")
+    return (f"a clock offset of {offset_s:.6g} ± {float(report['std_seconds']):.2g} s was applied: {why}; pass "
+            "--time-offset 0 if the clocks are known to agree")
 
 
 _Paired = tuple[Synced, Pairs, SampleCounts, Stations | None, Selection | None]
@@ -701,6 +733,9 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
         kept, pairs, samples, stations, selection = _confirmed_offset(
             stream_a, stream_b, opts, prior, offset_report, (kept, pairs, samples, stations, selection))
         offset_ns = int(round(offset_report["seconds"] * 1e9))
+        large = _large_offset_warning(stream_a, stream_b, offset_report)
+        if large:
+            warnings.append(large)
     diagnostics: dict[str, Any] = {"time_offset": offset_report}
     if order is not None:
         diagnostics["interpretation"] = order.as_dict()

@@ -94,11 +94,14 @@ def test_time_offset_auto(capsys, tmp_path):
     fa, fb = write_tum(tmp_path / "a.tum", a), write_tum(tmp_path / "b.tum", b)
     code, _, err = run(capsys, "calibrate", fa, fb, "--time-offset", "0")
     assert code == 2 and "--time-offset" in err             # forced 0: the raw spans do not overlap, the error says so
-    for flags in ([], ["--time-offset", "auto"]):            # the default estimates it, and applies it: significant
-        code, out, err = run(capsys, "calibrate", fa, fb, *flags, "-q")
+    code, _, err = run(capsys, "calibrate", fa, fb)          # beyond the default range (the 60-s span): refused
+    assert code == 2 and "do not overlap" in err and "--max-time-offset" in err, err
+    for flags in (["--max-time-offset", "200"], ["--time-offset", "auto", "--max-time-offset", "off"]):
+        code, out, err = run(capsys, "calibrate", fa, fb, *flags, "-q")   # estimated, applied (significant), warned
         assert code == 0, err
         doc = yaml.safe_load(out)
         assert doc["time_offset"]["seconds"] == pytest.approx(100.25, abs=1e-3) and doc["time_offset"]["applied"]
+        assert any("clock offset of 100.25" in w and "did not overlap" in w for w in doc["warnings"]), doc["warnings"]
         assert pose_error(np.array(doc["matrix"]), X)[1] < 0.005
 
 

@@ -64,7 +64,7 @@ class Edge:
 
 
 def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int, float | str],
-                  max_offset_s: float | None = None) -> list[ClockOffset]:
+                  max_offset_s: float | str | None = None) -> list[ClockOffset]:
     """Each stream's clock offset to the reference: ``given[k]`` seconds, or estimated (``'auto'``,
     the default) from the angular velocities of stream k and the reference."""
     from ..stages.timeoffset import estimate_time_offset, grid_of

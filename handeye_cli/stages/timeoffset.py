@@ -17,7 +17,8 @@ Method
 2. Coarse, global: the angular speeds |ω| — equal for rigidly attached sensors whatever their
    frames — are cross-correlated over **every** lag with FFTs (masked, normalised per lag; at least
    a third of the shorter stream must overlap), so offsets of any size are found, even when the
-   raw time spans do not overlap. A parabola through the peak gives a sub-grid estimate. A peak
+   raw time spans do not overlap; ``max_offset_s`` bounds them (``"auto"``, the CLI's default: the
+   shorter stream's span, :func:`search_bound_ns`). A parabola through the peak gives a sub-grid estimate. A peak
    correlation below ``MIN_CORRELATION`` (too little rotation, or unrelated streams) is an error;
    a weak peak, or a second peak elsewhere nearly as high (repetitive motion), is a warning.
 3. Refinement: Brent's method on ``J(τ) = min_R Σ |ω_a(t) − R ω_b(t + τ)|²`` (the rotation R ≈
@@ -55,7 +56,8 @@ from ..numeric.minimize import minimize_bounded
 from ..streams import PoseStream
 
 __all__ = ["TimeOffset", "estimate_time_offset", "angular_velocity", "Grid", "grid_of", "MIN_CORRELATION",
-           "SIGNIFICANT_SIGMA", "CONFIRMING_GAIN", "CONFIRMING_MIN_GAIN", "CONFIRMING_COVERAGE"]
+           "SIGNIFICANT_SIGMA", "CONFIRMING_GAIN", "CONFIRMING_MIN_GAIN", "CONFIRMING_COVERAGE",
+           "LARGE_OFFSET_PERIODS", "search_bound_ns", "overlap_offsets_ns"]
 
 _GRID_NS = 5_000_000          # grid step of the ω signals [ns]
 _MIN_WINDOW_NS = 100_000_000  # smallest differentiation window [ns]
@@ -304,6 +306,9 @@ def _prominent_peaks(x: np.ndarray, prominence: float, height: float) -> np.ndar
 
 def _coarse(sa: _Signal, sb: _Signal, max_offset_ns: int | None) -> tuple[float, float, tuple[str, ...]]:
     """Global search: (offset [ns] from the parabola through the peak, peak correlation, warnings)."""
+    if not (sa.valid.any() and sb.valid.any()):   # every ω point touches a gap or a jump: nothing to correlate
+        raise DataError("the streams are too short or too gappy to correlate their rotations", "time offset",
+                        "give a fixed --time-offset, or widen --max-time-offset")
     speed_a, speed_b = np.linalg.norm(sa.omega, axis=1), np.linalg.norm(sb.omega, axis=1)
     lags, ncc, n = _masked_ncc(speed_a, sa.valid, speed_b, sb.valid)
     offsets = (sb.t0_ns - sa.t0_ns) + lags.astype(np.int64) * sa.step_ns
@@ -598,21 +603,65 @@ def _windowed_refiners(a: PoseStream, b: PoseStream, coarse_ns: float, window_ns
     return out
 
 
-def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | None = None,
+LARGE_OFFSET_PERIODS = 5.0
+"""An applied clock offset of more than this many median sample periods of the slower stream is a warning
+(``pipeline._time_offset``): jitter and transport delays are a period or two; beyond five, the two clocks
+are different clocks (another time base, a recorder started late), which the user must hear about."""
+
+
+def overlap_offsets_ns(a: PoseStream, b: PoseStream) -> tuple[int, int]:
+    """(lo, hi) [ns]: the clock offsets (b ahead of a) at which the streams' spans overlap at all: b's stamps
+    ``s`` at a's times ``s - offset`` meet a's span for ``b[0] - a[-1] ≤ offset ≤ b[-1] - a[0]``."""
+    return int(b.stamps_ns[0]) - int(a.stamps_ns[-1]), int(b.stamps_ns[-1]) - int(a.stamps_ns[0])
+
+
+def search_bound_ns(a: PoseStream, b: PoseStream, max_offset_s: float | str | None) -> int | None:
+    """The bound [ns] on |offset| that ``max_offset_s`` means: seconds as given; ``"auto"`` (the option's
+    default) the shorter stream's span (first to last stamp), so that an offset larger than the recording,
+    which a correlation can only find between streams that share no time, is searched only when asked for;
+    ``None`` no bound (any lag)."""
+    if max_offset_s is None:
+        return None
+    if max_offset_s == "auto":
+        return min(int(s.stamps_ns[-1]) - int(s.stamps_ns[0]) for s in (a, b))
+    return int(round(float(max_offset_s) * 1e9))
+
+
+def _check_reachable(a: PoseStream, b: PoseStream, max_ns: int | None, auto: bool) -> None:
+    """Refuse, in one line naming ``--max-time-offset``, streams whose spans overlap by the search's least share
+    (``_MIN_OVERLAP`` of the shorter span) at no offset within ±``max_ns``: no correlation could find one."""
+    lo, hi = overlap_offsets_ns(a, b)
+    least = _MIN_OVERLAP * min(int(s.stamps_ns[-1]) - int(s.stamps_ns[0]) for s in (a, b))
+    if max_ns is None or (lo + least <= max_ns and hi - least >= -max_ns):
+        return
+    need, every = min(abs(lo), abs(hi)) / 1e9, int(np.ceil(max(abs(lo), abs(hi)) / 1e9))   # [s]
+    bound = f"±{max_ns / 1e9:.6g} s" + (", the shorter stream's span" if auto else "")
+    span = {n: f"{s.stamps_ns[0] / 1e9:.3f}–{s.stamps_ns[-1] / 1e9:.3f} s" for n, s in (("a", a), ("b", b))}
+    raise DataError(f"the two streams' stamps do not overlap (by a third of the shorter, as the search needs) at "
+                    f"any clock offset searched ({bound}): a spans "
+                    f"{span['a']}, b spans {span['b']}, {need:.6g} s apart", "time offset",
+                    f"if the clocks differ by that much, widen --max-time-offset SECONDS ({every} covers every "
+                    f"offset at which they overlap) or give the offset with --time-offset SECONDS; otherwise "
+                    "the two inputs are not of one recording")
+
+
+def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | str | None = None,
                          grid: Callable[[PoseStream], Grid] = grid_of) -> TimeOffset:
     """Estimate how far b's clock is ahead of a's (see the module docstring for the method).
 
     Parameters
     ----------
     a, b: pose streams of two rigidly attached sensors (any frames; the extrinsic is not needed).
-    max_offset_s: optional bound [s] on |offset|; ``None`` searches every lag.
+    max_offset_s: optional bound [s] on |offset|; ``"auto"`` the shorter stream's span (the default of
+        ``--max-time-offset``, :func:`search_bound_ns`); ``None`` searches every lag.
     grid: each stream's orientations on the ω grid (:func:`grid_of`, or a
         :class:`~handeye_cli.streams.StreamMemo` of it that a rig shares between the estimates against its
         reference).
 
     Raises
     ------
-    DataError: when a stream spans less than 2 s, the streams are too short or too gappy
+    DataError: when the streams' spans overlap at no offset within the bound (the message names
+        ``--max-time-offset``), a stream spans less than 2 s, the streams are too short or too gappy
         to correlate, or their angular speeds do not correlate (too little rotation).
     """
     for name, stream in (("a", a), ("b", b)):
@@ -622,7 +671,8 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
                                "to estimate a time offset", stream.source or f"stream {name}",
                                f"record at least {_MIN_SPAN_NS / 1e9:.0f} s of rotation, or give a fixed --time-offset")
     intervals = [np.median(np.diff(s.stamps_ns)) for s in (a, b)]
-    max_ns = None if max_offset_s is None else int(round(max_offset_s * 1e9))
+    max_ns = search_bound_ns(a, b, max_offset_s)
+    _check_reachable(a, b, max_ns, max_offset_s == "auto")
     if max(intervals) > _STEP_SCAN_NS:
         return _on_steps(a, b, max_ns)
     window = int(max(_MIN_WINDOW_NS, 3 * max(intervals)))
