@@ -42,7 +42,6 @@ from numpy.typing import NDArray
 
 from ..errors import HandEyeError
 from ..geometry import dualquat as dq
-from ..geometry import se3
 from ..solvers import Prior, solve
 from ..solvers.problem import pair_forms
 from ..stages.pairs import Pairs
@@ -160,9 +159,7 @@ def _spread(total: int, n: int, *, jitter: bool = False) -> NDArray[np.int64]:
 
 
 def _pairs(synced: Synced, i: NDArray[np.int64], j: NDArray[np.int64]) -> Pairs:
-    T_a, T_b = synced.T_a, synced.T_b                          # each built once (each access builds them)
-    return Pairs(se3.relative(T_a[i], T_a[j]), se3.relative(T_b[i], T_b[j]),
-                 i, j, synced.stamps_ns[i], synced.stamps_ns[j])
+    return Pairs(*synced.motions(i, j), i, j, synced.stamps_ns[i], synced.stamps_ns[j])
 
 
 def _ml_weights(model: NoiseModel, f: PairFeatures) -> tuple[NDArray[np.float64], float]:
@@ -357,7 +354,7 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
     if len(pr.pairs) < _MIN_LEVEL_PAIRS:       # too little to fit a model: every pair there is, as is
         return Selection(pr.pairs, np.ones(len(pr.pairs)), 1.0, None, tuple(int(k) for k in pr.strides), 0,
                          len(pr.pairs))
-    path = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(synced.T_a[:, :3, 3], axis=0), axis=1))]
+    path = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(synced.xyz_a, axis=0), axis=1))]
     X = _probe_solve(pr, prior, method)
     rejoined = 0
     if len(segs.length) > 1:          # segments the gate split where the world did not move are one

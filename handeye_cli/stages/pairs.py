@@ -40,7 +40,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
-from ..geometry import se3
 from .sync import Synced
 
 __all__ = ["Pairs", "make_pairs", "STRATEGIES"]
@@ -259,6 +258,5 @@ def make_pairs(synced: Synced, strategy: str = "keyframes", *, keyframe_rotation
         else:
             i, j, total = _choose(*args, lambda m: _spread(m, max_pairs))
     i, j = nodes[i], nodes[j]
-    pairs = Pairs(se3.relative(synced.T_a[i], synced.T_a[j]), se3.relative(synced.T_b[i], synced.T_b[j]),
-                  i, j, synced.stamps_ns[i], synced.stamps_ns[j])
+    pairs = Pairs(*synced.motions(i, j), i, j, synced.stamps_ns[i], synced.stamps_ns[j])
     return pairs, {"keyframes": int(n), "candidate_pairs": int(total), "pairs": len(pairs)}

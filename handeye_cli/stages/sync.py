@@ -100,6 +100,14 @@ class Synced:
         """(N, 4, 4) poses ``T_wb_b`` (built on each access)."""
         return se3.from_xyz_quat(self.xyz_b, self.quat_b).reshape(-1, 4, 4)
 
+    def motions(self, i: Ints, j: Ints) -> tuple[Floats, Floats]:
+        """(A, B): the relative motions ``T_wa_a(i)⁻¹ T_wa_a(j)`` and ``T_wb_b(i)⁻¹ T_wb_b(j)`` (K, 4, 4) between
+        samples ``i`` and ``j``, built from those samples' rows only (not every sample's pose)."""
+        def of(xyz: Floats, quat: Floats) -> Floats:
+            return se3.relative(se3.from_xyz_quat(xyz[i], quat[i]).reshape(-1, 4, 4),
+                                se3.from_xyz_quat(xyz[j], quat[j]).reshape(-1, 4, 4))
+        return of(self.xyz_a, self.quat_a), of(self.xyz_b, self.quat_b)
+
     @property
     def rates_hz(self) -> tuple[float, float]:
         """Rate [Hz] of streams a and b (from their median steps; 0 when unknown)."""
