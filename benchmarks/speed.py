@@ -6,8 +6,8 @@ packed with ``struct``, checked byte for byte against rosbags' serialiser by ``b
 
 * 10 and 60 minutes: ``/cam0/pose`` at 100 Hz, ``/cam1/pose`` at 30 Hz (37 ms clock offset, tracking noise
   0.1° / 2 mm, ten tracking jumps) and a ``/tf`` TFMessage at 100 Hz that calibrate does not read;
-* 1 minute, image-heavy: the same poses beside a 20 Hz ``/camera/image`` of 100 kB frames (random bytes,
-  eight distinct ones: images ≈ 99 % of the bytes).
+* 1 minute, image-heavy: the same poses beside a 30 Hz ``/camera/image`` of raw 640 × 480 mono8 frames
+  (a ramp plus noise, eight distinct ones, zstd compresses them about 2×: images ≈ 99.8 % of the bytes).
 
 Each command runs in a fresh interpreter (fastest of ``--repeat``; peak RSS from ``wait4``, the largest of
 the repeats). The limit of a log is Python starting with numpy and scipy imported plus the zstd
@@ -70,9 +70,10 @@ def build(path: Path, minutes: float, images: bool = False) -> None:
                                                                                          strict=True)]
     if images:
         rng = np.random.default_rng(0)
-        frames = [rng.integers(0, 255, 100_000, dtype=np.uint8).tobytes() for _ in range(8)]
+        ramp = np.add.outer(np.arange(480), np.arange(640)).astype(np.uint8)       # 640 x 480 mono8
+        frames = [(ramp + rng.integers(0, 32, ramp.shape, dtype=np.uint8)).tobytes() for _ in range(8)]
         head = b"\x00\x01\x00\x00"     # the bytes of an image: calibrate reads only the pose topics
-        for k, t in enumerate(range(int(a.stamps_ns[0]), int(a.stamps_ns[-1]), 50_000_000)):
+        for k, t in enumerate(range(int(a.stamps_ns[0]), int(a.stamps_ns[-1]), 33_333_333)):
             rows.append((t, "/camera/image", head + frames[k % 8]))
     else:
         v = np.c_[a.xyz, a.quat_xyzw].tolist()
@@ -99,16 +100,25 @@ def _limit_child(path: str) -> None:
     _decompress_all(path)
 
 
+# A program's peak RSS as it exits: VmHWM of its own memory map (the rusage of a fork + exec also counts the
+# benchmark's pages the child had before its exec).
+_PEAK = ("import atexit, runpy, sys; atexit.register(lambda: sys.stderr.write(next(ln for ln in "
+         "open('/proc/self/status') if ln.startswith('VmHWM')))); sys.argv = sys.argv[1:]; "
+         "runpy.run_path(sys.argv[0], run_name='__main__') if sys.argv[0].endswith('.py') else "
+         "runpy.run_module(sys.argv[0], run_name='__main__', alter_sys=True)")
+
+
 def timed(cmd: list[str]) -> tuple[float, float]:
-    """(wall seconds, peak RSS [MB]) of one fresh process."""
+    """(wall seconds, peak RSS [MB]) of one fresh process running ``cmd`` (a module or script and its
+    arguments)."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
+    proc = subprocess.run([sys.executable, "-c", _PEAK, *cmd], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                          text=True)
     sec = time.perf_counter() - t0
-    err = proc.stderr.read().decode() if proc.stderr else ""
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed: {err}")
-    return sec, usage.ru_maxrss / 1024
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed: {proc.stderr}")
+    peak = [ln for ln in proc.stderr.splitlines() if ln.startswith("VmHWM")]
+    return sec, int(peak[-1].split()[1]) / 1024
 
 
 def best(cmd: list[str], repeat: int) -> tuple[float, float]:
@@ -117,7 +127,7 @@ def best(cmd: list[str], repeat: int) -> tuple[float, float]:
 
 
 def calibrate_cmd(log: Path) -> list[str]:
-    return [sys.executable, "-m", "handeye_cli", "calibrate", str(log), "--topic-a", TOPICS[0],
+    return ["handeye_cli", "calibrate", str(log), "--topic-a", TOPICS[0],
             "--topic-b", TOPICS[1], "-q", "--format", "json"]
 
 
@@ -156,7 +166,7 @@ def main() -> None:
         for label, minutes, images in logs:
             log = Path(tmp) / f"{label.replace(' ', '_').replace(',', '')}.mcap"
             build(log, minutes, images)
-            limit, _ = best([sys.executable, __file__, "--limit-child", str(log)], args.repeat)
+            limit, _ = best([__file__, "--limit-child", str(log)], args.repeat)
             sec, rss = best(calibrate_cmd(log), args.repeat)
             times[label] = sec
             ratio = sec / limit

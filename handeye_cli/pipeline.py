@@ -431,11 +431,16 @@ def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Pri
     estimate the fit does not confirm (an alias of periodic motion on a short recording, an estimator's bias
     of a millisecond) is not applied: the report says so, with both fits, and the pairs without an offset
     are returned. ``paired`` is :func:`pairs_of` at the estimate;
-    ``report`` is updated in place."""
+    ``report`` is updated in place. The pairs without an offset are compared as the strides of the estimate's
+    ``auto`` selection make them (like with like, and one selection, not two, where the offset is confirmed);
+    a selection of their own is made only where they are returned."""
     from .stages.timeoffset import CONFIRMING_COVERAGE, CONFIRMING_GAIN, CONFIRMING_MIN_GAIN
 
+    def without_offset() -> _Paired:
+        return at_zero if paired[4] is None else pairs_of(a, b, options, 0, prior)
+
     try:
-        at_zero = pairs_of(a, b, options, 0, prior)
+        at_zero = pairs_of(a, b, options, 0, prior, like=paired[4])
     except HandEyeError:
         report["confirmed_by"] = "no pairs without it"
         return paired
@@ -444,7 +449,7 @@ def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Pri
         report["confirmed_by"] = "fit" if zero is None else None
         if est is None:
             report.update(seconds=0.0, applied=False)
-        return paired if zero is None else at_zero
+        return paired if zero is None else without_offset()
     gains = est.gains_over(zero)
     coverage = len(paired[0]) / max(len(at_zero[0]), 1)
     report["fit_median"] = {name: {"rotation_deg": f.rotation_deg, "translation_m": f.translation_m, "samples": n}
@@ -456,7 +461,7 @@ def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Pri
         report["confirmed_by"] = "fit"
         return paired
     report.update(seconds=0.0, applied=False, confirmed_by=None)
-    return at_zero
+    return without_offset()
 
 
 def _misfits(a: PoseStream, b: PoseStream, options: Options, paired: _Paired, X: np.ndarray) -> bool:
@@ -497,10 +502,12 @@ def read_prior(options: Options, frames: tuple[str, str] | None = None) -> Prior
 
 
 def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options, offset_ns: int,
-             prior: Prior | None) -> tuple[Synced, Pairs, SampleCounts, Stations | None, Selection | None]:
+             prior: Prior | None, like: Selection | None = None
+             ) -> tuple[Synced, Pairs, SampleCounts, Stations | None, Selection | None]:
     """Sync, gates and pair formation: (kept samples, pairs, counts of every stage, stations, and for
     the ``auto`` strategy the selection: weights, α and noise model). ``prior`` is the options'
-    prior, read once by the caller (:func:`read_prior`).
+    prior, read once by the caller (:func:`read_prior`). ``like``: for the ``auto`` strategy, the pairs of
+    that selection's strides instead of a selection (None: no weights to solve with; a comparison's pairs).
 
     A station capture (see :mod:`~handeye_cli.stages.stations`) skips sync and the pose-jump gate:
     its averaged stations are the samples, paired all with all."""
@@ -519,7 +526,10 @@ def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options, offse
                                           min_samples=options.solver.min_pairs + 1)
         strategy, stage_counts = p.pairs, [gate_counts]
     selection = None
-    if strategy == "auto":
+    if strategy == "auto" and like is not None:
+        pairs = like.on(kept, p.max_pairs)
+        pair_counts = {"keyframes": len(kept), "candidate_pairs": len(pairs), "pairs": len(pairs)}
+    elif strategy == "auto":
         selection = select_pairs(kept, max_pairs=p.max_pairs, method=options.solver.method, prior=prior)
         pairs, pair_counts = selection.pairs, selection.counts(len(kept))
     else:

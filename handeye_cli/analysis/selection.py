@@ -66,7 +66,8 @@ _SAME_WORLD = 6.0           # ... when their median residual is within this many
 
 @dataclass(frozen=True, eq=False)
 class Selection:
-    """What ``auto`` chose: the pairs, their weights, α [1/m], the noise model and the kept strides."""
+    """What ``auto`` chose: the pairs, their weights, α [1/m], the noise model and the kept strides (``band``:
+    every stride from the shortest kept, as absolute sources are paired)."""
 
     pairs: Pairs
     weights: NDArray[np.float64]
@@ -76,6 +77,13 @@ class Selection:
     rounds: int
     candidate_pairs: int
     rejoined: int = 0
+    band: bool = False
+
+    def on(self, synced: Synced, max_pairs: int) -> Pairs:
+        """The pairs these strides make of other synchronised samples (the same streams at another clock
+        offset): like compared with like, without selecting again."""
+        return _kept_pairs(synced, _Segments.of(synced.segment), np.asarray(self.strides, dtype=np.int64),
+                           max_pairs, self.band)[0]
 
     def as_dict(self) -> dict[str, Any]:
         """The result's ``noise_model`` entry: the model (None: too few pairs to fit one) plus what the
@@ -387,4 +395,4 @@ def select_pairs(synced: Synced, *, max_pairs: int = 2000, method: str = "dqopt"
     if model.kind == "drifting":       # errors shared across time: the ML α is an upper bound (analysis.alpha)
         alpha = _blocked(pairs, alpha, weights, prior)
     return Selection(pairs, weights / weights.mean(), alpha, model, tuple(int(k) for k in pr.strides[kept]), done,
-                     int(pr.available[kept].sum()), rejoined)
+                     int(pr.available[kept].sum()), rejoined, band)
