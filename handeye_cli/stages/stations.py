@@ -38,6 +38,7 @@ pairs relative to one base station are three times worse).
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -155,9 +156,7 @@ def _dwell_runs(stream: PoseStream, min_dwell_s: float) -> _Runs:
     j = later[i]
     rest = ((_angle_deg(stream.quat_xyzw[i], stream.quat_xyzw[j]) <= tol_deg)
             & (np.linalg.norm(stream.xyz[j] - stream.xyz[i], axis=1) <= tol_m) & (j > i + 1))
-    cover = np.zeros(n + 1, dtype=np.int64)
-    np.add.at(cover, i[rest], 1)
-    np.add.at(cover, j[rest] + 1, -1)
+    cover = np.bincount(i[rest], minlength=n + 1) - np.bincount(j[rest] + 1, minlength=n + 1)
     start, stop = _runs_of(np.cumsum(cover)[:n] > 0)
     return _Runs(start, stop, False)
 
@@ -224,8 +223,17 @@ def _match(a: PoseStream, ra: _Runs, b: PoseStream, rb: _Runs, slack: int) -> li
     return sorted(out)
 
 
+_SEEN: weakref.WeakKeyDictionary[PoseStream, dict[tuple[int, float, float], _Runs]] = weakref.WeakKeyDictionary()
+"""Each stream's runs per setting, while the stream lives: they depend on its samples and the differences of its
+stamps only, not on the clock offset, and a calibration asks for them at its estimated offset and at 0."""
+
+
 def _runs(stream: PoseStream, min_stations: int, sparse_rotation_deg: float, min_dwell_s: float) -> _Runs:
-    return _sparse_runs(stream, min_stations, sparse_rotation_deg) or _dwell_runs(stream, min_dwell_s)
+    known = _SEEN.setdefault(stream, {})
+    key = (min_stations, sparse_rotation_deg, min_dwell_s)
+    if key not in known:
+        known[key] = _sparse_runs(stream, min_stations, sparse_rotation_deg) or _dwell_runs(stream, min_dwell_s)
+    return known[key]
 
 
 def detect_stations(a: PoseStream, b: PoseStream, *, time_offset_ns: int = 0, max_dt_ns: int = 100_000_000,
@@ -247,8 +255,8 @@ def detect_stations(a: PoseStream, b: PoseStream, *, time_offset_ns: int = 0, ma
     """
     if len(a) < 1 or len(b) < 1:
         return None
+    ra, rb = (_runs(s, min_stations, sparse_rotation_deg, min_dwell_s) for s in (a, b))   # b's as read: the same
     b = b.shifted(-int(time_offset_ns))
-    ra, rb = (_runs(s, min_stations, sparse_rotation_deg, min_dwell_s) for s in (a, b))
     matches = _match(a, ra, b, rb, int(max_dt_ns))
     if len(matches) < min_stations:
         return None
