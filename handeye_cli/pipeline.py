@@ -45,6 +45,7 @@ from .analysis.readings import (
     contradicted_order,
     median_fit,
     scale_reading,
+    spread_pairs,
 )
 from .analysis.selection import Selection, select_pairs
 from .analysis.stream_noise import StreamNoise, stream_noise
@@ -567,6 +568,16 @@ def _with_scale(stream_a: PoseStream, stream_b: PoseStream, paired: _Paired, opt
             replace(pairs, B=scale_translations(pairs.B, est.scale)))
 
 
+def _checked_poses(kept: Synced, pairs: Pairs) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(T_a, T_b, i, j): the absolute poses of the samples of the pairs a reading's check compares on
+    (:func:`~.analysis.readings.spread_pairs`: at most ``CHECKED_PAIRS``), and those pairs as indices into them,
+    so that a check builds and re-reads a thousand poses, not every synced sample's."""
+    i, j = spread_pairs(pairs.i, pairs.j)
+    rows, at = np.unique(np.r_[i, j], return_inverse=True)
+    used = kept.select(rows)
+    return used.T_a, used.T_b, at[:len(i)], at[len(i):]
+
+
 def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float,
                inputs: dict[str, Any]) -> InversionVerdict | None:
     """The inversion check; raises its refusal when the evidence is overwhelming (unless ``accept_poor_fit``:
@@ -578,7 +589,7 @@ def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float,
         pair = inputs.get(key, {}).get("frames")
         return (str(pair[0]), str(pair[1])) if pair else None
 
-    verdict = check_inversion(kept.T_a, kept.T_b, pairs.i, pairs.j, alpha=alpha,
+    verdict = check_inversion(*_checked_poses(kept, pairs), alpha=alpha,
                               inverted_now=(bool(read.invert_a), bool(read.invert_b)),
                               frames=(frames("a"), frames("b")))
     refusal = verdict and not options.analysis.accept_poor_fit and verdict.refusal(
@@ -595,7 +606,7 @@ def _contradicted_order(stream_a: PoseStream, stream_b: PoseStream, kept: Synced
     read = options.read
     orders = tuple(None if s.quaternion_order is not None else "wxyz" if w else "xyzw"
                    for s, w in ((stream_a, read.wxyz_a), (stream_b, read.wxyz_b)))
-    return contradicted_order(kept.T_a, kept.T_b, pairs.i, pairs.j, (orders[0], orders[1]),
+    return contradicted_order(*_checked_poses(kept, pairs), (orders[0], orders[1]),
                               inverted=(bool(read.invert_a), bool(read.invert_b)))
 
 
