@@ -574,6 +574,13 @@ def _on_steps(a: PoseStream, b: PoseStream, max_offset_ns: int | None) -> TimeOf
                       method="scan + refinement on the slower stream's step rotations", warnings=warnings)
 
 
+def _between(stream: PoseStream, first_ns: int, last_ns: int) -> PoseStream:
+    """The samples of ``stream`` stamped within ``[first_ns, last_ns]`` (found by bisection, not a mask of all)."""
+    lo = np.searchsorted(stream.stamps_ns, np.int64(first_ns), side="left")
+    hi = np.searchsorted(stream.stamps_ns, np.int64(last_ns), side="right")
+    return stream.select(np.arange(lo, hi))
+
+
 def _windowed_refiners(a: PoseStream, b: PoseStream, coarse_ns: float, window_ns: int, smooth_ns: float,
                        bracket_ns: int) -> list[_Refiner]:
     """:class:`_Refiner` s of a long recording: ``_WINDOWS`` windows of a, ``MAX_GRID_POINTS`` grid points in
@@ -590,9 +597,9 @@ def _windowed_refiners(a: PoseStream, b: PoseStream, coarse_ns: float, window_ns
     reach = window_ns // 2 + int(2 * _TRUNCATE * smooth_ns) + _GRID_NS
     out = []
     for lo, hi in spans:
-        part_a = a.select((a.stamps_ns >= lo - reach) & (a.stamps_ns <= hi + reach))
-        lo_b, hi_b = lo + coarse_ns - reach - bracket_ns, hi + coarse_ns + reach + bracket_ns
-        part_b = b.select((b.stamps_ns >= lo_b) & (b.stamps_ns <= hi_b))
+        part_a = _between(a, lo - reach, hi + reach)
+        shift = int(round(coarse_ns))
+        part_b = _between(b, lo + shift - reach - bracket_ns, hi + shift + reach + bracket_ns)
         try:
             out.append(_Refiner(angular_velocity(part_a, window_ns, smooth_ns),
                                 angular_velocity(part_b, window_ns, smooth_ns), coarse_ns, bracket_ns))
