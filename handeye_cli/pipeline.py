@@ -99,9 +99,10 @@ class Diagnostics(Mapping[str, Any]):
 
     The typed results that code reads back: ``fit`` (the fit test), ``observability`` (degenerate motion, the
     predicted covariance), ``subspace`` (each degree of freedom: estimated, from the prior or unobservable) and
-    ``selection`` (the ``auto`` pairs' noise model; None for another strategy); ``poor_fit_accepted``: the fit test
-    failed (the residuals, or a mount that moved between stations) and ``accept_poor_fit`` kept the result (the
-    document's ``fit_test.passed`` false; ``handeye calibrate`` exits 3). As a read-only mapping it is the
+    ``selection`` (the ``auto`` pairs' noise model; None for another strategy); ``poor_fit_accepted``: a refusal —
+    the fit test's (the residuals, or a mount that moved between stations: the document's ``fit_test.passed``
+    false), the inversion check's or a given quaternion order's contradiction — that ``accept_poor_fit``
+    overrode, keeping the result (``handeye calibrate`` exits 3). As a read-only mapping it is the
     result document's diagnostic sections in order (``time_offset``, ``interpretation``, ``noise_model``,
     ``observability``, ``degrees_of_freedom``, ``residuals``, ``fit_test`` …: JSON-ready values, the keys of
     docs/reference/result-schema.md), so ``calibration.diagnostics["fit_test"]`` reads as the file does."""
@@ -579,9 +580,10 @@ def _checked_poses(kept: Synced, pairs: Pairs) -> tuple[np.ndarray, np.ndarray, 
 
 
 def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float,
-               inputs: dict[str, Any]) -> InversionVerdict | None:
-    """The inversion check; raises its refusal when the evidence is overwhelming (unless ``accept_poor_fit``:
-    then it is the first warning after the override's). ``inputs`` (what was
+               inputs: dict[str, Any]) -> tuple[InversionVerdict | None, bool]:
+    """The inversion check and whether ``accept_poor_fit`` overrode its refusal; raises the refusal when the
+    evidence is overwhelming (unless ``accept_poor_fit``: then it is the first warning after the override's, and
+    the result a poor fit accepted, exit 3). ``inputs`` (what was
     read) names a TF stream's frame pair, whose fix is naming the frames the other way round."""
     read = options.read
 
@@ -592,11 +594,10 @@ def _inversion(kept: Synced, pairs: Pairs, options: Options, alpha: float,
     verdict = check_inversion(*_checked_poses(kept, pairs), alpha=alpha,
                               inverted_now=(bool(read.invert_a), bool(read.invert_b)),
                               frames=(frames("a"), frames("b")))
-    refusal = verdict and not options.analysis.accept_poor_fit and verdict.refusal(
-        read.invert_a is not None or read.invert_b is not None)
-    if refusal:
+    refusal = verdict and verdict.refusal(read.invert_a is not None or read.invert_b is not None)
+    if refusal and not options.analysis.accept_poor_fit:
         raise refusal
-    return verdict
+    return verdict, bool(refusal)
 
 
 def _contradicted_order(stream_a: PoseStream, stream_b: PoseStream, kept: Synced, pairs: Pairs,
@@ -769,7 +770,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
                                                             selection), opts, offset_ns, prior, diagnostics,
                                                             noise_of)
     solution, alpha, weights, robust = _solve_and_analyse(pairs, opts, prior, selection, diagnostics)
-    verdict = None if not checks.inversion else _inversion(
+    verdict, inversion_overridden = (None, False) if not checks.inversion else _inversion(
         kept, pairs, opts, 1.0 if opts.solver.alpha == "auto" else alpha, inputs or {})   # thresholds set at α 1
     contradiction = None if verdict is not None else _contradicted_order(stream_a, stream_b, kept, pairs, opts)
     if contradiction is not None:
@@ -843,7 +844,8 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
                          estimate=solution.matrix if opts.solver.method == "dqopt" else None)   # the same solve
         diagnostics["uncertainty"] = {"method": "bootstrap over pose samples", **boot.as_dict()}
     found = Diagnostics(MappingProxyType(diagnostics), fit=fit, observability=obs, subspace=subspace,
-                        selection=selection, poor_fit_accepted=bool(rejected or moved or contradiction))
+                        selection=selection,
+                        poor_fit_accepted=bool(rejected or moved or contradiction or inversion_overridden))
     return Calibration(solution, stream_a, stream_b, kept, pairs, samples, opts, res, warnings=warnings,
                        diagnostics=found, inputs=dict(inputs or {}), weights=weights, robust=robust,
                        bootstrap=boot)

@@ -125,3 +125,21 @@ def test_tf_frames_given_child_first_are_refused_naming_parent_child(capsys, tmp
     code, _, err = run(capsys, "calibrate", ROOT / "sample_data" / "rig.mcap", "--frames-a", "world", "cam0",
                        "--frames-b", "world", "cam1", "-o", out_file)
     assert code == 0, err
+
+
+def test_an_overridden_inversion_refusal_alone_is_reported_as_accepted(capsys, monkeypatch, station_files):
+    """Issue 37: ``poor_fit_accepted`` ORed the fit test's, the moved mount's and the order's refusals, not the
+    inversion check's. With the fit test made to pass, only the inversion refusal is left to override: kept by
+    ``accept_poor_fit``, it is an accepted poor fit (the API's flag), and the CLI exits 3, never 0."""
+    from handeye_cli import calibrate
+    from handeye_cli.analysis.fit_test import FitTest
+
+    monkeypatch.setattr(FitTest, "refusal", lambda self, *args, **kwargs: None)
+    c, fa, fb = station_files
+    result = calibrate(c.robot, c.camera, accept_poor_fit=True)
+    assert result.diagnostics.poor_fit_accepted
+    assert "looks inverted" in result.warnings[0]
+    assert not calibrate(c.robot, c.camera.inverted()).diagnostics.poor_fit_accepted      # nothing overridden
+    code, out, err = run(capsys, "calibrate", fa, fb, "--accept-poor-fit", "-q")
+    assert code == 3, err
+    assert yaml.safe_load(out)["inversion"]["overwhelming"]
