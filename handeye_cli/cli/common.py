@@ -70,7 +70,7 @@ def finish(doc: dict[str, Any], *, strict: bool, quiet: bool, drift: str | None 
     if within is not None and not quiet:
         click.echo(within, err=True)
     if poor_fit_accepted:
-        raise StrictFailure("the result failed a check (its first warning) and was written because of "
-                            "--accept-poor-fit")
+        raise StrictFailure("the result failed a check (the fit test, the inversion check or a given quaternion "
+                            "order: its first warning says which) and was written because of --accept-poor-fit")
     if doc["warnings"] and strict:
         raise StrictFailure(f"{len(doc['warnings'])} warning(s) under --strict (the result was still written)")
