@@ -780,7 +780,8 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     subspace = observable_subspace(A, B, solution.matrix, obs, weights=weights,
                                    nominal=None if prior is None else prior.T_a_b)
     if subspace.axis_a is not None:                           # planar: the reduced in-plane solve
-        solution = replace(solution, matrix=subspace.matrix, problem=None, dual_quaternion=None)
+        solution = replace(solution, matrix=subspace.matrix, problem=None, dual_quaternion=None,
+                           full_solve=solution)              # its certificate: of the full solve (cost 8)
         warnings += [f"not estimated: {k} ({v})" for k, v in subspace.skipped.items()] + list(subspace.advice)
     diagnostics["degrees_of_freedom"] = subspace.as_dict()
     if checks.uncertainty and len(A) > 2 * TIME_BLOCKS:      # σ from independent samples beside σ from blocks (drift)
