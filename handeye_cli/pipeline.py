@@ -388,7 +388,7 @@ def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, d
                             f"({e.what})", "time offset", "give the offset with --time-offset SECONDS, or widen "
                             "--max-time-offset") from None
         return 0, {"seconds": 0.0, "method": "not estimated", "applied": False, "reason": str(e)}, []
-    applied = est.significant and not est.warnings
+    applied = est.applicable
     report = {"seconds": est.offset_ns / 1e9 if applied else 0.0, "applied": applied,
               "estimated_seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,
               "coarse_seconds": est.coarse_ns / 1e9, "correlation": est.correlation, "method": est.method,
