@@ -227,10 +227,12 @@ class Session:
 
     def _read_ahead(self, fs: Any, path: str, url: str, start: int, stop: int | None) -> bytes | None:
         """The bytes ``[start, stop)`` (``start`` < 0: the last ``-start``) in one try, counted; None if
-        that failed (the reader asks again, with retries, and reports what is wrong)."""
+        the request failed (the ReadError of :meth:`call`: missing, denied, the network; the reader asks
+        again, with retries, and reports what is wrong). Any other exception is not a failed request but a
+        bug: it propagates (through :meth:`open`, which waits for this)."""
         try:
             data: bytes = self.call(url, "reading ahead", lambda: fs.cat_file(path, start=start, end=stop), tries=1)
-        except Exception:    # a ReadError or a client's own: the reader's request says it
+        except ReadError:    # call turned the client's error into its one line: the reader's request says it
             return None
         self.count(len(data))
         return data
