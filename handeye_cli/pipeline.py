@@ -389,7 +389,7 @@ def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, d
                             f"({e.what})", "time offset", "give the offset with --time-offset SECONDS, or widen "
                             "--max-time-offset") from None
         return 0, {"seconds": 0.0, "method": "not estimated", "applied": False, "reason": str(e)}, []
-    applied = est.significant and not est.warnings
+    applied = est.applicable
     report = {"seconds": est.offset_ns / 1e9 if applied else 0.0, "applied": applied,
               "estimated_seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,
               "coarse_seconds": est.coarse_ns / 1e9, "correlation": est.correlation, "method": est.method,
@@ -801,7 +801,8 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     subspace = observable_subspace(A, B, solution.matrix, obs, weights=weights,
                                    nominal=None if prior is None else prior.T_a_b)
     if subspace.axis_a is not None:                           # planar: the reduced in-plane solve
-        solution = replace(solution, matrix=subspace.matrix, problem=None, dual_quaternion=None)
+        solution = replace(solution, matrix=subspace.matrix, problem=None, dual_quaternion=None,
+                           full_solve=solution)              # its certificate: of the full solve (cost 8)
         warnings += [f"not estimated: {k} ({v})" for k, v in subspace.skipped.items()] + list(subspace.advice)
     diagnostics["degrees_of_freedom"] = subspace.as_dict()
     if checks.uncertainty and len(A) > 2 * TIME_BLOCKS:      # σ from independent samples beside σ from blocks (drift)

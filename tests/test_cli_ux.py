@@ -94,15 +94,15 @@ def test_help_names_one_default_and_every_method(capsys) -> None:
 
 
 def test_a_missing_optional_package_is_named_as_the_registry_knows_it(capsys, monkeypatch) -> None:
-    """The hint ``pip install 'handeye-cli[report]'`` named a package that is not on the registry, which a user
-    of a checkout cannot install; the hints for URLs and Dask name the packages themselves."""
+    """The hint ``pip install 'handeye-cli[report]'`` named an extra that does not exist. The hints for URLs and
+    Dask name this distribution's extras (issue 37), and the spelling that installs them from a checkout."""
     import sys
 
     monkeypatch.setitem(sys.modules, "fsspec", None)          # import fsspec → ImportError
     monkeypatch.setitem(sys.modules, "distributed", None)
     code, out, err = run(capsys, "inspect", "s3://bucket/log.mcap")
-    assert code == 2 and out == "" and err.rstrip().endswith("pip install fsspec s3fs (S3)")
+    assert code == 2 and out == ""
+    assert err.rstrip().endswith("pip install 'handeye-cli[remote]' (in a checkout: pip install '.[remote]')")
     code, _, err = run(capsys, "batch", SAMPLE / "rig.mcap", "--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose",
                        "--scheduler", "tcp://127.0.0.1:1")
-    assert code == 2 and "pip install 'dask[distributed]'" in err
-    assert "handeye-cli[" not in err
+    assert code == 2 and "pip install 'handeye-cli[dask]'" in err and "dask[distributed]" not in err

@@ -423,3 +423,38 @@ def test_the_python_api_and_a_per_input_entry_refuse_a_bad_chain_in_their_own_wo
     (tmp_path / "p.yaml").write_text('"*": {stream_a: "tf:odom"}\n', encoding="utf-8")
     code, _, err = run(capsys, "batch", RIG_LOG, "--per-input", tmp_path / "p.yaml")
     assert code == 2 and err.startswith(f"error: {BAD_CHAIN} ({tmp_path / 'p.yaml'}: *: stream_a)"), err
+
+
+def test_every_install_hint_names_an_extra_of_this_distribution():
+    """Issue 37: install hints named another distribution (``dask[distributed]``, ``fsspec s3fs``, ``gcsfs``),
+    where a user of handeye installs its extras. Every ``pip install`` in the package's source installs
+    ``'handeye-cli[EXTRA]'`` (or, in a checkout, ``'.[EXTRA]'``) with EXTRA one of pyproject's
+    ``[project.optional-dependencies]``, and every hint names ``handeye-cli[``."""
+    import re
+
+    section = (ROOT / "pyproject.toml").read_text().split("[project.optional-dependencies]")[1].split("\n[")[0]
+    extras = set(re.findall(r"^(\w+) = \[", section, re.M))          # tomllib is Python 3.11+
+    assert {"dask", "remote", "gcs"} <= extras
+    hints = 0
+    for path in sorted((ROOT / "handeye_cli").rglob("*.py")):
+        text = path.read_text()
+        for m in re.finditer(r"pip install\s+(\S+)", text):
+            hints += 1
+            spec = re.match(r"'(handeye-cli|\.)\[(\w+)\]'", m.group(1))
+            assert spec and spec.group(2) in extras, (path.name, m.group(0))
+            line = text[text.rfind("\n", 0, m.start()) + 1:text.find("\n", m.end())]
+            assert "handeye-cli[" in line or spec.group(1) == ".", (path.name, line)
+        if "pip install" in text:
+            assert "handeye-cli[" in text, path.name
+    assert hints >= 4                                            # batch, the Dask engine, fsspec, a file system
+    help_text = run_help("batch")
+    assert "pip install 'handeye-cli[dask]'" in help_text and "dask[distributed]" not in help_text
+
+
+def run_help(command: str) -> str:
+    """``handeye COMMAND --help`` as printed (click's runner, unwrapped)."""
+    from click.testing import CliRunner
+
+    result = CliRunner().invoke(cli, [command, "--help"], terminal_width=1000)
+    assert result.exit_code == 0, result.output
+    return " ".join(result.output.split())

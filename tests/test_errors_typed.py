@@ -79,3 +79,21 @@ def test_rosbags_internals_are_pinned() -> None:
     from rosbags.rosbag1.reader import Header, RecordType, decompressors, read_uint32  # what rosbag1_scan uses
 
     assert callable(read_uint32) and Header and RecordType and {"bz2", "lz4"} <= set(decompressors)
+
+
+def test_a_too_few_pairs_error_names_keywords_in_the_api_and_flags_on_the_command_line(capsys):
+    """Issue 37: ``calibrate_files(pairs='consecutive', max_pairs=2)`` said 'with --pairs consecutive' (in the part
+    ``in_keywords`` does not rewrite) and 'raise max_pairs=True' (a value flag named without its value): the API's
+    message names no flag and a keyword with a value; the CLI's names the flag."""
+    from _util import ROOT, run
+
+    from handeye_cli.errors import TooFewPairsError
+
+    log, topics = ROOT / "sample_data" / "rig.mcap", {"topic_a": "/cam0/pose", "topic_b": "/cam1/pose"}
+    with pytest.raises(TooFewPairsError) as info:
+        handeye_cli.calibrate_files(log, **topics, pairs="consecutive", max_pairs=2)
+    text = str(info.value)
+    assert "--" not in text and "max_pairs=N (now 2)" in text and "=True" not in text, text
+    code, _, err = run(capsys, "calibrate", log, "--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose",
+                       "--pairs", "consecutive", "--max-pairs", "2")
+    assert code == 2 and err.count("\n") == 1 and "raise --max-pairs N (now 2)" in err, err

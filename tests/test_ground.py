@@ -218,3 +218,19 @@ def test_rig_fills_what_planar_motion_leaves_open_from_the_prior_as_calibrate_do
     assert code == 0 and abs(yaml.safe_load(out)["translation"][2] - (truth[2] + 0.03)) < 1e-6, err
     code, _, err = run(capsys, "rig", *streams, "--stream", f"cam={b}", "--prior", urdf)
     assert code == 2 and "sensor(s) cam not in the nominal" in err and "--prior" in err.splitlines()[-1]
+
+
+def test_a_planar_result_keeps_the_certificate_of_the_full_solve_and_says_so(diff_drive, free):
+    """Issue 37: the reduced in-plane solve replaced the solution with ``problem=None``, so a planar result's
+    document had no ``solver.certificate``. The certificate is of cost (8)'s global optimum on the full problem,
+    which the reduced estimate written in ``matrix`` is not: the document keeps the full solve's certificate,
+    marked as that solve's (``of: full_solve``), and it is the certificate of a fresh full solve of the same pairs."""
+    from handeye_cli import document
+
+    assert free.diagnostics.subspace.axis_a is not None                  # planar: the reduced solve ran
+    cert = document(free)["solver"].get("certificate")
+    assert cert is not None and cert["of"] == "full_solve" and cert["certified"] is True
+    full = solve(free.pairs.A, free.pairs.B, alpha=free.solution.alpha, weights=free.weights)
+    assert full.certificate is not None and cert["certified"] == full.certificate.certified
+    assert not np.allclose(full.matrix, free.matrix)                      # the estimate written is another one
+    assert "of" not in (solve(free.pairs.A, free.pairs.B).certificate.as_dict())   # a full solve's own: no mark

@@ -530,3 +530,39 @@ def test_over_plain_http_a_missing_object_and_a_server_ignoring_ranges_are_one_l
     assert code == 2 and out == "" and "ignores byte ranges (answered 200" in err and len(err.splitlines()) == 1
     assert len(server.log) <= 4                 # no retries of a wrong answer
     server.shutdown()
+
+
+class _Store:
+    """A file system holding one 100-byte object whose range reads raise ``error`` (its size answers)."""
+
+    def __init__(self, error: BaseException) -> None:
+        self.error = error
+
+    def info(self, path: str) -> dict[str, object]:
+        return {"type": "file", "size": 100}
+
+    def cat_file(self, path: str, start: int = 0, end: int | None = None) -> bytes:
+        raise self.error
+
+
+@pytest.mark.parametrize("error", [OSError("connection reset"), KeyError("a bug in a reader")])
+def test_a_failed_read_ahead_is_asked_again_but_a_bug_is_not_hidden(monkeypatch, error):
+    """Issue 37: the read-ahead beside the size turned every exception into 'no bytes' (None), a bug too. A
+    request that failed (a one-line ReadError of Session.call: the network, a missing object) is None, and
+    the reader asks again with its retries; any other exception reaches the caller as itself (exit 4)."""
+    from handeye_cli.errors import ReadError
+    from handeye_cli.io import remote
+
+    store = _Store(error)
+    monkeypatch.setattr(remote.Session, "fs", lambda self, url, listing=False: (store, url))
+    url = "s3://bucket/obj.mcap"
+    with remote.session((), 1.0, 1) as s:
+        assert not s.is_folder(url, read_ahead=True)
+        if isinstance(error, OSError):
+            obj = s.open(url)                              # nothing held: the reader's requests say what is wrong
+            assert obj.held(0, 10) is None
+            with pytest.raises(ReadError, match="failed 1 times"):
+                obj.fetch(0, 10)
+        else:
+            with pytest.raises(KeyError, match="a bug in a reader"):
+                s.open(url)

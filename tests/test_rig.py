@@ -454,3 +454,26 @@ def test_synchronise_recovers_consistent_graph() -> None:
     X = np.stack([se3.inverse(T[j]) @ T[k] for j, k in pairs])
     out = synchronise(5, pairs, X, np.array([1.0, 0.5, 2.0, 1.0, 0.1, 3.0]), reference=0)
     assert np.abs(out - T).max() < 1e-9
+
+
+def test_an_insignificant_clock_offset_estimate_is_not_applied_and_the_result_says_so() -> None:
+    """Issue 37: ``clock_offsets`` applied every estimate; ``calibrate`` applies one only when it is significant
+    against its σ and unambiguous (``TimeOffset.applicable``). cam1 shares the reference's clock here: its
+    estimate (≈ 1.7 ± 0.7 ms) is noise and is not applied (offset 0, as calibrate's would be), the offsets that
+    are there (−40 ms, 70 ms) are; the result records, for each estimate, whether it was applied."""
+    T = _mounts(0)
+    sensors = _sensors(T)
+    sensors[1] = replace(sensors[1], time_offset_ns=0)
+    res = calibrate_rig(simulate_streams(sensors, duration_s=40, seed=0))
+    cam1 = res.offsets[1]
+    assert cam1.estimated_ns is not None and cam1.estimated_ns != 0 and not cam1.applied and cam1.offset_ns == 0
+    for k in (2, 3):
+        assert res.offsets[k].applied and res.offsets[k].offset_ns == res.offsets[k].estimated_ns
+        assert abs(res.offsets[k].offset_ns - OFFSETS_NS[k]) < 2_000_000
+    streams = {s["name"]: s["time_offset"] for s in res.document()["streams"]}
+    assert streams["cam1"]["applied"] is False and streams["cam1"]["seconds"] == 0.0
+    assert streams["cam1"]["estimated_seconds"] == cam1.estimated_ns / 1e9
+    assert streams["lidar"]["applied"] is True and "applied" not in streams["cam0"]          # the reference's
+    for k in (1, 2, 3):
+        rot, trans = pose_error(res.matrices[k], T[k])
+        assert rot < 0.2 and trans < 0.01, (res.names[k], rot, trans)

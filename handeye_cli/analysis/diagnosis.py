@@ -29,10 +29,10 @@ def too_few_pairs(n_pairs: int, samples: SampleCounts, options: Options) -> TooF
     s, p, need = samples, options.pairs, options.solver.min_pairs
     story = (f"a read {s.read_a}, b read {s.read_b}; timestamp gate dropped {s.dropped_timestamp_gate} and "
              f"{s.dropped_outside_span} were outside b's span; pose-jump gate dropped {s.dropped_pose_jump}; "
-             f"{s.keyframes} samples/keyframes gave {s.candidate_pairs} candidate pairs with --pairs {p.pairs}")
+             f"{s.keyframes} samples/keyframes gave {s.candidate_pairs} candidate pairs by the {p.pairs} pair strategy")
     by_time = s.dropped_timestamp_gate + s.dropped_outside_span
     if s.candidate_pairs >= need:
-        fix = f"the cap of {p.max_pairs} pairs keeps too few: raise --max-pairs"
+        fix = f"the cap of pairs keeps too few: raise --max-pairs N (now {p.max_pairs})"   # N: in_keywords's value
     elif s.synced_kept >= 2 * need:
         fix = (f"the motion rotates too little between samples: lower --min-rotation (now {p.min_rotation:g}) "
                "or try --pairs all")

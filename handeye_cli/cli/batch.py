@@ -59,7 +59,8 @@ def _timeout(ctx: click.Context, param: click.Parameter, value: str) -> float | 
               "writes, a hung file system) is an error record; off: no limit.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), help="Local worker processes [default: one per core].")
 @click.option("--scheduler", metavar="ADDRESS", help="Run on this Dask distributed scheduler (e.g. tcp://host:8786) "
-              "instead of local processes; needs pip install 'dask[distributed]'.")
+              "instead of local processes; needs pip install 'handeye-cli[dask]' (in a checkout: "
+              "pip install '.[dask]').")
 @click.option("-o", "--output", "records_file", type=click.Path(dir_okay=False), help="Append the JSON Lines "
               "records to this file instead of stdout, each made durable (fsync) as it is written; with --skip-done "
               "a resumed batch keeps the records there and runs only the inputs they lack.")

@@ -303,7 +303,8 @@ def _dask(jobs: Sequence[Job], address: str, on_done: OnDone) -> None:
         from distributed import as_completed as dask_completed
     except ImportError:
         raise ConfigError("dask.distributed is not installed", "--scheduler",
-                          "install it: pip install 'dask[distributed]'") from None
+                          "install it: pip install 'handeye-cli[dask]' (in a checkout: "
+                          "pip install '.[dask]')") from None
     try:
         client = Client(address, timeout=30, set_as_default=False)  # type: ignore[no-untyped-call]
     except (OSError, TimeoutError) as e:

@@ -1,9 +1,9 @@
 """Inputs named by URL (``s3://bucket/key.mcap``, ``gs://…``, ``https://…``, ``memory://…``): the one
 home of remote reading — opening through fsspec, bounded retries, byte counting, the download cache.
 
-fsspec (and s3fs for S3: ``pip install fsspec s3fs``, the extra ``remote``) is imported only when a URL is
-read. Credentials and the endpoint come the standard way (``AWS_ENDPOINT_URL``,
-``AWS_ACCESS_KEY_ID``/``AWS_SECRET_ACCESS_KEY``, ``AWS_PROFILE`` …) or from the storage options
+fsspec (and s3fs for S3: the extra ``remote``, ``pip install 'handeye-cli[remote]'``; gcsfs for gs://:
+``[gcs]``) is imported only when a URL is read. Credentials and the endpoint come the standard way
+(``AWS_ENDPOINT_URL``, ``AWS_ACCESS_KEY_ID``/``AWS_SECRET_ACCESS_KEY``, ``AWS_PROFILE`` …) or from the storage options
 (``--storage-option KEY=VALUE``: fsspec's keyword arguments of the file system); neither is ever
 written to a message, record or result: errors are handeye's own sentences, and a URL holding
 credentials (``https://user:pass@host/…``) is refused.
@@ -126,7 +126,8 @@ class Session:
             import fsspec  # type: ignore[import-untyped]
             from fsspec.core import split_protocol  # type: ignore[import-untyped]
         except ImportError as exc:
-            raise ConfigError("reading URLs needs fsspec", url, "pip install fsspec s3fs (S3)") from exc
+            raise ConfigError("reading URLs needs fsspec", url,
+                              "pip install 'handeye-cli[remote]' (in a checkout: pip install '.[remote]')") from exc
         protocol, _ = split_protocol(url)
         options: dict[str, Any] = dict(self.storage_options)
         if protocol in ("s3", "s3a"):
@@ -141,7 +142,8 @@ class Session:
             fs = fsspec.filesystem(protocol, **options)
         except ImportError as exc:
             raise ConfigError(f"no file system for {protocol}:// installed: {exc.name or exc}", url,
-                              "pip install s3fs (S3), gcsfs (gs://) or aiohttp (https://)") from exc
+                              "pip install 'handeye-cli[remote]' (s3://, https://) or 'handeye-cli[gcs]' (gs://); "
+                              "in a checkout: pip install '.[remote]' or '.[gcs]'") from exc
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"bad storage options for {protocol}://: {type(exc).__name__}",
                               "--storage-option", "pass the keyword arguments of the fsspec file system") from exc
@@ -227,10 +229,12 @@ class Session:
 
     def _read_ahead(self, fs: Any, path: str, url: str, start: int, stop: int | None) -> bytes | None:
         """The bytes ``[start, stop)`` (``start`` < 0: the last ``-start``) in one try, counted; None if
-        that failed (the reader asks again, with retries, and reports what is wrong)."""
+        the request failed (the ReadError of :meth:`call`: missing, denied, the network; the reader asks
+        again, with retries, and reports what is wrong). Any other exception is not a failed request but a
+        bug: it propagates (through :meth:`open`, which waits for this)."""
         try:
             data: bytes = self.call(url, "reading ahead", lambda: fs.cat_file(path, start=start, end=stop), tries=1)
-        except Exception:    # a ReadError or a client's own: the reader's request says it
+        except ReadError:    # call turned the client's error into its one line: the reader's request says it
             return None
         self.count(len(data))
         return data

@@ -56,13 +56,17 @@ def static_transform_command(t: FloatArray, q: FloatArray, frames: dict[str, str
 
 def solver_section(solution: Solution) -> dict[str, Any]:
     """The result's ``solver`` block: the multipliers, iterations and convergence the solver reports, its own
-    details, and the optimality certificate."""
+    details, and the optimality certificate: the solution's own, or, for an estimate that minimises no cost (8)
+    (the reduced in-plane solve of planar motion), the certificate of the full solve it replaced, marked
+    ``of: full_solve`` — the global optimum that is certified is that solve's, not the ``matrix`` written."""
     solver: dict[str, Any] = {k: v for k, v in (("lambda", solution.lam), ("mu", solution.mu),
                                 ("iterations", solution.iterations), ("converged", solution.converged))
                               if v is not None}
     solver.update(solution.details)
     if solution.certificate is not None:
         solver["certificate"] = solution.certificate.as_dict()
+    elif solution.full_solve is not None and solution.full_solve.certificate is not None:
+        solver["certificate"] = {**solution.full_solve.certificate.as_dict(), "of": "full_solve"}
     return solver
 
 

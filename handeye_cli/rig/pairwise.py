@@ -28,18 +28,25 @@ __all__ = ["ClockOffset", "Edge", "clock_offsets", "solve_edges"]
 
 @dataclass(frozen=True)
 class ClockOffset:
-    """How far a stream's clock is ahead of the reference's: ``offset_ns`` [ns], its 1-σ
-    ``std_ns`` (None when fixed), and ``method`` (``fixed``, ``reference`` or the estimator's)."""
+    """How far a stream's clock is ahead of the reference's: ``offset_ns`` [ns] (the one the pairs use), its 1-σ
+    ``std_ns`` (None when fixed), and ``method`` (``fixed``, ``reference`` or the estimator's). An estimated
+    offset also has ``estimated_ns`` and ``applied``: whether the estimate is applied
+    (:attr:`~handeye_cli.stages.timeoffset.TimeOffset.applicable`, calibrate's rule: significant and
+    unambiguous); one that is not leaves ``offset_ns`` 0."""
 
     offset_ns: int
     std_ns: float | None
     method: str
     warnings: tuple[str, ...] = ()
+    estimated_ns: int | None = None
+    applied: bool = True
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"seconds": self.offset_ns / 1e9, "method": self.method}
         if self.std_ns is not None:
             out["std_seconds"] = self.std_ns / 1e9
+        if self.estimated_ns is not None:
+            out.update(applied=self.applied, estimated_seconds=self.estimated_ns / 1e9)
         return out
 
 
@@ -66,7 +73,8 @@ class Edge:
 def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int, float | str],
                   max_offset_s: float | str | None = None) -> list[ClockOffset]:
     """Each stream's clock offset to the reference: ``given[k]`` seconds, or estimated (``'auto'``,
-    the default) from the angular velocities of stream k and the reference."""
+    the default) from the angular velocities of stream k and the reference, and applied where ``calibrate``
+    would apply it (:attr:`~handeye_cli.stages.timeoffset.TimeOffset.applicable`), else 0."""
     from ..stages.timeoffset import estimate_time_offset, grid_of
 
     out, grid = [], StreamMemo(grid_of)                # the reference's ω grid once, not once per stream
@@ -76,7 +84,8 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
             out.append(ClockOffset(0, None, "reference"))
         elif isinstance(value, str) and value.strip().lower() == "auto":
             est = estimate_time_offset(streams[reference], stream, max_offset_s=max_offset_s, grid=grid)
-            out.append(ClockOffset(est.offset_ns, est.std_ns, est.method, tuple(est.warnings)))
+            out.append(ClockOffset(est.offset_ns if est.applicable else 0, est.std_ns, est.method,
+                                   tuple(est.warnings), est.offset_ns, est.applicable))
         else:
             try:
                 out.append(ClockOffset(int(round(float(value) * 1e9)), None, "fixed"))

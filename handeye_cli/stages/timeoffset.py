@@ -121,6 +121,12 @@ class TimeOffset:
         small to matter, and applying it or 0 is the same)."""
         return abs(self.offset_ns) > max(SIGNIFICANT_SIGMA * self.std_ns, NEGLIGIBLE_NS)
 
+    @property
+    def applicable(self) -> bool:
+        """Whether ``--time-offset auto`` applies the estimate: :attr:`significant` and no reason to distrust
+        it (no :attr:`warnings`). The one home of the rule ``calibrate`` and every rig stream follow."""
+        return self.significant and not self.warnings
+
 
 @dataclass(frozen=True)
 class _Signal:
