@@ -117,7 +117,7 @@ def _first_fork_s(args: list[str], repeat: int = 1) -> float:
 
 
 def _import_s() -> float:
-    code = "import time; t = time.perf_counter(); import handeye_cli.pipeline; print(time.perf_counter() - t)"
+    code = "import time; t = time.perf_counter(); import handeye_cli.calibration; print(time.perf_counter() - t)"
     return statistics.median(float(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                                                   check=True).stdout) for _ in range(3))
 

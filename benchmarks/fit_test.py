@@ -27,8 +27,8 @@ import numpy as np
 
 from handeye_cli import calibrate
 from handeye_cli.analysis.fit_test import THRESHOLD
+from handeye_cli.calibration import Calibration
 from handeye_cli.errors import FitRejectedError, HandEyeError
-from handeye_cli.pipeline import Calibration
 from handeye_cli.simulation.arm import simulate_arm
 from handeye_cli.simulation.recordings import SCENARIOS, scenario
 from handeye_cli.streams import PoseStream

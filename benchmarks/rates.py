@@ -29,9 +29,9 @@ import time
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from handeye_cli.calibration import calibrate
 from handeye_cli.errors import HandEyeError
 from handeye_cli.geometry import se3
-from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import Rig
 from handeye_cli.simulation.rates import Jumps, RateRecording, simulate_rates
 from handeye_cli.stages import gates

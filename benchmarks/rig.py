@@ -196,9 +196,9 @@ def _fastest(runs: list[tuple[str, Callable[[], object]]], repeat: int) -> tuple
 
 
 def timing(minutes: float, repeat: int) -> None:
+    from handeye_cli.calibration import calibrate_files
     from handeye_cli.io import read_log_streams
     from handeye_cli.options import Options
-    from handeye_cli.pipeline import calibrate_files
     from handeye_cli.rig import RigOptions, calibrate_rig_files, parse_stream, read_rig
     from handeye_cli.rig.pairwise import clock_offsets, solve_edges
     from handeye_cli.stages import timeoffset  # noqa: F401  (scipy.signal: imported before any timing)

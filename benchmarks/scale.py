@@ -181,8 +181,8 @@ def limit(path: Path, repeat: int) -> tuple[Run, Run, Run]:
 
 def stage_times(path: Path) -> dict[str, float]:
     """In-process timers of the default pipeline's stages [s]."""
+    from handeye_cli.calibration import StreamSpec, pairs_of, read_streams
     from handeye_cli.options import Options
-    from handeye_cli.pipeline import StreamSpec, pairs_of, read_streams
     from handeye_cli.solvers import solve
 
     opts, times = Options(), {}
@@ -190,7 +190,7 @@ def stage_times(path: Path) -> dict[str, float]:
     a, b = read_streams([StreamSpec(str(path), "/a/pose"), StreamSpec(str(path), "/b/pose")], opts)
     times["read"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    pairs = pairs_of(a, b, opts, 0, None)[1]
+    pairs = pairs_of(a, b, opts, 0, None).pairs
     times["sync + gates + pairs"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     solve(pairs.A, pairs.B)

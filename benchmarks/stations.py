@@ -19,8 +19,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from handeye_cli.analysis.residuals import extrinsic_error
+from handeye_cli.calibration import calibrate
 from handeye_cli.geometry import se3
-from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation.arm import ArmCapture, monocular, simulate_arm
 from handeye_cli.solvers import solve
 

@@ -30,11 +30,11 @@ from .version import __version__
 
 if TYPE_CHECKING:
     from .analysis.motions import PairsSolution, solve, solve_pairs
+    from .calibration import Calibration, StreamSpec, calibrate, calibrate_files
     from .comparison import MethodResult, compare_methods
     from .config import load_options
     from .errors import HandEyeError
     from .options import Options
-    from .pipeline import Calibration, StreamSpec, calibrate, calibrate_files
     from .rig import RigOptions, RigResult, calibrate_rig, calibrate_rig_files
     from .solvers import METHODS, Prior, Solution
     from .streams import PoseStream
@@ -45,7 +45,8 @@ if TYPE_CHECKING:
 _HOMES = {
     "compare_methods": "comparison", "MethodResult": "comparison",
     "load_options": "config", "HandEyeError": "errors", "Options": "options",
-    "Calibration": "pipeline", "StreamSpec": "pipeline", "calibrate": "pipeline", "calibrate_files": "pipeline",
+    "Calibration": "calibration", "StreamSpec": "calibration", "calibrate": "calibration",
+    "calibrate_files": "calibration",
     "RigOptions": "rig", "RigResult": "rig", "calibrate_rig": "rig", "calibrate_rig_files": "rig",
     "METHODS": "solvers", "Prior": "solvers", "Solution": "solvers", "solve": "analysis.motions",
     "solve_pairs": "analysis.motions", "PairsSolution": "analysis.motions",
@@ -61,8 +62,8 @@ __all__ = ["HandEyeError", "METHODS", "PoseStream", "Prior", "Solution", "solve"
 def document(result: Calibration | RigResult) -> dict[str, Any]:
     """The result document of a calibration or a rig calibration, as ``handeye calibrate`` / ``handeye
     rig`` print it (keys and units in docs/design.md: ``matrix`` is ``T_a_b``, quaternions x-y-z-w)."""
+    from .calibration import Calibration
     from .output.document import calibration_document
-    from .pipeline import Calibration
 
     return calibration_document(result) if isinstance(result, Calibration) else result.document()
 

@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from .analysis import extrinsic_error, pair_residuals
+from .calibration import Calibration
 from .geometry import dualquat as dq
-from .pipeline import Calibration
 from .solvers import METHODS, build_problem, solve
 from .solvers.robot_world import RW_METHODS, robot_world
 

@@ -266,10 +266,10 @@ def _tags(text: str) -> set[str]:
 
 
 def test_reports_escape_hostile_names(tmp_path):
+    from handeye_cli.calibration import calibrate
     from handeye_cli.output.fleet_report import render_fleet_report
     from handeye_cli.output.records import BatchRecord
     from handeye_cli.output.report import render_report
-    from handeye_cli.pipeline import calibrate
 
     evil = "cam<script>alert(1)</script><img src=x onerror=alert(2)>'\""
     a, b = simulate_rig(Rig(random_transform(np.random.default_rng(3), 0.3)), duration_s=8.0, seed=4)

@@ -11,10 +11,10 @@ import pytest
 from _util import write_tum
 
 from handeye_cli import document
+from handeye_cli.calibration import StreamSpec, calibrate, calibrate_files, read_streams
 from handeye_cli.errors import ConfigError, DataError, HandEyeError
 from handeye_cli.geometry import se3
 from handeye_cli.options import FIELDS, SECTIONS, flag, optional_flag
-from handeye_cli.pipeline import StreamSpec, calibrate, calibrate_files, read_streams
 from handeye_cli.simulation import Rig, simulate_rig
 from handeye_cli.streams import PoseStream
 

@@ -161,15 +161,15 @@ def test_every_method_reports_a_certificate_and_only_the_optimal_ones_warn():
 
 def test_an_uncertified_solve_warns_in_the_calibration(monkeypatch, rig):
     """calibrate carries the solution's warning into the result's warnings."""
-    import handeye_cli.pipeline as pipeline
+    from handeye_cli.calibration import run
 
-    real = pipeline.solve
+    real = run.solve
 
     def off_by_a_little(*args, **kw):
         sol = real(*args, **kw)
         return replace(sol, matrix=perturb(sol.matrix, np.random.default_rng(0), 1e-3, 1e-3), dual_quaternion=None)
 
-    monkeypatch.setattr(pipeline, "solve", off_by_a_little)
-    cal = pipeline.calibrate_files(rig["a"], rig["b"], max_pairs=100)
+    monkeypatch.setattr(run, "solve", off_by_a_little)
+    cal = run.calibrate_files(rig["a"], rig["b"], max_pairs=100)
     assert any("not certified as the global optimum" in w for w in cal.warnings)
     assert document(cal)["solver"]["certificate"]["certified"] is False

@@ -267,21 +267,21 @@ def test_an_offset_that_drops_samples_needs_a_misfit_without_it(capsys, tmp_path
     """An estimate that keeps fewer than 80 % of the samples and whose pairs fit better (here made to fit far
     better, as the 50 samples of a periodic arm capture's alias fit by chance) is not applied when every sample without
     it fits as the streams' noise predicts: it has nothing to explain (kinhec noise-000001: 154° wrong applied)."""
-    from handeye_cli import pipeline
     from handeye_cli.analysis.readings import MedianFit
+    from handeye_cli.verify import reading
 
     X = random_transform(np.random.default_rng(7), 0.3)
     a, b = simulate_rig(Rig(X, 0), duration_s=20, rate_a=100, rate_b=30, sigma_r=np.deg2rad(0.1), sigma_t=0.002,
                         seed=7)
     _stub_offset(monkeypatch, -9.0)
-    real = pipeline.median_fit
+    real = reading.median_fit
     calls = []
 
     def flattering(A, B, **kw):                   # the estimate's pairs are solved first: they fit far better
         fit = real(A, B, **kw)
         calls.append(len(A))
         return MedianFit(fit.matrix, 1e-3, 1e-5) if len(calls) == 1 else fit
-    monkeypatch.setattr(pipeline, "median_fit", flattering)
+    monkeypatch.setattr(reading, "median_fit", flattering)
     fa, fb = write_tum(tmp_path / "a.tum", a), write_tum(tmp_path / "b.tum", b)
     code, out, err = run(capsys, "calibrate", fa, fb, "-q")
     assert code == 0, err

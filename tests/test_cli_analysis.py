@@ -10,8 +10,8 @@ import yaml
 from _util import pose_error, run, write_tum
 
 from handeye_cli import document
+from handeye_cli.calibration import calibrate
 from handeye_cli.geometry import se3
-from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import Rig, simulate_rig
 
 X = se3.from_xyz_quat(np.array([0.2, -0.1, 0.15]), np.array([0.1, -0.3, 0.2, 0.9]))

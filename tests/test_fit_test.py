@@ -12,9 +12,9 @@ from handeye_cli import calibrate, document
 from handeye_cli.analysis.fit_test import THRESHOLD, FitTest, fit_test, sample_noise
 from handeye_cli.analysis.residuals import pair_residuals
 from handeye_cli.analysis.stream_noise import stream_noise
+from handeye_cli.calibration import pairs_of
 from handeye_cli.errors import DataError, FitRejectedError
 from handeye_cli.options import Options
-from handeye_cli.pipeline import pairs_of
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
 from handeye_cli.simulation.arm import simulate_arm
 from handeye_cli.simulation.recordings import SCENARIOS, scenario
@@ -27,9 +27,11 @@ _FAST = Options.from_flat(pairs="stride:6", max_pairs=120, alpha=1.0)
 def _judge(a: PoseStream, b: PoseStream, offset_ns: int = 0) -> FitTest:
     """The fit test on a fixed pair strategy and α (the costly ``auto`` selection, observability and
     inversion checks left out: the test judges the residuals of whatever was solved)."""
-    kept, pairs, _, stations, _ = pairs_of(a, b, _FAST, offset_ns, None)
+    paired = pairs_of(a, b, _FAST, offset_ns, None)
+    pairs = paired.pairs
     X = solve(pairs.A, pairs.B).matrix
-    return fit_test(pairs, pair_residuals(pairs.A, pairs.B, X), X, sample_noise(a, b, kept, stations, "auto"))
+    return fit_test(pairs, pair_residuals(pairs.A, pairs.B, X), X,
+                    sample_noise(a, b, paired.synced, paired.stations, "auto"))
 
 
 def _stations(seed: int, sparse: bool, setup: str = "eye-in-hand") -> tuple[PoseStream, PoseStream]:

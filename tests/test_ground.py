@@ -14,8 +14,8 @@ from scipy.spatial.transform import Rotation
 
 from handeye_cli.analysis import assess_observability
 from handeye_cli.analysis.subspace import DOF_NAMES, dof_values, from_values, observable_subspace
+from handeye_cli.calibration import calibrate, read_prior
 from handeye_cli.config import load_options
-from handeye_cli.pipeline import calibrate, read_prior
 from handeye_cli.simulation.ground import LIDAR_MOUNT, simulate_ground
 from handeye_cli.solvers import solve
 from handeye_cli.stages.pairs import make_pairs

@@ -10,9 +10,9 @@ from scipy.spatial.transform import Rotation
 
 from handeye_cli._typing import FloatArray
 from handeye_cli.analysis import assess_observability, describe_direction
+from handeye_cli.calibration import calibrate
 from handeye_cli.errors import UnderdeterminedError
 from handeye_cli.geometry import se3
-from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import motion_pairs, random_transform
 from handeye_cli.solvers import Prior
 from handeye_cli.streams import PoseStream

@@ -15,9 +15,9 @@ import pytest
 import yaml
 from _util import run, write_tum
 
+from handeye_cli.calibration import calibrate
 from handeye_cli.errors import HandEyeError
 from handeye_cli.geometry import se3
-from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import Rig
 from handeye_cli.simulation.rates import Jumps, RateRecording, simulate_rates
 

@@ -16,9 +16,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from handeye_cli import document
+from handeye_cli.calibration import calibrate
 from handeye_cli.errors import HandEyeError
 from handeye_cli.output.report import render_report, world_alignment, write_report
-from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
 
 WARNING = "translation along z of frame a is unobservable: spread < 0.4° & more"

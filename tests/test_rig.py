@@ -407,12 +407,13 @@ def test_inversion_checked_against_the_reference_and_where_it_is_not_cleared(mon
     that pair did not clear it: an inverted lidar, not flagged, is refused as inverted on every one of its pairs
     (without the check, lidar-wheels failed the fit test by 17.5× against its limit of 15×: too near to rest on),
     while of a clean rig's six pairs only the three with the reference run it."""
-    from handeye_cli import pipeline
+    from handeye_cli.calibration import run
     from handeye_cli.rig.pairwise import clock_offsets, solve_edges
 
     checked: list[int] = []
-    inversion = pipeline._inversion
-    monkeypatch.setattr(pipeline, "_inversion", lambda kept, *a: checked.append(len(kept)) or inversion(kept, *a))
+    inversion = run.inversion
+    monkeypatch.setattr(run, "inversion",
+                        lambda paired, *a: checked.append(len(paired.synced)) or inversion(paired, *a))
     streams = simulate_streams(_sensors(_mounts(0)), duration_s=40, seed=0)
     names, given = list(streams), {k: KNOWN_OFFSETS[n] for k, n in enumerate(streams) if n in KNOWN_OFFSETS}
     offsets = clock_offsets(list(streams.values()), 0, given)

@@ -161,10 +161,10 @@ def test_the_package_docstrings_rig_example_runs() -> None:
     """Issue 21: ``calibrate_rig_files("log.mcap", ["cam0=/cam0/pose", …], RigOptions())``, as the package
     docstring writes it, raised AttributeError (a str is not a StreamSpec): the command-line form is accepted."""
     import handeye_cli
-    from handeye_cli import RigOptions, calibrate_rig_files, pipeline, rig
+    from handeye_cli import RigOptions, calibrate_rig_files, calibration, rig
     from handeye_cli.io import spec
 
-    assert handeye_cli.StreamSpec is rig.StreamSpec is pipeline.StreamSpec is spec.StreamSpec     # one class
+    assert handeye_cli.StreamSpec is rig.StreamSpec is calibration.StreamSpec is spec.StreamSpec     # one class
     assert 'calibrate_rig_files("log.mcap", ["cam0=/cam0/pose", "imu=tf:odom,imu_link"], RigOptions())' in \
         (handeye_cli.__doc__ or "")
     result = calibrate_rig_files(str(RIG4), ["cam0=/cam0/pose", "imu=tf:odom,imu_link"], RigOptions())

@@ -8,9 +8,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from handeye_cli import PoseStream
+from handeye_cli.calibration import calibrate
 from handeye_cli.config import load_options
 from handeye_cli.geometry import se3
-from handeye_cli.pipeline import calibrate
 from handeye_cli.simulation import perturb
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -34,8 +34,8 @@ from test_adversarial_readers import (  # noqa: F401  (re-collected here: the co
 )
 
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
-from handeye_cli.stages.timeoffset import LARGE_OFFSET_PERIODS
 from handeye_cli.streams import PoseStream
+from handeye_cli.verify.policy import LARGE_OFFSET_PERIODS
 
 S = 1_000_000_000               # [ns] a second
 FEW_SECONDS = 20.0              # [s] wall time each case must end within (start-up included)

@@ -33,24 +33,8 @@ from ..solvers.problem import pair_blocks, validate_motions
 from .residuals import Residuals, pair_residuals, residuals_batch
 
 __all__ = ["RobustResult", "robust_solve", "minimal_hypotheses", "consensus_share", "longest_disagreement",
-           "RETRY_MIN_INLIERS", "RETRY_MAX_RATIO", "RETRY_MAX_RUN", "moved_during", "MOVED_GAIN",
-           "MOVED_MIN_SIDE"]
+           "moved_during", "MOVED_GAIN", "MOVED_MIN_SIDE"]
 
-RETRY_MIN_INLIERS = 0.5
-RETRY_MAX_RATIO = 3.0
-RETRY_MAX_RUN = 0.25
-"""A fit the fit test refuses is solved again with outliers rejected (as ``--robust``) and kept when at least
-``RETRY_MIN_INLIERS`` of its pose samples agree with the consensus (:func:`consensus_share`) and the inliers fit
-as clean data do: a fit-test ratio (residuals over what the streams' own noise predicts) of at most
-``RETRY_MAX_RATIO``, where the test itself refuses past 15 (``pipeline._robust_retry``). Inliers chosen from a
-wrong reading of the data (a quaternion order, a unit) are the pairs it happens to fit least badly, and fit far
-worse than that: 14.5 on a simulated mocap pair read in the wrong order, against 0.97 for a station capture with
-20 % bad stations. The share is counted in samples, not pairs: every pair of a bad station is bad, so k bad
-stations of n spoil 1 − (1 − k/n)² of the all-with-all pairs (kinhec outliers-000003, 4 of 20 stations flipped
-and Student-t tails: 48 % inlier pairs, 70 % agreeing stations, a fit of 1.16 and 0.17° / 1.0 mm). Nor is it
-kept when the disagreeing samples hold a run of more than ``RETRY_MAX_RUN`` of them (:func:`longest_disagreement`):
-that is a sensor that moved during the recording, whose consensus is one period's extrinsic; CI must see it
-refused. (A mount slipping 1° / 5 mm half-way through a rig's stream was kept as 'outliers rejected'.)"""
 MOVED_GAIN = 3.0             # the samples before and after one stamp fit their own extrinsics this much better
 MOVED_MIN_SIDE = 5           # ... with at least this many samples a side
 

@@ -142,7 +142,7 @@ def compare(X: NDArray[np.float64], N: NDArray[np.float64], max_rotation_deg: fl
 @dataclass(frozen=True, eq=False)
 class Judged:
     """What a drift verdict reads of one result ``T_a_b``, typed: built from a calibration of this process
-    (:meth:`handeye_cli.pipeline.Calibration.judged`), or parsed once from a result document read back
+    (:meth:`handeye_cli.calibration.Calibration.judged`), or parsed once from a result document read back
     (:meth:`from_document`: ``handeye check``'s file, a batch record from a worker, a result file or the records
     file of an earlier run).
 

@@ -7,12 +7,12 @@ import click
 import numpy as np
 
 from ..analysis.verdict import verdict_for
+from ..calibration import Calibration, calibrate_files, stream_specs
 from ..errors import HandEyeError
 from ..geometry import dualquat as dq
 from ..io.nominal import read_nominal
 from ..output.document import calibration_document
 from ..output.writers import check_writable
-from ..pipeline import Calibration, calibrate_files, stream_specs
 from .check import verdict_options
 from .common import CONTEXT, emit, finish, report_failure, result_format
 from .params import (

@@ -14,10 +14,10 @@ from typing import Any
 import click
 import numpy as np
 
+from ..calibration import calibrate_files, stream_specs
 from ..comparison import MethodResult, compare_methods
 from ..output.document import plain, render
 from ..output.writers import check_writable, output_format, write_output
-from ..pipeline import calibrate_files, stream_specs
 from .calibrate import write_run_report
 from .common import CONTEXT
 from .params import (

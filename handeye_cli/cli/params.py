@@ -178,7 +178,7 @@ STREAM_KEYS = ("stream_a", "stream_b", "topic_a", "topic_b", "frames_a", "frames
 
 
 def stream_values(params: dict[str, Any]) -> dict[str, Any]:
-    """The stream flags of ``params`` (removed from it) as keywords of ``pipeline.stream_specs``: not given is None."""
+    """The stream flags of ``params`` (removed from it) as keywords of ``calibration.stream_specs`` (None: unset)."""
     return {key: params.pop(key) or None for key in STREAM_KEYS}
 
 

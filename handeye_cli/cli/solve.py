@@ -7,11 +7,11 @@ import click
 
 from ..analysis.motions import solve_pairs
 from ..analysis.verdict import verdict_for
+from ..calibration import read_prior
 from ..config import load_options
 from ..io.nominal import read_nominal
 from ..io.pairfile import read_pairs
 from ..output.document import result_document
-from ..pipeline import read_prior
 from .calibrate import summary_line
 from .check import verdict_options
 from .common import CONTEXT, emit, finish, result_format

@@ -86,7 +86,7 @@ def _calibrate(job: Job) -> Record:
     """The result document of one input, plus the span of its synced samples. Relative paths are
     read from the client's working directory (``job.cwd``) wherever the job runs, so that a Dask
     worker on a shared file system finds them and every executor records the same ``inputs``."""
-    from ..pipeline import calibrate_files
+    from ..calibration import calibrate_files
 
     paths = tuple(p if is_url(p) else os.path.join(job.cwd, p) for p in job.input.paths)     # a URL: opened here
     if len(paths) == 2:            # two text pose files: no topics
@@ -261,7 +261,7 @@ def _local(jobs: Sequence[Job], workers: int, on_done: OnDone) -> None:
     context: Any = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods()
                                                else "spawn")
     if context.get_start_method() == "fork":       # import once here, shared by every forked worker, rather
-        from .. import pipeline  # noqa: F401     # than in each (0.3 s of CPU a worker, benchmarks/batch.py)
+        from .. import calibration  # noqa: F401  # than in each (0.3 s of CPU a worker, benchmarks/batch.py)
         gc.freeze()     # what is imported stays put: no collection in a worker touches (copies) those pages
     waiting = list(range(len(jobs)))[::-1]
     pool: list[_Worker] = []

@@ -23,7 +23,7 @@ from ..errors import ConfigError
 from ..solvers import Solution
 
 if TYPE_CHECKING:
-    from ..pipeline import Calibration
+    from ..calibration import Calibration
 from ..version import __version__
 
 __all__ = ["FORMATS", "ResultDocument", "calibration_document", "result_document", "render", "plain", "finite",

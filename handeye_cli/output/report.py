@@ -42,7 +42,7 @@ from .writers import check_writable, write_output
 
 if TYPE_CHECKING:
     from ..analysis.robust import RobustResult
-    from ..pipeline import Calibration
+    from ..calibration import Calibration
     from ..stages.counts import SampleCounts
     from ..stages.sync import Synced
 

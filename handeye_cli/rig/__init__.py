@@ -24,10 +24,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..analysis.subspace import DOF_NAMES, FROM_PRIOR
+from ..calibration import calibrate_read, check_samples
 from ..errors import ConfigError, DataError, HandEyeError
 from ..io.nominal import read_nominal
 from ..options import FIELDS, Options
-from ..pipeline import calibrate_read, check_samples
 from ..streams import PoseStream
 from .graph import loop_closures, synchronise
 from .joint import CONSISTENCY_P_VALUE, Consistency, JointProblem, Motions, bootstrap_rig, consistency, refine

@@ -3,7 +3,7 @@
 Streams are ``T_wk_k(t)`` (int64 ns stamps in each sensor's own clock). The clock offset ``o_k``
 of stream k is how far its clock is ahead of the reference's (the sign convention of
 :func:`handeye_cli.stages.sync.associate`); pair (j, k) is then calibrated with the offset
-``o_k - o_j`` by :func:`handeye_cli.pipeline.calibrate` (sync → gates → pairs → solver, the same
+``o_k - o_j`` by :func:`handeye_cli.calibration.calibrate` (sync → gates → pairs → solver, the same
 stages and settings as ``handeye calibrate``), giving ``T_j_k`` (pose of k in j; maps points
 from k to j) and its motion pairs ``A_i X = X B_i``.
 """
@@ -17,9 +17,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..analysis.stream_noise import StreamNoise, stream_noise
+from ..calibration import Calibration, Checks, calibrate_read
 from ..errors import ConfigError, HandEyeError
 from ..options import Options
-from ..pipeline import Calibration, Checks, calibrate_read
 from ..solvers.problem import pair_forms
 from ..streams import PoseStream, StreamMemo
 
@@ -54,7 +54,7 @@ class ClockOffset:
 class Edge:
     """The pairwise-only result of streams ``j < k`` (indices into the rig's stream list).
 
-    calibration: what :func:`~handeye_cli.pipeline.calibrate` returned (``matrix`` = ``T_j_k``).
+    calibration: what :func:`~handeye_cli.calibration.calibrate` returned (``matrix`` = ``T_j_k``).
     forms: (2, 8, 8) the rotational and dual parts of its cost (8) (``[q'; q]`` order, its α and
     per-pair weights): the pair's cost of any ``T_j_k`` is ``Σ_p [q'; q]ᵀ forms[p] [q'; q]``.
     """
@@ -121,7 +121,7 @@ def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[Clock
     out with a warning.
 
     Each pair runs ``calibrate``'s stages and fit test, not every check after the solve
-    (:class:`~handeye_cli.pipeline.Checks`). The pairs with the ``reference`` are solved first, each with the
+    (:class:`~handeye_cli.calibration.Checks`). The pairs with the ``reference`` are solved first, each with the
     inversion check; a pair without it runs the check only when one of its streams is not cleared by its
     pair with the reference (calibrated there with no inversion suspected): that pair tested the same stream
     already. No pair runs calibrate's uncertainty check (σ from blocks of time): the rig's noise model,

@@ -14,10 +14,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import replace
 
+from ..calibration import read_streams
 from ..errors import ConfigError
 from ..io.spec import SOURCE_FORMS, StreamSpec, stream_source
 from ..options import Options, frame_name
-from ..pipeline import read_streams
 from ..streams import PoseStream
 
 __all__ = ["StreamSpec", "parse_stream", "read_rig"]
@@ -40,7 +40,7 @@ def parse_stream(text: str) -> StreamSpec:
 def read_rig(log: str | None, specs: list[StreamSpec], options: Options | None = None, *,
              quiet: bool = True, wxyz: Mapping[str, bool] | None = None) -> dict[str, PoseStream]:
     """Every stream by name, in the order of ``specs`` (each named; a spec without a path is a topic or TF chain
-    of ``log``): :func:`handeye_cli.pipeline.read_streams`, the read path of ``calibrate``, so every read option
+    of ``log``): :func:`handeye_cli.calibration.read_streams`, the read path of ``calibrate``, so every read option
     of ``options`` (time source, time unit, CSV columns) applies alike, and all streams of the log are read in
     a single pass. ``wxyz``: per stream name, whether its text file stores quaternions w first (unset: the
     format's order)."""

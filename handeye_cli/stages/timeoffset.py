@@ -56,8 +56,7 @@ from ..numeric.minimize import minimize_bounded
 from ..streams import PoseStream
 
 __all__ = ["TimeOffset", "estimate_time_offset", "angular_velocity", "Grid", "grid_of", "MIN_CORRELATION",
-           "SIGNIFICANT_SIGMA", "CONFIRMING_GAIN", "CONFIRMING_MIN_GAIN", "CONFIRMING_COVERAGE",
-           "LARGE_OFFSET_PERIODS", "search_bound_ns", "overlap_offsets_ns"]
+           "SIGNIFICANT_SIGMA", "search_bound_ns", "overlap_offsets_ns"]
 
 _GRID_NS = 5_000_000          # grid step of the ω signals [ns]
 _MIN_WINDOW_NS = 100_000_000  # smallest differentiation window [ns]
@@ -81,14 +80,8 @@ _MAX_SCAN_OFFSETS = 10_000    # offsets a slow stream's scan evaluates at most a
 #                               _SCAN_NS; a wider one is scanned coarser first, each level around the last's best)
 MIN_CORRELATION = 0.5         # a lower peak correlation of the angular speeds is an error
 SIGNIFICANT_SIGMA = 3.0       # an estimate beyond this many of its σ from 0 is applied by --time-offset auto …
-NEGLIGIBLE_NS = 100_000       # … and beyond 0.1 ms (at 1 rad/s a 0.006° error: identical clocks estimate ~1 ns ± 0.1)
-CONFIRMING_MIN_GAIN = 1.05    # … when its pairs' median residual is this much lower than without it (a biased
-#                               1.5 ± 0.25 ms estimate on a 500/30 Hz arm with no offset fit 0.99×, and made the
-#                               rotation 5× worse), neither is this much higher, and, when it synchronises
-CONFIRMING_GAIN = 1.25        # fewer than this share of the samples, this much lower (a 4-s periodic arm capture's
-CONFIRMING_COVERAGE = 0.8     # alias at -2.3 s kept 42 % and fit 1.15× better in rotation, 1.29× worse in
-#                               translation; a true 50 ms arm offset fit 4.5× better; 40 ms between drifting VIO
-#                               streams 1.2–2.3× better, every sample kept)
+NEGLIGIBLE_NS = 100_000       # … and beyond 0.1 ms (at 1 rad/s a 0.006° error: identical clocks estimate ~1 ns ± 0.1);
+#                               the fit must confirm it (handeye_cli/verify/policy.py: CONFIRMING_*)
 _WEAK_CORRELATION = 0.8       # a lower one is a warning
 _AMBIGUITY = 0.05             # warn when another peak comes within this of the best
 _PEAK_SEPARATION_NS = 500_000_000   # peaks closer than this to the best are the same peak
@@ -614,12 +607,6 @@ def _windowed_refiners(a: PoseStream, b: PoseStream, coarse_ns: float, window_ns
     if not out:
         raise DataError("too little overlap to refine the time offset", "time offset", "give a fixed --time-offset")
     return out
-
-
-LARGE_OFFSET_PERIODS = 5.0
-"""An applied clock offset of more than this many median sample periods of the slower stream is a warning
-(``pipeline._time_offset``): jitter and transport delays are a period or two; beyond five, the two clocks
-are different clocks (another time base, a recorder started late), which the user must hear about."""
 
 
 def overlap_offsets_ns(a: PoseStream, b: PoseStream) -> tuple[int, int]:

@@ -1,0 +1,218 @@
+"""The typed results of one calibration: :class:`Calibration` with its frozen :class:`Diagnostics`, the
+:class:`Uncertainty` of ``T_a_b``, the :class:`Checks` a run makes after the solve, and the frames' names.
+
+``T_a_b`` is the pose of sensor b's frame in sensor a's frame (maps points from b to a); quaternions are
+x-y-z-w; translations in metres. The result document is built from these at the output edge
+(:func:`handeye_cli.output.document.calibration_document`).
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from ..analysis import BootstrapResult, Residuals, RobustResult
+from ..analysis.fit_test import FitTest
+from ..analysis.observability import Observability
+from ..analysis.selection import Selection
+from ..analysis.subspace import ESTIMATED, Subspace
+from ..analysis.verdict import Judged
+from ..geometry import se3
+from ..options import Options
+from ..solvers import Solution
+from ..stages.counts import SampleCounts
+from ..stages.pairs import Pairs
+from ..stages.sync import Synced
+from ..streams import PoseStream
+
+__all__ = ["Calibration", "Checks", "Diagnostics", "Uncertainty", "frame_names"]
+
+
+@dataclass(frozen=True)
+class Checks:
+    """Which of :func:`~.run.calibrate_read`'s checks after the solve run (every one by default, as ``calibrate`` runs
+    them). A rig skips those its own analysis replaces (:mod:`handeye_cli.rig.pairwise`).
+
+    inversion: the inversion check (a stream recorded as ``T_sensor_world``).
+    uncertainty: the uncertainty check (σ from blocks of time beside σ from independent samples: drift).
+    """
+
+    inversion: bool = True
+    uncertainty: bool = True
+
+
+@dataclass(frozen=True, eq=False)
+class Uncertainty:
+    """The 1σ spread of an extrinsic ``T_a_b``: ``rotation_std_deg`` (3,) [deg] about the axes of frame a,
+    ``translation_std_m`` (3,) [m] along them; ``method``: ``"bootstrap"`` or ``"covariance"``."""
+
+    rotation_std_deg: np.ndarray
+    translation_std_m: np.ndarray
+    method: str
+
+
+@dataclass(frozen=True, eq=False)
+class Diagnostics(Mapping[str, Any]):
+    """What the analyses of one calibration found, built once when it ends and read-only after.
+
+    The typed results that code reads back: ``fit`` (the fit test), ``observability`` (degenerate motion, the
+    predicted covariance), ``subspace`` (each degree of freedom: estimated, from the prior or unobservable) and
+    ``selection`` (the ``auto`` pairs' noise model; None for another strategy); ``poor_fit_accepted``: a refusal —
+    the fit test's (the residuals, or a mount that moved between stations: the document's ``fit_test.passed``
+    false), the inversion check's or a given quaternion order's contradiction — that ``accept_poor_fit``
+    overrode, keeping the result (``handeye calibrate`` exits 3). As a read-only mapping it is the
+    result document's diagnostic sections in order (``time_offset``, ``interpretation``, ``noise_model``,
+    ``observability``, ``degrees_of_freedom``, ``residuals``, ``fit_test`` …: JSON-ready values, the keys of
+    docs/reference/result-schema.md), so ``calibration.diagnostics["fit_test"]`` reads as the file does."""
+
+    sections: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    fit: FitTest | None = None
+    observability: Observability | None = None
+    subspace: Subspace | None = None
+    selection: Selection | None = None
+    poor_fit_accepted: bool = False
+
+    def __getitem__(self, key: str) -> Any:
+        return self.sections[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.sections)
+
+    def __len__(self) -> int:
+        return len(self.sections)
+
+
+@dataclass(frozen=True, eq=False)
+class Calibration:
+    """Everything a calibration produced.
+
+    solution: the solver's result (``solution.matrix`` is ``T_a_b``).
+    stream_a, stream_b: the streams as used (after inversion, before the time offset).
+    synced: the samples that passed sync and gates; pairs: the motions solved.
+    samples: what each stage read, kept and dropped; options: the options used.
+    warnings: human-readable warnings; diagnostics: what the analyses found (:class:`Diagnostics`: typed,
+    and the result's diagnostic keys: time offset, residuals…);
+    inputs: what was read; residuals: per-pair residuals at the solution; weights: per-pair
+    weights used (inlier mask with ``robust``, else None); robust, bootstrap: those analyses.
+    """
+
+    solution: Solution
+    stream_a: PoseStream
+    stream_b: PoseStream
+    synced: Synced
+    pairs: Pairs
+    samples: SampleCounts
+    options: Options
+    residuals: Residuals
+    warnings: list[str] = field(default_factory=list)
+    diagnostics: Diagnostics = field(default_factory=Diagnostics)
+    inputs: dict[str, Any] = field(default_factory=dict)
+    weights: np.ndarray | None = None
+    robust: RobustResult | None = None
+    bootstrap: BootstrapResult | None = None
+    config_file: str | None = None
+    preset: str | None = None
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """``T_a_b`` (4x4)."""
+        return self.solution.matrix
+
+    @property
+    def translation(self) -> np.ndarray:
+        """Translation of ``T_a_b`` [m]: b's origin in frame a."""
+        return self.solution.translation
+
+    @property
+    def quaternion_xyzw(self) -> np.ndarray:
+        """Rotation of ``T_a_b`` as a unit quaternion x, y, z, w (w ≥ 0)."""
+        return self.solution.quaternion_xyzw
+
+    @property
+    def uncertainty(self) -> Uncertainty | None:
+        """The 1σ spread of ``T_a_b`` per axis of frame a: the bootstrap's where it ran (``bootstrap=N``), else
+        the noise model's predicted (sandwich) covariance; None where neither could be formed."""
+        if self.bootstrap is not None:
+            return Uncertainty(self.bootstrap.rotation_std_deg, self.bootstrap.translation_std_m, "bootstrap")
+        obs = self.diagnostics.observability
+        if obs is None or obs.covariance is None:
+            return None
+        return Uncertainty(np.asarray(obs.covariance.rotation_std_deg, dtype=float),
+                           np.asarray(obs.covariance.translation_std_m, dtype=float), "covariance")
+
+    def __repr__(self) -> str:
+        """One line: frames, translation, rotation angle, method, pairs, fit test and certificate."""
+        return f"Calibration({self._line()})"
+
+    def _line(self) -> str:
+        f, t = self.frames, self.translation
+        fit = self.diagnostics.fit
+        cert = self.solution.certificate
+        return (f"T_{f['a']}_{f['b']}: t=[{t[0]:.4f}, {t[1]:.4f}, {t[2]:.4f}] m, "
+                f"rotation {np.rad2deg(float(se3.rotation_angle(self.matrix))):.3f}°, {self.solution.method} on "
+                f"{self.solution.pairs} pairs, fit ratio {float('nan') if fit is None else fit.ratio:.3g}"
+                f"{'' if cert is None else ', certified' if cert.certified else ', NOT certified'}, "
+                f"{len(self.warnings)} warning(s)")
+
+    def _repr_html_(self) -> str:
+        """A small table for notebooks: the extrinsic, its spread and the checks."""
+        import html
+
+        rows = [("T_a_b", html.escape(self._line()))]
+        unc = self.uncertainty
+        if unc is not None:
+            rows.append((f"σ ({unc.method})", f"rotation {np.array2string(unc.rotation_std_deg, precision=3)} °, "
+                                              f"translation {np.array2string(unc.translation_std_m, precision=4)} m"))
+        rows += [("warning", html.escape(w)) for w in self.warnings]
+        body = "".join(f"<tr><th style='text-align:left'>{k}</th><td>{v}</td></tr>" for k, v in rows)
+        return f"<table>{body}</table>"
+
+    @property
+    def frames(self) -> dict[str, str]:
+        """Names of frames a and b: ``name_a``/``name_b`` if given, else the streams' child frames
+        (as valid tf2 frame ids: no leading '/')."""
+        a, b = frame_names(self.options, self.stream_a, self.stream_b)
+        return {"a": a, "b": b}
+
+    def judged(self) -> Judged:
+        """What a drift verdict reads of this calibration (``--against``), from its typed parts: ``T_a_b``, the
+        frames' names and the streams' topics, the degrees of freedom not estimated and the bootstrap's
+        intervals."""
+        topics = tuple(spec.get("topic") if isinstance(spec := self.inputs.get(k), dict) else None for k in "ab")
+        sub = self.diagnostics.subspace
+        open_dofs = {} if sub is None else {d.name: (d.status, d.reason) for d in sub.dofs if d.status != ESTIMATED}
+        boot = self.bootstrap
+        return Judged(np.asarray(self.matrix, dtype=float), (self.frames["a"], self.frames["b"]),
+                      (topics[0], topics[1]), open_dofs,
+                      None if boot is None else (boot.rotation_interval_deg, boot.translation_interval_m))
+
+    def bootstrap_deviations(self) -> np.ndarray | None:
+        """(K, 6) bootstrap deviations of X: rotation vector [deg] (3), translation [m] (3)."""
+        if self.bootstrap is None:
+            return None
+        deviations: np.ndarray = np.c_[self.bootstrap.rotation_deltas_deg,
+                                       self.bootstrap.translations_m - self.matrix[:3, 3]]
+        return deviations
+
+    def with_origin(self, config_file: str | Path | None, preset: str | None) -> Calibration:
+        """The same calibration, recording the config file and preset its options came from."""
+        return replace(self, config_file=None if config_file is None else str(config_file), preset=preset)
+
+    def settings(self) -> dict[str, Any]:
+        """The settings that produced this result: every option after preset, file and flag
+        merging, and where the non-default ones came from."""
+        return {"config_file": self.config_file, "preset": self.preset, "options": self.options.flat()}
+
+
+
+def frame_names(options: Options, stream_a: PoseStream, stream_b: PoseStream) -> tuple[str, str]:
+    """Names of frames a and b: ``name_a``/``name_b`` if given, else the streams' child frames
+    (as valid tf2 frame ids: no leading '/')."""
+    out = options.output
+    return (out.name_a or stream_a.child_frame_id.lstrip("/") or "a",
+            out.name_b or stream_b.child_frame_id.lstrip("/") or "b")
+

@@ -1,0 +1,94 @@
+"""The checks of a solved calibration, each turned into :class:`~.policy.Finding` objects for the policy: the
+inversion check, a given quaternion order's check, the fit test, a station capture's moved mount, and the
+suspect-data warning. Each check's numbers live in :mod:`handeye_cli.analysis`; what they mean for exit 0 is
+decided once, by :func:`~.policy.policy`.
+
+``X`` is ``T_a_b`` (maps points from b to a); rotations [deg] in messages, translations [m].
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..analysis import Residuals
+from ..analysis.diagnosis import data_warning
+from ..analysis.fit_test import FitTest
+from ..analysis.inversion import InversionVerdict, check_inversion
+from ..analysis.readings import OrderContradiction, contradicted_order
+from ..calibration.pairing import Paired, checked_poses
+from ..errors import FitRejectedError
+from ..options import Options
+from ..solvers import Prior
+from ..streams import PoseStream
+from .policy import Finding
+
+__all__ = ["fit_refusal", "inversion", "moved_mount", "order_contradiction", "suspect_data"]
+
+
+def inversion(paired: Paired, options: Options, alpha: float,
+              inputs: dict[str, Any]) -> tuple[InversionVerdict | None, Finding | None]:
+    """The inversion check on the solved pairs (its thresholds are set at ``alpha``) and, when its evidence is
+    overwhelming or contradicts an explicit ``--invert-*``, its refusal. ``inputs`` (what was read) names a TF
+    stream's frame pair, whose fix is naming the frames the other way round."""
+    read = options.read
+
+    def frames(key: str) -> tuple[str, str] | None:
+        pair = inputs.get(key, {}).get("frames")
+        return (str(pair[0]), str(pair[1])) if pair else None
+
+    verdict = check_inversion(*checked_poses(paired), alpha=alpha,
+                              inverted_now=(bool(read.invert_a), bool(read.invert_b)),
+                              frames=(frames("a"), frames("b")))
+    refusal = verdict and verdict.refusal(read.invert_a is not None or read.invert_b is not None)
+    return verdict, (Finding.refusal("inversion", refusal, verdict.message()) if verdict and refusal else None)
+
+
+def order_contradiction(stream_a: PoseStream, stream_b: PoseStream, paired: Paired,
+                        options: Options) -> tuple[OrderContradiction | None, Finding | None]:
+    """The check of each quaternion order that was given, not chosen by the fit (a log's fields, ``--wxyz-*`` /
+    ``--no-wxyz-*``, a stream in memory: :func:`~handeye_cli.analysis.readings.contradicted_order`), on the solved
+    pairs of the streams as used, and its refusal."""
+    read = options.read
+    orders = tuple(None if s.quaternion_order is not None else "wxyz" if w else "xyzw"
+                   for s, w in ((stream_a, read.wxyz_a), (stream_b, read.wxyz_b)))
+    found = contradicted_order(*checked_poses(paired), (orders[0], orders[1]),
+                               inverted=(bool(read.invert_a), bool(read.invert_b)))
+    return found, (None if found is None else Finding.refusal("order", found.refusal(), found.message()))
+
+
+def fit_refusal(fit: FitTest, options: Options, paired: Paired, *, inverted: bool) -> Finding | None:
+    """The fit test's refusal (residuals far beyond the streams' own noise), its causes ordered by the evidence
+    (``inverted``: the inversion check found a stream that fits better inverted); None when it passed."""
+    error = fit.refusal(options, paired.stations is not None, inverted=inverted)
+    return None if error is None else Finding.refusal("fit", error, fit.summary())
+
+
+def moved_mount(paired: Paired, res: Residuals, options: Options, alpha: float,
+                prior: Prior | None) -> Finding | None:
+    """A station capture's refusal when the stations before one stamp fit another extrinsic than those after it
+    (:func:`~handeye_cli.analysis.robust.moved_during`): the fit test's noise of sparse stations is an assumed one,
+    lenient enough that a mount slipping 10° / 5 cm between two stations passes it."""
+    from ..analysis.robust import moved_during
+
+    pairs = paired.pairs
+    found = moved_during(pairs.A, pairs.B, pairs.i, pairs.j, res, method=options.solver.method, alpha=alpha,
+                         prior=prior)
+    if found is None:
+        return None
+    cut, gain = found
+    stamps = paired.synced.stamps_ns
+    what = (f"the extrinsic changed during the capture: the stations from number {cut + 1} at "
+            f"{(stamps[cut] - stamps[0]) / 1e9:.1f} s since the first station on "
+            f"fit another T_a_b, and each part fits its own {gain:.3g}× better than one fits both")
+    return Finding.refusal("moved", FitRejectedError(
+        what, "fit test", "check that the sensor is rigidly mounted and calibrate the stations before "
+        "and after apart; to keep this result anyway: --accept-poor-fit (exit code 3)"), what)
+
+
+def suspect_data(verdict: InversionVerdict | None, res: Residuals, weights: np.ndarray | None,
+                 paired: Paired) -> Finding | None:
+    """The first warning about the data themselves: a stream that looks inverted, else implausibly large residuals
+    or a pose-jump gate that dropped much of the log (:func:`~handeye_cli.analysis.diagnosis.data_warning`)."""
+    message = verdict.message() if verdict else data_warning(res, weights, paired.samples)
+    return Finding.warning("suspect", message) if message else None
