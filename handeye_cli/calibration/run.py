@@ -17,7 +17,7 @@ Examples
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from types import MappingProxyType
@@ -32,7 +32,7 @@ from ..analysis.fit_test import fit_test, sample_noise
 from ..analysis.readings import scale_reading
 from ..analysis.robust import consensus_share, longest_disagreement
 from ..analysis.selection import Selection
-from ..analysis.stream_noise import StreamNoise, stream_noise
+from ..analysis.stream_noise import stream_noise
 from ..analysis.subspace import observable_subspace
 from ..config import load_options
 from ..errors import HandEyeError
@@ -48,12 +48,9 @@ from ..verify.reading import Reading, decide_reading
 from .inputs import Source, check_samples, describe, inversion_inputs, read_streams, refuse_unread, stream_specs
 from .pairing import Paired
 from .result import Calibration, Checks, Diagnostics
-from .scaling import scaled
+from .scaling import NoiseOf, scaled
 
 __all__ = ["calibrate", "calibrate_files", "calibrate_read"]
-
-NoiseOf = Callable[[PoseStream], StreamNoise | None]
-
 
 @dataclass(frozen=True, eq=False)
 class _Solved:
@@ -86,11 +83,17 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     """
     check_samples(stream_a, "stream a")
     check_samples(stream_b, "stream b")
-    reading = decide_reading(stream_a, stream_b, opts)
+    return _calibrated(decide_reading(stream_a, stream_b, opts), opts, inputs, scale_by_fit, noise_of, checks)
+
+
+def _calibrated(reading: Reading, opts: Options, inputs: dict[str, Any] | None, scale_by_fit: bool,
+                noise_of: NoiseOf, checks: Checks) -> Calibration:
+    """The calibration under ``reading`` (:func:`calibrate_read`'s steps after the reading); a refused fit's retry
+    with outliers rejected runs it again on the same reading, which does not depend on ``robust``."""
     a, b, prior, paired = reading.stream_a, reading.stream_b, reading.prior, reading.paired
     findings, diagnostics = list(reading.findings), _reading_sections(reading)
     if opts.solver.scale == "auto":
-        paired, _, diagnostics["scale"] = scaled(a, b, paired, opts, reading.offset_ns, prior, noise_of)
+        paired, diagnostics["scale"] = scaled(a, b, paired, opts, reading.offset_ns, prior, noise_of)
     solved = _solve_and_analyse(paired.pairs, opts, prior, paired.selection, diagnostics)
     verdict, contradiction = None, None
     if checks.inversion:                                      # its thresholds are set at α 1
@@ -151,7 +154,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     findings += [f for f in (misfit, moved, suspect_data(verdict, res, weights, paired)) if f is not None]
     outcome = policy(findings, accept_poor_fit=opts.analysis.accept_poor_fit, robust=opts.analysis.robust)
     if outcome.error is not None:
-        recovered = _robust_retry(stream_a, stream_b, opts, inputs, scale_by_fit, misfit, noise_of, checks) \
+        recovered = _robust_retry(reading, opts, inputs, scale_by_fit, misfit, noise_of, checks) \
             if outcome.retry and misfit is not None else None
         if recovered is None:
             raise outcome.error
@@ -210,7 +213,7 @@ def _scale_by_fit(a: PoseStream, b: PoseStream, reading: Reading, paired: Paired
                                         f"{found.scale:.4g} (median residual {found.medians_m[0]:.3g} → "
                                         f"{found.medians_m[1]:.3g} m): if its scale is off (SLAM), pass --scale auto"))
         return paired, solved
-    paired, _, section = scaled(a, b, paired, opts, reading.offset_ns, reading.prior, noise_of)
+    paired, section = scaled(a, b, paired, opts, reading.offset_ns, reading.prior, noise_of)
     diagnostics["scale"] = section
     solved = _solve_and_analyse(paired.pairs, opts, reading.prior, paired.selection, diagnostics)
     findings.append(Finding.warning("scale", f"stream b's translations fit a rigid rig {found.gain:.3g}× better "
@@ -248,8 +251,8 @@ def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None, sele
                    robust)
 
 
-def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inputs: dict[str, Any] | None,
-                  scale_by_fit: bool, refused: Finding, noise_of: NoiseOf, checks: Checks) -> Calibration | None:
+def _robust_retry(reading: Reading, opts: Options, inputs: dict[str, Any] | None, scale_by_fit: bool,
+                  refused: Finding, noise_of: NoiseOf, checks: Checks) -> Calibration | None:
     """A fit the fit test refused (``refused``: its finding), solved again with outliers rejected, as ``--robust``
     does (RANSAC on minimal sets, then the weighted optimal solve on the inliers): kept, with the settings saying
     ``robust`` and a first warning naming what was dropped, when the policy keeps it
@@ -257,8 +260,8 @@ def _robust_retry(stream_a: PoseStream, stream_b: PoseStream, opts: Options, inp
     (a station seen wrongly, a tracking glitch) gives a verified result, a wrong convention or streams that are
     not rigidly attached do not."""
     try:
-        cal = calibrate_read(stream_a, stream_b, replace(opts, analysis=replace(opts.analysis, robust=True)),
-                             inputs=inputs, scale_by_fit=scale_by_fit, noise_of=noise_of, checks=checks)
+        cal = _calibrated(reading, replace(opts, analysis=replace(opts.analysis, robust=True)), inputs,
+                          scale_by_fit, noise_of, checks)
     except HandEyeError:
         return None
     if cal.robust is None:

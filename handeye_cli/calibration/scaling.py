@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
+from typing import Any
 
 from ..analysis.fit_test import sample_noise
 from ..analysis.stream_noise import StreamNoise
@@ -13,9 +14,11 @@ from ..solvers.scale import ScaleSolution, scale_translations, solve_with_scale
 from ..streams import PoseStream
 from .pairing import Paired, pairs_of
 
-__all__ = ["scaled"]
+__all__ = ["NoiseOf", "scaled"]
 
 NoiseOf = Callable[[PoseStream], StreamNoise | None]
+"""Each stream's jitter (the fit test's noise): :func:`~handeye_cli.analysis.stream_noise.stream_noise`, or a
+rig's memo of it."""
 
 
 def _with_scale(stream_a: PoseStream, stream_b: PoseStream, paired: Paired, options: Options, noise_of: NoiseOf,
@@ -38,14 +41,14 @@ def _with_scale(stream_a: PoseStream, stream_b: PoseStream, paired: Paired, opti
 
 
 def scaled(stream_a: PoseStream, stream_b: PoseStream, paired: Paired, options: Options, offset_ns: int,
-           prior: Prior | None, noise_of: NoiseOf) -> tuple[Paired, float, dict[str, float]]:
+           prior: Prior | None, noise_of: NoiseOf) -> tuple[Paired, dict[str, Any]]:
     """b's scale estimated with ``T_a_b`` on ``paired`` (:func:`~.pairing.pairs_of`'s); with the ``auto`` pair
     strategy the pairs, weights and α are then chosen again on b scaled by that estimate, and the scale refined on
-    them. Returns the pairing in metres, the scale and the result's ``scale`` section."""
+    them. Returns the pairing in metres and the result's ``scale`` section (``value``: the scale)."""
     metric, est = _with_scale(stream_a, stream_b, paired, options, noise_of)
     if paired.selection is None:
-        return metric, est.scale, est.as_dict(1.0)
+        return metric, est.as_dict(1.0)
     scaled_b = stream_b.scaled(est.scale)
     again = pairs_of(stream_a, scaled_b, options, offset_ns, prior)
     metric, refined = _with_scale(stream_a, scaled_b, again, options, noise_of)
-    return metric, est.scale * refined.scale, refined.as_dict(est.scale)
+    return metric, refined.as_dict(est.scale)

@@ -40,8 +40,10 @@ def inversion(paired: Paired, options: Options, alpha: float,
     verdict = check_inversion(*checked_poses(paired), alpha=alpha,
                               inverted_now=(bool(read.invert_a), bool(read.invert_b)),
                               frames=(frames("a"), frames("b")))
-    refusal = verdict and verdict.refusal(read.invert_a is not None or read.invert_b is not None)
-    return verdict, (Finding.refusal("inversion", refusal, verdict.message()) if verdict and refusal else None)
+    if verdict is None:
+        return None, None
+    refusal = verdict.refusal(read.invert_a is not None or read.invert_b is not None)
+    return verdict, (None if refusal is None else Finding.refusal("inversion", refusal, verdict.message()))
 
 
 def order_contradiction(stream_a: PoseStream, stream_b: PoseStream, paired: Paired,

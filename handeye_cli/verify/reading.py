@@ -75,7 +75,7 @@ def decide_reading(stream_a: PoseStream, stream_b: PoseStream, opts: Options) ->
 
 def _quaternion_order(a: PoseStream, b: PoseStream, options: Options) -> tuple[PoseStream, PoseStream,
                                                                                OrderChoice | None]:
-    """Text streams in the quaternion order that fits (:func:`~.analysis.readings.choose_quaternion_order`),
+    """Text streams in the quaternion order that fits (:func:`~handeye_cli.analysis.readings.choose_quaternion_order`),
     compared at the given clock offset (0 when it is still to be estimated)."""
     offset = options.sync.time_offset
     return choose_quaternion_order(a, b, time_offset_ns=0 if offset == "auto" else int(round(float(offset) * 1e9)),
