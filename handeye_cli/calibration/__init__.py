@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     )
     from .pairing import Paired, pairs_of
     from .result import Calibration, Checks, Diagnostics, Uncertainty, frame_names
-    from .run import calibrate, calibrate_files, calibrate_read
+    from .run import calibrate, calibrate_files, calibrate_read, calibrate_specs
 
 _HOMES = {
     "StreamSpec": "..io.spec",
@@ -34,12 +34,12 @@ _HOMES = {
                      "stream_specs"), ".inputs"),
     **dict.fromkeys(("Paired", "pairs_of"), ".pairing"),
     **dict.fromkeys(("Calibration", "Checks", "Diagnostics", "Uncertainty", "frame_names"), ".result"),
-    **dict.fromkeys(("calibrate", "calibrate_files", "calibrate_read"), ".run"),
+    **dict.fromkeys(("calibrate", "calibrate_files", "calibrate_read", "calibrate_specs"), ".run"),
 }
 
 __all__ = ["Calibration", "Checks", "Diagnostics", "Paired", "Source", "StreamSpec", "Uncertainty", "calibrate",
-           "calibrate_files", "calibrate_read", "check_samples", "frame_names", "inverted_as_read", "pairs_of",
-           "read_prior", "read_streams", "refuse_unread", "stream_specs"]
+           "calibrate_files", "calibrate_read", "calibrate_specs", "check_samples", "frame_names", "inverted_as_read",
+           "pairs_of", "read_prior", "read_streams", "refuse_unread", "stream_specs"]
 
 
 def __getattr__(name: str) -> Any:

@@ -311,6 +311,14 @@ def calibrate_files(a: Source | None = None, b: Source | None = None, *, stream_
     opts = load_options(config_file, preset, base=options, **overrides)
     spec_a, spec_b = stream_specs(tuple(x for x in (a, b) if x is not None), stream_a=stream_a, stream_b=stream_b,
                                   topic_a=topic_a, topic_b=topic_b, frames_a=frames_a, frames_b=frames_b)
+    return calibrate_specs(spec_a, spec_b, opts, quiet=quiet).with_origin(config_file, preset)
+
+
+def calibrate_specs(spec_a: StreamSpec | PoseStream, spec_b: StreamSpec | PoseStream, opts: Options, *,
+                    quiet: bool = True) -> Calibration:
+    """Read streams a and b, named already (:func:`~.inputs.stream_specs`) with ``opts`` loaded already, and
+    :func:`calibrate_read` ``T_a_b``: the step :func:`calibrate_files` and the commands share, so each parses
+    the streams' names and the options once."""
     refuse_unread(opts.read, (isinstance(spec_a, PoseStream), isinstance(spec_b, PoseStream)))
     from ..io.remote import session_of
 
@@ -320,4 +328,4 @@ def calibrate_files(a: Source | None = None, b: Source | None = None, *, stream_
                               **inversion_inputs(opts.read)}
     if remote.urls:
         inputs["bytes_fetched"] = remote.bytes_fetched      # [B] read from object storage (URL inputs)
-    return calibrate_read(read_a, read_b, opts, inputs=inputs).with_origin(config_file, preset)
+    return calibrate_read(read_a, read_b, opts, inputs=inputs)

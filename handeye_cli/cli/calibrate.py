@@ -7,7 +7,7 @@ import click
 import numpy as np
 
 from ..analysis.verdict import verdict_for
-from ..calibration import Calibration, calibrate_files, stream_specs
+from ..calibration import Calibration, calibrate_specs, stream_specs
 from ..errors import HandEyeError
 from ..geometry import dualquat as dq
 from ..io.nominal import read_nominal
@@ -79,7 +79,7 @@ def calibrate(inputs: tuple[str, ...], **p: Any) -> None:
     if p["report_file"]:
         check_writable(p["report_file"], "--report")
     nominal = read_nominal(p["against"]) if p["against"] else None      # a bad nominal fails before the work
-    result = calibrate_files(spec_a, spec_b, options=options, quiet=p["quiet"])
+    result = calibrate_specs(spec_a, spec_b, options, quiet=p["quiet"])
     result = result.with_origin(config_file, preset)
     doc = calibration_document(result)
     verdict = (None if nominal is None else

@@ -14,7 +14,7 @@ from typing import Any
 import click
 import numpy as np
 
-from ..calibration import calibrate_files, stream_specs
+from ..calibration import calibrate_specs, stream_specs
 from ..comparison import MethodResult, compare_methods
 from ..output.document import plain, render
 from ..output.writers import check_writable, output_format, write_output
@@ -75,7 +75,7 @@ def compare(inputs: tuple[str, ...], **p: Any) -> None:
         check_writable(p["report_file"], "--report")
     fmt = p["fmt"] or ("text" if not p["output"] or p["output"] == "-" or not p["output"].endswith(
         (".json", ".yaml", ".yml")) else output_format(p["output"], None))
-    cal = calibrate_files(spec_a, spec_b, options=options, quiet=p["quiet"])
+    cal = calibrate_specs(spec_a, spec_b, options, quiet=p["quiet"])
     rows = compare_methods(cal)
     text = _table(rows) if fmt == "text" else render(plain({"frames": cal.frames, "pairs_used": len(cal.pairs),
                                                             "alpha": cal.solution.alpha,
