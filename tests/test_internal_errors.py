@@ -52,6 +52,30 @@ def test_a_crash_exits_4_with_one_line_and_the_traceback_only_under_debug(comman
     assert not (tmp_path / "r.html").exists()
 
 
+# handeye's own decoding functions and an input that reaches them: inside the generic MCAP reader's
+# guard, a message decoder, inside the guard around opening a bag with rosbags
+ROS1 = ("rig_ros1.bag", "--topic-a", "/cam0/odom", "--topic-b", "/cam1/pose")
+DECODERS = {"mcap": ("handeye_cli.io.mcap_reader.breakup_chunk", ("rig_json.mcap", *TOPICS)),
+            "message": ("handeye_cli.io.messages.extract", ROS1),
+            "rosbags": ("handeye_cli.io.rosbag_reader.BagSource._with_suffix", ROS1)}
+
+
+@pytest.mark.parametrize("error", [KeyError, IndexError, RuntimeError])
+@pytest.mark.parametrize("decoder", sorted(DECODERS))
+def test_a_bug_in_a_reader_is_an_internal_error_not_an_unreadable_file(capsys, monkeypatch, decoder, error):
+    """KeyError, IndexError and RuntimeError raised by handeye's own decoders are bugs (exit 4): only the
+    errors a library raises on corrupt input are "cannot read file" (exit 2)."""
+    target, (log, *topics) = DECODERS[decoder]
+
+    def bug(*args: object, **kwargs: object) -> None:
+        raise error("injected")
+
+    monkeypatch.setattr(target, bug)
+    code, out, err = run(capsys, "calibrate", SAMPLES / log, *topics, "-q")
+    assert code == 4 and out == "" and "cannot" not in err
+    assert err.startswith(f"internal error: {error.__name__}: ")
+
+
 def test_a_crash_in_one_batch_input_is_its_error_record_not_a_drift(capsys, monkeypatch):
     from handeye_cli.fleet import engine
 

@@ -21,9 +21,10 @@ from mcap.exceptions import McapError
 from ..errors import DataError, HandEyeError, ReadError
 from ..streams import PoseStream
 from ..untrusted import frame_id_problem
+from .messages import BadField
 
 __all__ = ["decode_errors", "unreadable", "PoseBuffer", "make_stream", "CHUNK_LIMIT", "ChunkError", "check_declared",
-           "inflate", "open_clamped"]
+           "inflate", "open_clamped", "Lz4Error"]
 
 CHUNK_LIMIT = 256 * 2**20
 """The most bytes [B] one compressed chunk (MCAP, ROS 1 bag) may decompress to. Recorders write
@@ -66,10 +67,9 @@ def inflate(compression: str, data: bytes | memoryview, size: int, *, partial: b
         out = bytes(view[:done])
         view.release()
     elif compression in ("lz4", "bz2"):
-        stream: Any = lz4.frame.LZ4FrameDecompressor() if compression == "lz4" else bz2.BZ2Decompressor()
         try:
-            out = bytes(stream.decompress(data, max_length=size + 1))
-        except (OSError, EOFError, RuntimeError, ValueError):
+            out = _lz4_or_bz2(compression, data, size + 1)
+        except (OSError, EOFError, ValueError):
             if not partial:
                 raise
             out = b""
@@ -78,6 +78,21 @@ def inflate(compression: str, data: bytes | memoryview, size: int, *, partial: b
     if len(out) > size:
         raise ChunkError(f"the {compression} chunk inflates past the {size} bytes it declares")
     return out
+
+
+class Lz4Error(ValueError):
+    """Corrupt lz4 data: lz4 raises a bare RuntimeError for it, which is caught at that one call
+    (:func:`inflate`) so that a RuntimeError elsewhere stays a bug, not "cannot read file"."""
+
+
+def _lz4_or_bz2(compression: str, data: bytes | memoryview, limit: int) -> bytes:
+    """At most ``limit`` bytes [B] of the lz4 frame or bz2 stream ``data``; Lz4Error for corrupt lz4 data."""
+    if compression == "bz2":
+        return bytes(bz2.BZ2Decompressor().decompress(data, max_length=limit))
+    try:
+        return bytes(lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=limit))
+    except RuntimeError as exc:     # lz4's only error type for a damaged frame
+        raise Lz4Error(f"corrupt lz4 data: {exc}") from exc
 
 
 class _Clamped(io.BufferedReader):
@@ -112,8 +127,10 @@ def _optional_error(module: str) -> tuple[type[BaseException], ...]:
 
 @functools.cache
 def decode_errors() -> tuple[type[BaseException], ...]:
-    """What mcap, rosbags, json and the decoders raise on truncated or corrupt input (lz4 raises a
-    bare RuntimeError on a corrupt chunk). A function, so that rosbags is imported by the readers
+    """What mcap, rosbags, json, the decompressors and the decoders raise on truncated or corrupt
+    input. Not KeyError, IndexError or RuntimeError: raised by handeye's own code they are a bug
+    (exit 4), so where a library raises one on corrupt input it is caught at that call and turned
+    into the library's error (:class:`Lz4Error`). A function, so that rosbags is imported by the readers
     that use it or on the way to an error, not by every run (an MCAP read by the fast path never
     needs it; importing it costs about 0.05 s of CPU)."""
     from rosbags.highlevel import AnyReaderError
@@ -124,8 +141,8 @@ def decode_errors() -> tuple[type[BaseException], ...]:
 
     zstd_errors = sum(map(_optional_error, ("zstandard", "compression.zstd", "backports.zstd")), ())
     return (McapError, struct.error, OSError, EOFError, AnyReaderError, Bag1ReaderError, Bag2ReaderError,
-            SerdeError, TypesysError, KeyError, IndexError, UnicodeDecodeError, json.JSONDecodeError,
-            RuntimeError, ChunkError, *zstd_errors)
+            SerdeError, TypesysError, UnicodeDecodeError, json.JSONDecodeError, ChunkError, Lz4Error, BadField,
+            *zstd_errors)
 
 
 @contextmanager

@@ -23,7 +23,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
-from rosbags.rosbag1.reader import Header, ReaderError, RecordType, decompressors, read_uint32
+from rosbags.rosbag1.reader import Header, ReaderError, RecordType, read_uint32
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from ..errors import ReadError
@@ -35,7 +35,7 @@ from .source import Decoder, TopicInfo, spans_by_topic
 __all__ = ["Bag1Scan", "Bag1Index", "indexed", "check_lengths"]
 
 _MAGIC = b"#ROSBAG V2.0\n"
-_ERRORS: tuple[type[BaseException], ...] = (ReaderError, KeyError, *decode_errors())
+_ERRORS: tuple[type[BaseException], ...] = (ReaderError, *decode_errors())
 
 
 class _Bag1:
@@ -280,7 +280,7 @@ def _decompress(compression: str, data: bytes, size: int) -> bytes:
     """A chunk's records (``size`` [B] declared); of a chunk cut off, as much as its complete
     compressed blocks give. ChunkError past ``size`` or :data:`.common.CHUNK_LIMIT`."""
     if compression not in ("none", "bz2", "lz4"):
-        return bytes(decompressors[compression](data))     # rosbags names the unsupported compression
+        raise ReaderError(f"unsupported chunk compression {compression!r}")
     return inflate(compression, data, size, partial=True)
 
 
