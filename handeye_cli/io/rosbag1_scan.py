@@ -27,7 +27,7 @@ from rosbags.rosbag1.reader import Header, ReaderError, RecordType, read_uint32
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from ..errors import ReadError
-from .common import CHUNK_LIMIT, ChunkError, decode_errors, inflate, open_clamped
+from .common import CHUNK_LIMIT, ChunkError, decode_errors, inflate, open_clamped, unreadable
 from .messages import normalize_type, pose_decoder
 from .remote import RemoteObject
 from .source import Decoder, TopicInfo, spans_by_topic
@@ -136,7 +136,8 @@ class _Bag1:
 
     def read(self, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes, Any]]:
         ids = {cid for cid, (topic, _, _) in self._conns.items() if topic in topics}
-        decoders = {cid: self._decoder(*self._conns[cid][1:]) for cid in ids}
+        with unreadable(self.name):     # a damaged message definition
+            decoders = {cid: self._decoder(*self._conns[cid][1:]) for cid in ids}
         self.truncated = False
         for conn, stamp, raw in self._messages(ids):
             yield self._conns[conn][0], stamp, raw, decoders[conn]
