@@ -10,6 +10,7 @@ import subprocess
 import sys
 
 import click
+import numpy as np
 import pytest
 from _util import ROOT, run
 
@@ -50,6 +51,65 @@ def test_a_crash_exits_4_with_one_line_and_the_traceback_only_under_debug(comman
     assert code == 4 and err.startswith("Traceback")
     assert "RuntimeError: injected" in err and err.splitlines()[-1].startswith("internal error: RuntimeError")
     assert not (tmp_path / "r.html").exists()
+
+
+# handeye's own decoding functions and an input that reaches them: inside the generic MCAP reader's
+# guard, a message decoder, inside the guard around opening a bag with rosbags
+ROS1 = ("rig_ros1.bag", "--topic-a", "/cam0/odom", "--topic-b", "/cam1/pose")
+DECODERS = {"mcap": ("handeye_cli.io.mcap_reader.breakup_chunk", ("rig_json.mcap", *TOPICS)),
+            "message": ("handeye_cli.io.messages.extract", ROS1),
+            "rosbags": ("handeye_cli.io.rosbag_reader.BagSource._with_suffix", ROS1)}
+
+
+@pytest.mark.parametrize("error", [KeyError, IndexError, RuntimeError])
+@pytest.mark.parametrize("decoder", sorted(DECODERS))
+def test_a_bug_in_a_reader_is_an_internal_error_not_an_unreadable_file(capsys, monkeypatch, decoder, error):
+    """KeyError, IndexError and RuntimeError raised by handeye's own decoders are bugs (exit 4): only the
+    errors a library raises on corrupt input are "cannot read file" (exit 2)."""
+    target, (log, *topics) = DECODERS[decoder]
+
+    def bug(*args: object, **kwargs: object) -> None:
+        raise error("injected")
+
+    monkeypatch.setattr(target, bug)
+    code, out, err = run(capsys, "calibrate", SAMPLES / log, *topics, "-q")
+    assert code == 4 and out == "" and "cannot" not in err
+    assert err.startswith(f"internal error: {error.__name__}: ")
+
+
+def _bag_damaged(path, damage: str):
+    """A one-topic ROS 1 bag (uncompressed chunk) damaged so that rosbags' own code raises a KeyError or an
+    AssertionError: a message record whose time disagrees with the bag's index (rosbags checks it with
+    ``assert``), or a message definition naming a type it does not define (the typestore's KeyError)."""
+    from _logs import POSE, pose_channel, records, write_bag1
+
+    from handeye_cli.simulation import Rig, simulate_rig
+
+    a, _ = simulate_rig(Rig(np.eye(4)), duration_s=5.0, rate_a=20.0, rate_b=20.0, seed=7)
+    data = write_bag1(path, [pose_channel("/a", POSE, records(a, "w", ""))]).read_bytes()
+    if damage == "assert":
+        stamp = data.index(b"time=", data.index(b"op=\x02")) + 5       # the first message record's stamp
+        data = data[:stamp] + bytes([data[stamp] ^ 1]) + data[stamp + 1:]
+    else:
+        data = data.replace(b"geometry_msgs/Pose pose\n", b"geometry_msgs/Pxse pose\n")
+    path.write_bytes(data)
+    return path
+
+
+@pytest.mark.parametrize(("damage", "what"), [
+    ("assert", "cannot read file: AssertionError: in rosbags.rosbag1.reader ("),
+    ("undefined", "cannot decode message: KeyError: 'geometry_msgs/msg/Pxse' (")])
+def test_a_damaged_file_a_library_meets_with_its_own_key_or_assertion_error_is_bad_input(capsys, tmp_path,
+                                                                                         damage, what):
+    """The other side of the test above: raised inside rosbags' own code on a damaged bag, the same errors are
+    "cannot read" (one line, exit 2), as a cut-off file is."""
+    path = _bag_damaged(tmp_path / "d.bag", damage)
+    code, out, err = run(capsys, "calibrate", path, "--topic-a", "/a", "--topic-b", "/a", "-q")
+    assert code == 2 and out == "" and len(err.splitlines()) == 1
+    assert err.startswith(f"error: {what}{path}"), err
+    path.write_bytes(path.read_bytes()[:300])                         # cut short as well
+    code, out, err = run(capsys, "calibrate", path, "--topic-a", "/a", "--topic-b", "/a", "-q")
+    assert code == 2 and out == "" and len(err.splitlines()) == 1 and err.startswith("error: "), err
 
 
 def test_a_crash_in_one_batch_input_is_its_error_record_not_a_drift(capsys, monkeypatch):

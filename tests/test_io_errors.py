@@ -171,6 +171,19 @@ def test_poses_in_frame_with_several_poses(tmp_path, recs):
     fails(lambda: read_stream(path, topic="/p"), "'poses' holds 3 poses", r"f.mcap:/p, message 0")
 
 
+@pytest.mark.parametrize("damage", ["missing", "null", "string"])
+def test_json_message_without_a_number_is_a_decode_error(tmp_path, recs, damage):
+    """A JSON message lacking a field or holding a non-number is not of its type: one line, not a crash."""
+    msg = json_message("foxglove.PoseInFrame", recs[:1])
+    if damage == "missing":
+        del msg["pose"]["orientation"]
+    else:
+        msg["pose"]["position"]["x"] = None if damage == "null" else "one"
+    path = write_mcap(tmp_path / "j.mcap", [Channel("/p", "foxglove.PoseInFrame", [(1, msg)])])
+    fails(lambda: read_stream(path, topic="/p"), "cannot decode message: BadField", r"j.mcap:/p, message 0",
+          "not of its declared type")
+
+
 def test_topic_with_several_frame_pairs(tmp_path, recs):
     two = [(r[0], [(*r[:2], "cam0", *r[3:]), (*r[:2], "cam1", *r[3:])]) for r in recs]
     path = write_mcap(tmp_path / "tf.mcap", [Channel("/tf", TF, two)])

@@ -14,10 +14,10 @@ from typing import Any
 
 from ..errors import ConfigError
 from ..streams import PoseStream
-from .detect import LOG_FORMATS, detect_format
+from .detect import detect_format
+from .formats import BY_NAME, LOG_FORMATS, open_log, opened
 from .inputs import existing, spooled, valid_frame_id
 from .logs import Request, inspect_source, read_requests
-from .opening import open_log
 from .remote import RemoteObject, current, is_url
 from .spec import StreamSpec
 from .text import read_text
@@ -26,22 +26,21 @@ __all__ = ["StreamSpec", "read_specs", "read_stream", "read_log_streams", "inspe
            "valid_frame_id"]
 
 _TIME_SOURCES = ("header", "log")
-_SUFFIX = {"mcap": ".mcap", "rosbag1": ".bag", "rosbag2": ".db3"}
 
 
 def _inputs(paths: str | Path | Sequence[str | Path]) -> tuple[list[Path | RemoteObject], list[str]]:
     """What the readers open for each input and its format: an existing path (``-`` = stdin; logs
     arriving on a pipe spooled to a file), or for a URL a remote object read by range or its local
-    copy (see :meth:`.remote.Session.opened`)."""
+    copy (see :func:`.formats.opened`)."""
     given = [paths] if isinstance(paths, (str, Path)) else list(paths)
     fmts = [detect_format(p) for p in given]
-    opened: list[Path | RemoteObject] = []
+    found: list[Path | RemoteObject] = []
     for p, f in zip(given, fmts, strict=True):
         if is_url(p):
-            opened.append(current().opened(str(p), f))
+            found.append(opened(str(p), f))
         else:
-            opened.append(spooled(existing(p), _SUFFIX[f]) if f in LOG_FORMATS else existing(p))
-    return opened, fmts
+            found.append(spooled(existing(p), BY_NAME[f].suffixes[0]) if BY_NAME[f].log else existing(p))
+    return found, fmts
 
 
 def _named(given: str | Path | Sequence[str | Path]) -> list[str]:

@@ -7,6 +7,7 @@ import importlib
 import io
 import json
 import os
+import sqlite3
 import struct
 from array import array
 from collections.abc import Callable, Iterator, Sequence
@@ -21,9 +22,10 @@ from mcap.exceptions import McapError
 from ..errors import DataError, HandEyeError, ReadError
 from ..streams import PoseStream
 from ..untrusted import frame_id_problem
+from .messages import BadField
 
-__all__ = ["decode_errors", "unreadable", "PoseBuffer", "make_stream", "CHUNK_LIMIT", "ChunkError", "check_declared",
-           "inflate", "open_clamped"]
+__all__ = ["decode_errors", "corrupt_input", "unreadable", "PoseBuffer", "make_stream", "CHUNK_LIMIT", "ChunkError",
+           "check_declared", "inflate", "open_clamped", "Lz4Error"]
 
 CHUNK_LIMIT = 256 * 2**20
 """The most bytes [B] one compressed chunk (MCAP, ROS 1 bag) may decompress to. Recorders write
@@ -66,10 +68,9 @@ def inflate(compression: str, data: bytes | memoryview, size: int, *, partial: b
         out = bytes(view[:done])
         view.release()
     elif compression in ("lz4", "bz2"):
-        stream: Any = lz4.frame.LZ4FrameDecompressor() if compression == "lz4" else bz2.BZ2Decompressor()
         try:
-            out = bytes(stream.decompress(data, max_length=size + 1))
-        except (OSError, EOFError, RuntimeError, ValueError):
+            out = _lz4_or_bz2(compression, data, size + 1)
+        except (OSError, EOFError, ValueError):
             if not partial:
                 raise
             out = b""
@@ -78,6 +79,21 @@ def inflate(compression: str, data: bytes | memoryview, size: int, *, partial: b
     if len(out) > size:
         raise ChunkError(f"the {compression} chunk inflates past the {size} bytes it declares")
     return out
+
+
+class Lz4Error(ValueError):
+    """Corrupt lz4 data: lz4 raises a bare RuntimeError for it, which is caught at that one call
+    (:func:`inflate`) so that a RuntimeError elsewhere stays a bug, not "cannot read file"."""
+
+
+def _lz4_or_bz2(compression: str, data: bytes | memoryview, limit: int) -> bytes:
+    """At most ``limit`` bytes [B] of the lz4 frame or bz2 stream ``data``; Lz4Error for corrupt lz4 data."""
+    if compression == "bz2":
+        return bytes(bz2.BZ2Decompressor().decompress(data, max_length=limit))
+    try:
+        return bytes(lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=limit))
+    except RuntimeError as exc:     # lz4's only error type for a damaged frame
+        raise Lz4Error(f"corrupt lz4 data: {exc}") from exc
 
 
 class _Clamped(io.BufferedReader):
@@ -101,21 +117,24 @@ def open_clamped(path: str | os.PathLike[str]) -> BinaryIO:
     return _Clamped(io.FileIO(path, "rb"))
 
 
-def _optional_error(module: str) -> tuple[type[BaseException], ...]:
-    """``module.ZstdError`` if that zstd binding is installed (mcap uses zstandard, rosbags
-    compression.zstd or its backport)."""
+def _optional_error(module: str, name: str = "ZstdError") -> tuple[type[BaseException], ...]:
+    """``module.name`` if that module is installed: a zstd binding's ``ZstdError`` (mcap uses zstandard,
+    rosbags compression.zstd or its backport), apsw's ``Error`` (rosbags' SQLite client: a malformed
+    ``.db3`` is its ``CorruptError``)."""
     try:
-        return (importlib.import_module(module).ZstdError,)
+        return (getattr(importlib.import_module(module), name),)
     except (ImportError, AttributeError):
         return ()
 
 
 @functools.cache
 def decode_errors() -> tuple[type[BaseException], ...]:
-    """What mcap, rosbags, json and the decoders raise on truncated or corrupt input (lz4 raises a
-    bare RuntimeError on a corrupt chunk). A function, so that rosbags is imported by the readers
-    that use it or on the way to an error, not by every run (an MCAP read by the fast path never
-    needs it; importing it costs about 0.05 s of CPU)."""
+    """What mcap, rosbags, json, the decompressors and the decoders raise on truncated or corrupt
+    input. Not KeyError, IndexError or RuntimeError: raised by handeye's own code they are a bug
+    (exit 4), so lz4's bare RuntimeError is caught at its one call and turned into :class:`Lz4Error`,
+    and those raised inside mcap's or rosbags' own code are told apart by :func:`corrupt_input`. A
+    function, so that rosbags is imported by the readers that use it or on the way to an error, not
+    by every run (an MCAP read by the fast path never needs it; importing it costs about 0.05 s of CPU)."""
     from rosbags.highlevel import AnyReaderError
     from rosbags.rosbag1 import ReaderError as Bag1ReaderError
     from rosbags.rosbag2 import ReaderError as Bag2ReaderError
@@ -124,20 +143,45 @@ def decode_errors() -> tuple[type[BaseException], ...]:
 
     zstd_errors = sum(map(_optional_error, ("zstandard", "compression.zstd", "backports.zstd")), ())
     return (McapError, struct.error, OSError, EOFError, AnyReaderError, Bag1ReaderError, Bag2ReaderError,
-            SerdeError, TypesysError, KeyError, IndexError, UnicodeDecodeError, json.JSONDecodeError,
-            RuntimeError, ChunkError, *zstd_errors)
+            SerdeError, TypesysError, UnicodeDecodeError, json.JSONDecodeError, ChunkError, Lz4Error, BadField,
+            sqlite3.Error, *_optional_error("apsw", "Error"), *zstd_errors)
+
+
+_SLIPS = (KeyError, IndexError, AssertionError)
+_LIBRARIES = ("mcap", "rosbags")
+
+
+def _raised_in(exc: BaseException) -> str:
+    """The module of the innermost frame of ``exc``'s traceback ("" if none)."""
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    return "" if tb is None else str(tb.tb_frame.f_globals.get("__name__", ""))
+
+
+def corrupt_input(exc: BaseException) -> bool:
+    """Whether ``exc`` is how a reader's library meets truncated or corrupt input: one of
+    :func:`decode_errors`, or a KeyError, IndexError or AssertionError raised inside mcap's or
+    rosbags' own code (rosbags checks a bag's index data with ``assert`` and looks a record's
+    connection up in a dict). The same three raised by handeye's code — its decoders, the
+    decompression rosbags calls back into — are a bug (exit 4)."""
+    if isinstance(exc, decode_errors()):
+        return True
+    return isinstance(exc, _SLIPS) and _raised_in(exc).partition(".")[0] in _LIBRARIES
 
 
 @contextmanager
 def unreadable(where: str, fix: str = "check that the file is complete and of a supported "
                                        "format (handeye inspect FILE)") -> Iterator[None]:
-    """Convert a decoder failure inside the block into a HandEyeError about ``where``."""
+    """Convert a decoder failure inside the block (:func:`corrupt_input`) into a ReadError about ``where``."""
     try:
         yield
     except HandEyeError:
         raise
-    except decode_errors() as exc:
-        detail = str(exc) or type(exc).__name__
+    except Exception as exc:
+        if not corrupt_input(exc):
+            raise
+        detail = str(exc) or f"in {_raised_in(exc)}"     # rosbags' bare assert on an index
         raise ReadError(f"cannot read file: {type(exc).__name__}: {detail}", where, fix) from exc
 
 

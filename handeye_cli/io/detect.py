@@ -5,16 +5,12 @@ import re
 from pathlib import Path
 
 from ..errors import ReadError
+from .formats import LOG_FORMATS, MAGIC_BYTES, by_magic, by_suffix
 from .inputs import existing, is_stream, read_head
 from .remote import current, is_url
 
-__all__ = ["FORMATS", "LOG_FORMATS", "detect_format", "existing"]
+__all__ = ["LOG_FORMATS", "detect_format", "existing"]
 
-FORMATS = ("mcap", "rosbag1", "rosbag2", "tum", "euroc", "csv")
-LOG_FORMATS = ("mcap", "rosbag1", "rosbag2")
-
-_MAGIC = ((b"\x89MCAP0\r\n", "mcap"), (b"#ROSBAG V2.0", "rosbag1"), (b"SQLite format 3\x00", "rosbag2"))
-_LOG_SUFFIXES = {".mcap": "MCAP", ".bag": "ROS 1 bag", ".db3": "ROS 2 SQLite bag"}
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf)$", re.IGNORECASE)
 _EUROC_HEADER = re.compile(r"p_RS_R_x|q_RS_w", re.IGNORECASE)
 _PAIRS_HEADER = re.compile(r"^#?\s*ax\s*,\s*ay\s*,\s*az\s*,\s*aqx\b", re.IGNORECASE)
@@ -85,15 +81,14 @@ def _remote_format(url: str) -> str:
             return "rosbag2"
         raise ReadError("folder is not a ROS 2 bag (no metadata.yaml)", url,
                         "pass a bag folder, an MCAP, a .bag or a text trajectory object")
-    head = session.open(url).read_at(0, max(len(m) for m, _ in _MAGIC))
-    for magic, fmt in _MAGIC:
-        if head.startswith(magic):
-            return fmt
+    head = session.open(url).read_at(0, MAGIC_BYTES)
+    if (log := by_magic(head)) is not None:
+        return log.name
     if not head:
         raise ReadError("empty object (0 bytes)", url, "the recording or its upload failed; check the object")
     suffix = Path(url.split("?", 1)[0]).suffix.lower()
-    if suffix in _LOG_SUFFIXES:
-        raise ReadError(f"not a valid {_LOG_SUFFIXES[suffix]} file: wrong magic bytes {head[:8]!r}", url,
+    if (named := by_suffix(suffix)) is not None:
+        raise ReadError(f"not a valid {named.title} file: wrong magic bytes {head[:8]!r}", url,
                         "the object is damaged or misnamed")
     local = session.cached(url, "a text file is read whole")
     return text_format(url, suffix, read_head(local, _HEAD_BYTES))
@@ -123,13 +118,12 @@ def detect_format(path: str | Path) -> str:
         head = read_head(path, _HEAD_BYTES)
     except OSError as exc:
         raise ReadError(f"cannot open file: {exc.strerror or exc}", str(p), "check permissions") from exc
-    for magic, fmt in _MAGIC:
-        if head.startswith(magic):
-            return fmt
+    if (log := by_magic(head)) is not None:
+        return log.name
     if not head:
         raise ReadError("empty file (0 bytes)", str(path), "the recording or export failed; check the file")
     suffix = "" if is_stream(path) else p.suffix.lower()
-    if suffix in _LOG_SUFFIXES:
-        raise ReadError(f"not a valid {_LOG_SUFFIXES[suffix]} file: wrong magic bytes {head[:8]!r}",
+    if (named := by_suffix(suffix)) is not None:
+        raise ReadError(f"not a valid {named.title} file: wrong magic bytes {head[:8]!r}",
                         str(p), "the file is damaged or misnamed; check it with `handeye inspect FILE`")
     return text_format(str(path), suffix, head)

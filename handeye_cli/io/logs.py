@@ -7,7 +7,7 @@ from typing import Any
 
 from ..errors import ConfigError, DataError, ReadError
 from ..streams import PoseStream
-from .common import PoseBuffer, decode_errors, make_stream
+from .common import PoseBuffer, corrupt_input, make_stream
 from .inputs import valid_frame_id
 from .mcap_fast import FastPoses
 from .messages import POSE_TYPES, TF_TYPES, PoseRecord, UnsupportedContent
@@ -46,7 +46,9 @@ def _records(src: LogSource, infos: list[TopicInfo], label: str, time_source: st
             except UnsupportedContent as exc:
                 raise ReadError(str(exc), f"{src.name}:{topic}, message {i}",
                                    "convert the topic to a supported pose message") from exc
-            except decode_errors() as exc:
+            except Exception as exc:
+                if not corrupt_input(exc):
+                    raise
                 raise ReadError(f"cannot decode message: {type(exc).__name__}: {exc}",
                                    f"{src.name}:{topic}, message {i}",
                                    "the message is corrupt or not of its declared type") from exc

@@ -424,7 +424,7 @@ def read_fast(path: Path | RemoteObject, chunks: Sequence[Any], channels: dict[i
                 if skipped is not None:
                     skipped.append((index.chunk_start_offset, str(exc)))
                 continue
-            except (_Decline, zstandard.ZstdError, RuntimeError, struct.error, ValueError):
+            except (_Decline, zstandard.ZstdError, struct.error, ValueError):
                 return {}
             for topic in {wanted[c][0] for c, _ in entries} - declined:
                 rows = np.concatenate([e for c, e in entries if wanted[c][0] == topic])

@@ -119,7 +119,7 @@ class McapSource:
 
     @property
     def notes(self) -> tuple[str, ...]:
-        """Warnings for every stream read: the opener's (see :func:`.opening.open_log`), then the
+        """Warnings for every stream read: the opener's (see :mod:`.opening`), then the
         chunks skipped so far."""
         return (*self._notes, *self._skipped)
 
@@ -261,7 +261,7 @@ class McapSource:
 
             assert isinstance(self._path, Path), "rosbags reads local files only (see __init__)"
             try:
-                self._bag = BagSource([self._path], "mcap")
+                self._bag = BagSource([self._path], ".mcap")
             except ReadError:        # e.g. a schema rosbags cannot parse: use mcap below
                 self._ros2 = False
         if self._bag is not None:

@@ -14,13 +14,18 @@ from dataclasses import dataclass
 from typing import Any
 
 __all__ = ["Spec", "SPECS", "LISTS", "POSE_TYPES", "TF_TYPES", "normalize_type", "get_field",
-           "extract", "pose_decoder", "PoseRecord", "UnsupportedContent"]
+           "extract", "pose_decoder", "PoseRecord", "UnsupportedContent", "BadField"]
 
 PoseRecord = tuple[Any, ...]  # (stamp_ns, frame_id, child_frame_id, x, y, z, qx, qy, qz, qw)
 
 
 class UnsupportedContent(ValueError):
     """A well-formed message whose content handeye cannot use (e.g. PosesInFrame with 3 poses)."""
+
+
+class BadField(ValueError):
+    """A decoded message (a JSON dict most often) without a field of its type, or with a field
+    that is not a number where one is expected: the message is not of its declared type."""
 
 
 @dataclass(frozen=True)
@@ -79,7 +84,7 @@ def normalize_type(name: str) -> str:
 
 
 def get_field(obj: Any, path: str) -> Any:
-    """The value at a dotted ``path`` of a message object or JSON dict; KeyError if absent."""
+    """The value at a dotted ``path`` of a message object or JSON dict; BadField if absent."""
     for alternative in path.split("|"):
         cur = obj
         try:
@@ -93,7 +98,7 @@ def get_field(obj: Any, path: str) -> Any:
             return cur
         except (KeyError, AttributeError, IndexError, TypeError):
             continue
-    raise KeyError(f"field {path!r} missing")
+    raise BadField(f"field {path!r} missing")
 
 
 def _record(spec: Spec, msg: Any) -> PoseRecord:
@@ -101,11 +106,16 @@ def _record(spec: Spec, msg: Any) -> PoseRecord:
         raise UnsupportedContent(f"{spec.single!r} holds {n} poses; handeye reads messages with exactly one")
     t = get_field(msg, spec.stamp)
     p, q = get_field(msg, spec.position), get_field(msg, spec.orientation)
-    return (int(get_field(t, "sec")) * 1_000_000_000 + int(get_field(t, "nanosec|nsec")),
-            str(get_field(msg, spec.frame)), str(get_field(msg, spec.child)) if spec.child else "",
-            float(get_field(p, "x")), float(get_field(p, "y")), float(get_field(p, "z")),
-            float(get_field(q, "x")), float(get_field(q, "y")), float(get_field(q, "z")),
-            float(get_field(q, "w")))
+    try:
+        return (int(get_field(t, "sec")) * 1_000_000_000 + int(get_field(t, "nanosec|nsec")),
+                str(get_field(msg, spec.frame)), str(get_field(msg, spec.child)) if spec.child else "",
+                float(get_field(p, "x")), float(get_field(p, "y")), float(get_field(p, "z")),
+                float(get_field(q, "x")), float(get_field(q, "y")), float(get_field(q, "z")),
+                float(get_field(q, "w")))
+    except BadField:
+        raise
+    except (TypeError, ValueError, OverflowError) as exc:     # a JSON null, string or inf where a number belongs
+        raise BadField(f"a stamp or pose field is not a number: {exc}") from exc
 
 
 def extract(msgtype: str, msg: Any) -> list[PoseRecord]:
@@ -173,4 +183,4 @@ def pose_decoder(msgtype: str, deserialize: Callable[[bytes], Any], *,
 
     if fast is None:
         return slow
-    return lambda buf: fast(buf) if buf[0] == 0 and buf[1] == 1 else slow(buf)
+    return lambda buf: fast(buf) if buf[:2] == b"\x00\x01" else slow(buf)

@@ -1,4 +1,5 @@
-"""Open a log as a :class:`~.source.LogSource`, falling back on the damaged cases rosbags refuses.
+"""Each log format's opener (:attr:`.formats.Format.opener`): a :class:`~.source.LogSource`, falling back on
+the damaged cases rosbags refuses.
 
 * MCAP → :class:`.mcap_reader.McapSource` (which itself scans files without a usable summary);
 * ROS 1 bags → rosbags' AnyReader, once :func:`.rosbag1_scan.check_lengths` finds every record
@@ -13,6 +14,7 @@
 """
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -30,7 +32,7 @@ if TYPE_CHECKING:
     from .rosbag1_scan import Bag1Index, Bag1Scan
     from .rosbag_reader import BagSource
 
-__all__ = ["open_log"]
+__all__ = ["open_mcap", "open_bag1", "open_bag2"]
 
 
 def _bag2_storage(directory: Path) -> tuple[Path | None, str]:
@@ -75,11 +77,11 @@ def _open_bag1(paths: list[Path]) -> BagSource | Bag1Scan:
         if damaged:
             raise ReadError(f"cannot read file: {damaged[0][1]}", str(damaged[0][0]),
                             "pass the intact bags, or this one alone to read it by a linear scan")
-        return BagSource(paths, "rosbag1")
+        return BagSource(paths, ".bag")
     reason = damaged[0][1] if damaged else ""
     if not reason:
         try:
-            return BagSource(paths, "rosbag1")
+            return BagSource(paths, ".bag")
         except ReadError as exc:
             reason = exc.what.removeprefix("cannot read file: ")
     return Bag1Scan(paths[0], reason)
@@ -101,36 +103,38 @@ def _remote_bag1(objects: list[RemoteObject]) -> Bag1Index | list[Path]:
 
 
 @contextmanager
-def open_log(paths: list[Path | RemoteObject], fmts: list[str]) -> Iterator[LogSource]:
-    """The open log of ``paths`` (several only for split ROS 1 bags; a remote object is an MCAP or a ROS 1 bag)."""
-    if len(paths) > 1 and (len(set(fmts)) > 1 or fmts[0] != "rosbag1"):
-        raise ReadError("several files are read as one log only when all are ROS 1 .bag files",
-                        ", ".join(map(str, paths)), "pass one file, or the split .bag files of one recording")
+def _opened(src: LogSource, note: str = "") -> Iterator[LogSource]:
+    with src:                       # type: ignore[attr-defined]
+        yield _with_note(src, note)
+
+
+def open_mcap(paths: list[Path | RemoteObject]) -> contextlib.AbstractContextManager[LogSource]:
+    """One MCAP, a local file or a remote object read by range."""
+    return _opened(McapSource(paths[0]))
+
+
+def open_bag1(paths: list[Path | RemoteObject]) -> contextlib.AbstractContextManager[LogSource]:
+    """ROS 1 bag(s): one indexed remote bag by range, other remote bags from their downloads, local ones
+    through rosbags or a linear scan (:func:`_open_bag1`)."""
     remote = [p for p in paths if isinstance(p, RemoteObject)]
-    if remote and fmts[0] == "rosbag1":
+    if remote:
         bag = _remote_bag1(remote)
         if not isinstance(bag, list):
-            with bag:
-                yield bag
-            return
+            return _opened(bag)
         paths = [*bag, *(p for p in paths if isinstance(p, Path))]
-    elif remote:
-        with McapSource(remote[0]) as mcap:
-            yield mcap
-        return
-    local = [p for p in paths if isinstance(p, Path)]
-    path, fmt, note = local[0], fmts[0], ""
-    if fmt == "rosbag2" and path.is_dir():
-        storage, note = _bag2_storage(path)
-        if storage is not None:
-            path, fmt = storage, "mcap" if storage.suffix == ".mcap" else "rosbag2"
-    if fmt == "mcap":
-        src: McapSource | BagSource | Bag1Scan = McapSource(path)
-    elif fmt == "rosbag1":
-        src = _open_bag1(local)
-    else:
-        from .rosbag_reader import BagSource
+    return _opened(_open_bag1([p for p in paths if isinstance(p, Path)]))
 
-        src = BagSource([path], fmt)
-    with src:
-        yield _with_note(src, note)
+
+def open_bag2(paths: list[Path | RemoteObject]) -> contextlib.AbstractContextManager[LogSource]:
+    """A ROS 2 bag directory or bare ``.db3`` (a URL's is its download): its one ``.mcap`` storage file
+    through McapSource, else rosbags."""
+    from .rosbag_reader import BagSource
+
+    path, note = paths[0], ""
+    assert isinstance(path, Path), "ROS 2 bags are downloaded, never read by range"
+    storage = None
+    if path.is_dir():
+        storage, note = _bag2_storage(path)
+    if storage is not None and storage.suffix == ".mcap":
+        return _opened(McapSource(storage), note)
+    return _opened(BagSource([storage or path], ".db3"), note)

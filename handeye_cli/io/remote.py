@@ -274,21 +274,6 @@ class Session:
         self.notes.append(f"{url}: {why}; downloaded it whole to a temporary cache (removed at exit)")
         return target
 
-    def opened(self, url: str, fmt: str) -> Path | RemoteObject:
-        """What the reader of format ``fmt`` opens for ``url``: an MCAP with a summary and a ROS 1 bag
-        are read by range (the bag's reader downloads it to :meth:`cached` if it has no usable
-        index: see :func:`.opening.open_log`), anything else from its local copy (:meth:`cached`)."""
-        if fmt == "rosbag1":
-            return self.open(url)
-        if fmt == "mcap" and not self.is_folder(url):
-            obj = self.open(url)
-            if obj.prefetch_summary():
-                return obj
-            return self.cached(url, "an MCAP without a summary (cut short, or written without one) cannot be "
-                                    "read by range")
-        why = {"rosbag2": "a ROS 2 bag is read from a file"}
-        return self.cached(url, why.get(fmt, "a text file is read whole"))
-
     def _download(self, obj: RemoteObject, target: Path) -> None:
         if self._cached_bytes + obj.size > CACHE_LIMIT:
             raise ReadError(f"the download cache would exceed {CACHE_LIMIT >> 20} MiB "

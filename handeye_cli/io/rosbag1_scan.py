@@ -23,11 +23,11 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
-from rosbags.rosbag1.reader import Header, ReaderError, RecordType, decompressors, read_uint32
+from rosbags.rosbag1.reader import Header, ReaderError, RecordType, read_uint32
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from ..errors import ReadError
-from .common import CHUNK_LIMIT, ChunkError, decode_errors, inflate, open_clamped
+from .common import CHUNK_LIMIT, ChunkError, decode_errors, inflate, open_clamped, unreadable
 from .messages import normalize_type, pose_decoder
 from .remote import RemoteObject
 from .source import Decoder, TopicInfo, spans_by_topic
@@ -35,7 +35,7 @@ from .source import Decoder, TopicInfo, spans_by_topic
 __all__ = ["Bag1Scan", "Bag1Index", "indexed", "check_lengths"]
 
 _MAGIC = b"#ROSBAG V2.0\n"
-_ERRORS: tuple[type[BaseException], ...] = (ReaderError, KeyError, *decode_errors())
+_ERRORS: tuple[type[BaseException], ...] = (ReaderError, *decode_errors())
 
 
 class _Bag1:
@@ -136,7 +136,8 @@ class _Bag1:
 
     def read(self, topics: Sequence[str]) -> Iterator[tuple[str, int, bytes, Any]]:
         ids = {cid for cid, (topic, _, _) in self._conns.items() if topic in topics}
-        decoders = {cid: self._decoder(*self._conns[cid][1:]) for cid in ids}
+        with unreadable(self.name):     # a damaged message definition
+            decoders = {cid: self._decoder(*self._conns[cid][1:]) for cid in ids}
         self.truncated = False
         for conn, stamp, raw in self._messages(ids):
             yield self._conns[conn][0], stamp, raw, decoders[conn]
@@ -280,7 +281,7 @@ def _decompress(compression: str, data: bytes, size: int) -> bytes:
     """A chunk's records (``size`` [B] declared); of a chunk cut off, as much as its complete
     compressed blocks give. ChunkError past ``size`` or :data:`.common.CHUNK_LIMIT`."""
     if compression not in ("none", "bz2", "lz4"):
-        return bytes(decompressors[compression](data))     # rosbags names the unsupported compression
+        raise ReaderError(f"unsupported chunk compression {compression!r}")
     return inflate(compression, data, size, partial=True)
 
 

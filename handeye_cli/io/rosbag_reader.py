@@ -32,36 +32,34 @@ from .source import Decoder, TopicInfo, spans_by_topic
 
 __all__ = ["BagSource"]
 
-_SUFFIX = {"rosbag1": ".bag", "rosbag2": ".db3", "mcap": ".mcap"}
-
 storage_mcap.DECOMPRESSORS.update(zstd=partial(inflate, "zstd"), lz4=partial(inflate, "lz4"))
 bag1_reader.decompressors.update(bz2=partial(inflate, "bz2", size=CHUNK_LIMIT),
                                  lz4=partial(inflate, "lz4", size=CHUNK_LIMIT))
 
 
 class BagSource:
-    """Open bag(s) of one format (``rosbag1``: any number of files; ``rosbag2``: one bag
-    directory or ``.db3``; ``mcap``: one ROS 2 ``.mcap``)."""
+    """Open bag(s) of one format, named by the suffix rosbags knows it by (``.bag``: any number of
+    ROS 1 files; ``.db3``: one ROS 2 bag directory or ``.db3``; ``.mcap``: one ROS 2 ``.mcap``)."""
 
-    def __init__(self, paths: Sequence[Path], fmt: str) -> None:
+    def __init__(self, paths: Sequence[Path], suffix: str) -> None:
         self.name = ", ".join(str(p) for p in paths)
         self._db3 = ([q for p in paths for q in (sorted(Path(p).glob("*.db3")) if Path(p).is_dir() else [Path(p)])]
-                     if fmt == "rosbag2" else [])
+                     if suffix == ".db3" else [])
         self._stack = ExitStack()
         with unreadable(self.name):
             try:
-                real = [self._with_suffix(Path(p), fmt) for p in paths]
+                real = [self._with_suffix(Path(p), suffix) for p in paths]
                 self._reader = self._stack.enter_context(
                     AnyReader(real, default_typestore=get_typestore(Stores.ROS2_HUMBLE)))
             except BaseException:
                 self._stack.close()
                 raise
 
-    def _with_suffix(self, p: Path, fmt: str) -> Path:
-        if p.is_dir() or p.suffix == _SUFFIX[fmt]:
+    def _with_suffix(self, p: Path, suffix: str) -> Path:
+        if p.is_dir() or p.suffix == suffix:
             return p
         tmp = Path(self._stack.enter_context(tempfile.TemporaryDirectory(prefix="handeye-")))
-        link = tmp / (p.stem + _SUFFIX[fmt])
+        link = tmp / (p.stem + suffix)
         os.symlink(p.resolve(), link)
         return link
 
