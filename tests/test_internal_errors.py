@@ -21,12 +21,12 @@ TOPICS = ["--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose"]
 
 # command → (module, function it calls, arguments that reach that call)
 INJECTED = {
-    "calibrate": ("handeye_cli.cli.calibrate", "calibrate_files", [SAMPLES / "rig.mcap", *TOPICS, "-q"]),
+    "calibrate": ("handeye_cli.cli.calibrate", "calibrate_specs", [SAMPLES / "rig.mcap", *TOPICS, "-q"]),
     "solve": ("handeye_cli.cli.solve", "read_pairs", [SAMPLES / "pairs.csv"]),
     "inspect": ("handeye_cli.io", "inspect_log", [SAMPLES / "rig.mcap"]),
     "rig": ("handeye_cli.cli.rig", "options_from_cli", [SAMPLES / "rig4.mcap", "--stream", "cam0=/cam0/pose",
                                                         "--stream", "cam1=/cam1/pose"]),
-    "compare": ("handeye_cli.cli.compare", "calibrate_files", [SAMPLES / "rig.mcap", *TOPICS, "-q"]),
+    "compare": ("handeye_cli.cli.compare", "calibrate_specs", [SAMPLES / "rig.mcap", *TOPICS, "-q"]),
     "check": ("handeye_cli.cli.check", "read_result", [SAMPLES / "truth.yaml", "--against", SAMPLES / "truth.yaml"]),
     "batch": ("handeye_cli.cli.batch", "run_batch", [SAMPLES / "rig.mcap", *TOPICS, "-q"]),
     "report": ("handeye_cli.output.fleet_report", "read_records", [SAMPLES / "truth.yaml", "-o", "r.html"]),
