@@ -11,6 +11,7 @@ SIGMA_R, SIGMA_T = np.deg2rad(0.57), 0.01
 SWEEP = np.logspace(-2.0, 1.7, 12)
 
 
+@pytest.mark.statistical
 @pytest.mark.parametrize("scenario", ["random", "line", "circle"])
 def test_auto_alpha_within_20_percent_of_the_sweep_best(scenario):
     trials = 8
@@ -59,6 +60,7 @@ def test_noise_free_data_falls_back():
     assert choice.method == "residual-ratio" and choice.alpha == 1.0
 
 
+@pytest.mark.statistical
 @pytest.mark.parametrize("scenario", ["random", "line", "circle"])
 def test_noise_model_alpha_is_never_worse_than_alpha_one(scenario):
     """The default rule (ML α under the noise model) on the paper's scenarios: mean errors over the

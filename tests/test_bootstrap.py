@@ -35,6 +35,7 @@ def test_replicate_with_unit_counts_is_the_full_solve(prior):
         np.testing.assert_allclose(dq.to_transform(r.q, r.qd), want, atol=1e-9)
 
 
+@pytest.mark.statistical
 def test_95_percent_intervals_cover_the_truth_about_95_percent_of_the_time():
     hits = np.zeros(6)
     for trial in range(100):
@@ -113,6 +114,7 @@ def test_vectorised_dqopt_matches_the_project_dqopt(scenario):
     np.testing.assert_allclose(_solve_replicates(Q), want, atol=1e-9)
 
 
+@pytest.mark.statistical
 def test_samples_bootstrap_accounts_for_pairs_sharing_poses():
     """Keyframe pairs reuse each pose in many pairs: resampling poses (vertex bootstrap) must
     spread wider than resampling pairs, and its intervals must contain the truth."""

@@ -35,6 +35,7 @@ def _case(scenario: str, seed: int) -> tuple[np.ndarray, np.ndarray, dict]:
     return A, B, kw
 
 
+@pytest.mark.statistical
 @pytest.mark.parametrize("scenario", SCENARIOS)
 def test_every_optimal_solve_is_certified(scenario):
     """Noise-free, singular M, prior, weights, α from 0.01 to 100 and 20 m translations: 60 seeds each."""
@@ -52,6 +53,7 @@ def test_every_optimal_solve_is_certified(scenario):
     assert singular >= (0 if scenario == "planar" else 10)
 
 
+@pytest.mark.statistical
 def test_dqitr_is_certified_where_it_converges_and_warned_where_not():
     """DQItr may cycle (§3.2.5); where it ends away from the optimum the certificate says so."""
     certified = warned = 0
@@ -117,6 +119,7 @@ def test_rejects_the_other_stationary_points(seed):
         assert len(wrong.warnings) == 1 and "numerical failure of dqopt" in wrong.warnings[0]
 
 
+@pytest.mark.statistical
 def test_rejects_the_optimum_of_another_alpha_and_a_perturbed_optimum():
     for seed in range(10):
         rng = np.random.default_rng(seed)

@@ -53,6 +53,7 @@ def _fixed_errors(rec: Recording, offset_s: float) -> np.ndarray:
     return out
 
 
+@pytest.mark.statistical
 @pytest.mark.parametrize("name", ["vio-mocap", "rates", "clock-offset", "arm"])
 def test_defaults_within_1_2_of_the_best_fixed_strategy_and_alpha(name: str, tmp_path: Path,
                                                                   capsys: pytest.CaptureFixture[str]) -> None:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from handeye_cli import calibrate
 from handeye_cli.analysis import extrinsic_error
@@ -20,6 +21,7 @@ def _check(name: str, seed: int):
     return rec, cal, check
 
 
+@pytest.mark.statistical
 def test_upright_vio_rotation_keeps_up_with_a_rotation_first_solver_on_the_same_pairs():
     ratios = []
     for seed in (0, 1):

@@ -62,6 +62,7 @@ def test_a_sparse_stream_has_no_jitter_estimate():
     assert stream_noise(a) is None
 
 
+@pytest.mark.statistical
 def test_clean_recordings_of_every_kind_pass_over_seeds():
     ratios = {}
     for name in SCENARIOS:

@@ -98,6 +98,7 @@ def _range95(values: np.ndarray) -> np.ndarray:
     return np.diff(np.percentile(values, [2.5, 97.5], axis=0), axis=0)[0]
 
 
+@pytest.mark.statistical
 def test_bootstrap_spread_at_small_n_matches_the_monte_carlo_spread():
     """n = 20 pairs: the 95 % range of the bootstrap's rotation replicates against the 95 % range of the
     estimate's rotation error over 300 fresh datasets (fresh motions and noise, as the pairs bootstrap
@@ -121,6 +122,7 @@ def test_bootstrap_spread_at_small_n_matches_the_monte_carlo_spread():
 
 # 4. The time offset's reported std against its errors across seeds ----------------------------------------------
 
+@pytest.mark.statistical
 def test_time_offset_std_is_calibrated_across_seeds():
     X = random_transform(np.random.default_rng(31), 0.3)
     z = []

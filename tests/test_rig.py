@@ -176,6 +176,7 @@ def testsigned_rank_p() -> None:
     assert signed_rank_p(np.r_[np.arange(1.0, 11.0), -np.arange(11.0, 21.0)]) > 0.95  # W⁺ = 55 of 210
 
 
+@pytest.mark.statistical
 def test_joint_never_loses_to_a_pairwise_chain(mixed_rigs) -> None:
     """Every sensor, rotation and translation: the joint estimate is no worse than the best chain of
     pairwise-only results (chosen in hindsight, per sensor and component) by a paired one-sided test
@@ -196,6 +197,7 @@ def test_joint_never_loses_to_a_pairwise_chain(mixed_rigs) -> None:
         assert p > 0.01, (k, c, ratio, p, best, found)
 
 
+@pytest.mark.statistical
 def test_bad_stream_named_and_the_rest_consistent(mixed_rigs) -> None:
     """The badly scaled lidar is named on at least 19 of the 20 rigs (measured: 20), each rig is called
     inconsistent, and without the lidar's pairs the rest is consistent as a χ² would be under the
@@ -228,6 +230,7 @@ def _faulty(seed: int, fault: str) -> tuple[int, object]:
 FAULT_SEEDS = 6
 
 
+@pytest.mark.statistical
 @pytest.mark.parametrize("fault", ["offset", "slip"])
 def test_bad_stream_named(fault: str) -> None:
     """A fixed clock offset 30 ms wrong, a mount that slips 1° / 5 mm half-way, on 6 gappy drifting rigs,
@@ -306,6 +309,7 @@ def test_drift_bias_is_removed() -> None:
     assert 0.7 * error < drift["bias"]["translation_m"] < 1.3 * error
 
 
+@pytest.mark.statistical
 def test_noise_model_is_calibrated(mixed_rigs) -> None:
     """The noise model's predictions hold on the same rigs, where the bad lidar does not enter: each
     pairwise estimate of the two cameras is a χ² of 6 degrees of freedom against the truth under its

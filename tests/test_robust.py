@@ -31,6 +31,7 @@ def _trial(seed, n=100, fraction=0.1):
     return clean, plain, extrinsic_error(result.solution.matrix, X), bad, result
 
 
+@pytest.mark.statistical
 def test_ten_percent_outliers_within_1_5x_of_outlier_free_error():
     trials = [_trial(s) for s in range(12)]
     clean = np.median([t[0] for t in trials], axis=0)

@@ -46,6 +46,7 @@ def test_scale_of_an_arm_capture_within_0_1_percent_and_its_std():
     assert rot < 0.05 and trans < 0.002
 
 
+@pytest.mark.statistical
 def test_scale_std_matches_the_spread_over_captures():
     """Exact kinematics: every capture's scale within 0.1 % and within 3 of its own std; the errors'
     RMS in stds near 1 (the jackknife over stations, not the pairs-as-independent figure)."""
@@ -57,6 +58,7 @@ def test_scale_std_matches_the_spread_over_captures():
     assert np.all(np.abs(z) < 3) and 0.3 < np.sqrt(np.mean(np.square(z))) < 1.7, z
 
 
+@pytest.mark.statistical
 def test_scale_of_a_noisy_camera_is_not_attenuated():
     """Errors in variables: the camera's translations multiply the scale, so least squares on the plain
     residuals pulls it low by more than its σ at 8 mm / 0.8° camera noise. Weighed by the streams' jitter

@@ -3,6 +3,7 @@ at most 2x what the true scale gives on the same streams (paired per seed)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from handeye_cli import calibrate
 from handeye_cli.analysis import extrinsic_error
@@ -13,6 +14,7 @@ from handeye_cli.simulation.recordings import absolute, drifting, simulate_recor
 SCALE = 0.5
 
 
+@pytest.mark.statistical
 def test_monocular_vio_scale_is_covered_by_its_sigma_and_costs_little_translation():
     z, auto, known = [], [], []
     for seed in range(2):

@@ -39,6 +39,7 @@ def _problem(seed: int):
     return A, B, alpha, prior
 
 
+@pytest.mark.statistical
 @pytest.mark.parametrize("block", range(10))
 def test_dqopt_is_the_global_optimum(block):
     """Least squares on the same cost, from dqopt and from random starts, never goes lower (≥ 100 problems):
@@ -122,6 +123,7 @@ def test_noise_free_recovery(method, scenario):
         assert np.allclose(r.translation, X[:3, 3], atol=1e-9)
 
 
+@pytest.mark.statistical
 def test_approximations_follow_table_1():
     """Never below dqopt; mean cost excess ordered dq2ndord < dqconvrlx < dq2steps; dqitr → dqopt."""
     excess = {m: [] for m in ("dq2ndord", "dqconvrlx", "dq2steps")}

@@ -36,6 +36,7 @@ def test_offsets_of_minutes_are_found_within_a_millisecond(offset_s: float) -> N
     assert est.correlation > 0.95 and est.warnings == ()
 
 
+@pytest.mark.statistical
 def test_refinement_beats_the_coarse_peak_under_heavy_noise() -> None:
     final, coarse = [], []
     for seed in range(6):
