@@ -310,10 +310,10 @@ def test_a_result_file_that_cannot_be_written_is_its_records_error(capsys, monke
         calibrated[0] if calibrated else calibrated.append(real_calibrate(job)) or calibrated[0]))
     real = writers._replace_atomically
 
-    def replace(p: Path, text: str, mode: int | None) -> None:
+    def replace(p: Path, text: str) -> None:
         if "full" in p.name:
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        real(p, text, mode)
+        real(p, text)
 
     monkeypatch.setattr(writers, "_replace_atomically", replace)
     code, out, _ = run(capsys, "batch", *inputs, *TOPICS, "-q", "--jobs", "1", "--output-dir", "results")
