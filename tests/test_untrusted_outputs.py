@@ -26,8 +26,11 @@ VICTIM = b"the user's own file: not to be touched\n"
 
 
 def _handeye(cwd: Path, *args: str, preexec=None, timeout: float = 60) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-W", "error", "-m", "handeye_cli", *map(str, args)], cwd=cwd,
-                          capture_output=True, text=True, timeout=timeout, preexec_fn=preexec)
+    """``python -W error -m handeye_cli ARGS`` in ``cwd``, importing this checkout's package (not an
+    installed one: a relative PYTHONPATH would not survive the change of folder)."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    return subprocess.run([sys.executable, "-W", "error", "-m", "handeye_cli", *map(str, args)], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=timeout, preexec_fn=preexec, stdin=subprocess.DEVNULL)
 
 
 def _records(out: str) -> list[dict]:
