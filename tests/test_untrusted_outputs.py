@@ -151,3 +151,101 @@ def test_a_full_disk_under_output_dir_is_one_line_naming_the_folder_and_every_re
     done = _handeye(tmp_path, "batch", "a.mcap", *TOPICS, "-q", "--output-dir", "out")
     assert done.returncode == 0 and done.stderr == ""
     assert _records(done.stdout)[0]["result_file"] == "out/a.mcap.yaml"
+
+
+def test_calibrate_o_onto_a_full_disk_is_one_line_and_leaves_the_old_file_whole(tmp_path):
+    old = tmp_path / "result.yaml"
+    old.write_bytes(VICTIM)                              # an earlier result: a failed write must not cut it
+    done = _handeye(tmp_path, "calibrate", LOG, *TOPICS, "-q", "-o", "result.yaml", preexec=_small_disk)
+    assert done.returncode == 2
+    assert done.stderr.splitlines() == [
+        f"error: cannot write ({os.strerror(errno.EFBIG)}) (result.yaml): choose another -o path"]
+    assert old.read_bytes() == VICTIM and sorted(p.name for p in tmp_path.iterdir()) == ["result.yaml"]
+
+
+def test_a_planted_link_to_the_cache_beside_a_result_file_is_replaced(tmp_path):
+    victim = _victim(tmp_path)
+    _log(tmp_path / "a.mcap")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "a.mcap.urdf").symlink_to(victim)
+    (out / "a.mcap.urdf.handeye.json").symlink_to(victim)  # the batch key's file (the cache)
+    done = _handeye(tmp_path, "batch", "a.mcap", *TOPICS, "-q", "--output-dir", "out", "--format", "urdf")
+    assert done.returncode == 0, done.stderr
+    assert victim.read_bytes() == VICTIM
+    assert all(not p.is_symlink() and p.is_file() for p in out.iterdir())
+    assert sorted(p.name for p in out.iterdir()) == ["a.mcap.urdf", "a.mcap.urdf.handeye.json"]
+    again = _handeye(tmp_path, "batch", "a.mcap", *TOPICS, "-q", "--output-dir", "out", "--format", "urdf",
+                     "--skip-done")
+    assert again.returncode == 0 and _records(again.stdout)[0]["seconds"] == _records(done.stdout)[0]["seconds"]
+
+
+# --- 3. special files among the inputs ---------------------------------------------------------
+
+def test_a_fifo_in_a_searched_folder_is_an_error_record_and_never_opened(tmp_path):
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    _log(logs / "a.mcap")
+    os.mkfifo(logs / "b.mcap")                           # no one writes it: opening it would block the batch
+    _log(logs / "c.mcap")
+    done = _handeye(tmp_path, "batch", "--jobs", "2", "logs", *TOPICS, "-q", timeout=30)
+    records = _records(done.stdout)
+    assert done.returncode == 2 and done.stderr == ""
+    assert [(r["input"], r["status"]) for r in records] == [("logs/a.mcap", "ok"), ("logs/b.mcap", "error"),
+                                                            ("logs/c.mcap", "ok")]
+    assert records[1]["error"].startswith("logs/b.mcap is a FIFO, not a log file")
+    # named explicitly, alone: the same error record, no hang
+    done = _handeye(tmp_path, "batch", "logs/b.mcap", *TOPICS, "-q", timeout=30)
+    assert done.returncode == 2 and done.stderr == ""
+    assert [(r["input"], r["status"]) for r in _records(done.stdout)] == [("logs/b.mcap", "error")]
+
+
+# --- 5. nominals whose numbers overflow ----------------------------------------------------------
+
+_HUGE = {
+    "urdf": ("robot.urdf", '<robot name="r"><link name="a"/><link name="b"/><joint name="mount" type="fixed">'
+             '<parent link="a"/><child link="b"/><origin xyz="1e308 1e308 0" rpy="0 0 0"/></joint></robot>',
+             "joint mount"),
+    "ros1-launch": ("tf.launch", '<launch><node pkg="tf2_ros" type="static_transform_publisher" name="s" '
+                    'args="1e308 1e308 0 0 0 0 a b"/></launch>', "x y z yaw pitch roll"),
+    "ros2-launch": ("tf.launch.py", "from launch import LaunchDescription\nfrom launch_ros.actions import Node\n"
+                    "Node(package='tf2_ros', executable='static_transform_publisher',\n"
+                    "     arguments=['0', '0', '0', '1e200', '0', '0', '1', 'a', 'b'])\n", "x y z qx qy qz qw"),
+    "tf-static": ("tf.sh", "ros2 run tf2_ros static_transform_publisher --x 1e308 --y 1e308 --frame-id a "
+                  "--child-frame-id b\n", "--x"),
+    "kalibr": ("camchain.yaml", "cam0:\n  T_cam_imu: [[1, 0, 0, 1e308], [0, 1, 0, 1e308], [0, 0, 1, 0], "
+               "[0, 0, 0, 1]]\n", "cam0.T_cam_imu"),
+    "result": ("nominal.json", json.dumps({"frames": {"a": "a", "b": "b"}, "translation": [1e308, 1e308, 0],
+                                           "quaternion_xyzw": [0, 0, 0, 1]}), "'translation'"),
+}
+
+
+@pytest.fixture(scope="module")
+def result_file(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("result")
+    done = _handeye(folder, "calibrate", LOG, *TOPICS, "-q", "-o", "r.yaml")
+    assert done.returncode == 0, done.stderr
+    return folder / "r.yaml"
+
+
+@pytest.mark.parametrize("kind", _HUGE)
+def test_a_nominal_whose_numbers_overflow_is_one_line_naming_the_file_and_field(kind, result_file, tmp_path):
+    name, text, field = _HUGE[kind]
+    (tmp_path / name).write_text(text)
+    done = _handeye(tmp_path, "check", result_file, "--against", name, "--format", "json")
+    assert done.returncode == 2 and done.stdout == ""
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and name in lines[0] and field in lines[0], lines
+    assert "beyond ±1e+150" in lines[0]
+
+
+def test_a_result_read_back_whose_numbers_overflow_is_one_line(result_file, tmp_path):
+    import yaml
+
+    doc = yaml.safe_load(result_file.read_text())
+    doc["matrix"][0][3] = 1e308
+    (tmp_path / "r.yaml").write_text(yaml.safe_dump(doc))
+    done = _handeye(tmp_path, "check", "r.yaml", "--against", result_file, "--format", "json")
+    assert done.returncode == 2 and done.stdout == ""
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and "'matrix'" in lines[0] and "r.yaml" in lines[0] and "beyond" in lines[0], lines

@@ -135,16 +135,24 @@ def _own_file(path: Path) -> bool:
         return False
 
 
+def _own_text(path: Path) -> str:
+    """The text of the regular file ``path`` itself: opened without following a link and without
+    blocking (a FIFO swapped in after :func:`_own_file`); OSError for anything but a regular file."""
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    with open(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(f"{path} is not a regular file")
+        return f.read().decode("utf-8")
+
+
 def load_done(output_dir: Path, job: Job, key: str, fmt: str) -> dict[str, Any] | None:
-    """The record stored for ``job`` when it was computed with ``key`` (without its verdict), else None."""
+    """The record stored for ``job`` when it was computed with ``key`` (without its verdict), else None:
+    a result or cache file that is not a regular file itself (a planted link, a FIFO) is not trusted."""
     path = result_path(output_dir, job, fmt)
     if not _own_file(path):
         return None
-    path = _cache_path(path, fmt)
-    if not _own_file(path):
-        return None
     try:
-        doc = load_yaml(path.read_text(encoding="utf-8"))      # a shared folder: no aliases, bounded depth
+        doc = load_yaml(_own_text(_cache_path(path, fmt)))      # a shared folder: no aliases, bounded depth
     except (OSError, UnicodeDecodeError, yaml.YAMLError):
         return None
     meta = doc.get("batch") if isinstance(doc, dict) else None
