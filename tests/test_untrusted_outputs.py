@@ -163,14 +163,15 @@ def test_calibrate_o_onto_a_full_disk_is_one_line_and_leaves_the_old_file_whole(
     assert old.read_bytes() == VICTIM and sorted(p.name for p in tmp_path.iterdir()) == ["result.yaml"]
 
 
-def test_a_planted_link_to_the_cache_beside_a_result_file_is_replaced(tmp_path):
+def test_a_planted_link_and_fifo_as_a_result_file_and_its_cache_are_replaced(tmp_path):
     victim = _victim(tmp_path)
     _log(tmp_path / "a.mcap")
     out = tmp_path / "out"
     out.mkdir()
     (out / "a.mcap.urdf").symlink_to(victim)
-    (out / "a.mcap.urdf.handeye.json").symlink_to(victim)  # the batch key's file (the cache)
-    done = _handeye(tmp_path, "batch", "a.mcap", *TOPICS, "-q", "--output-dir", "out", "--format", "urdf")
+    os.mkfifo(out / "a.mcap.urdf.handeye.json")          # the batch key's file (the cache): opening it would block
+    done = _handeye(tmp_path, "batch", "a.mcap", *TOPICS, "-q", "--output-dir", "out", "--format", "urdf",
+                    timeout=30)
     assert done.returncode == 0, done.stderr
     assert victim.read_bytes() == VICTIM
     assert all(not p.is_symlink() and p.is_file() for p in out.iterdir())
