@@ -12,7 +12,9 @@ A symbolic link at the path is never appended through (a link planted in a share
 make the batch write into another file) nor read: it is replaced by a new, empty regular file (a
 temporary file renamed over the link), so with ``--skip-done`` every input runs again, as a result
 file that is a link is not trusted either; the path is then opened with ``O_NOFOLLOW``, so a link
-planted again in between is one line (exit 2), not a write. A link to a FIFO or device
+planted again in between is one line (exit 2), not a write. Without ``--skip-done`` a regular file
+is replaced by a new empty one the same way (not truncated in place: a hard link to it keeps its
+content). A link to a FIFO or device
 (``/dev/stdout``) is written through, as the FIFO or device itself is (see
 :mod:`handeye_cli.output.writers`).
 """
@@ -42,8 +44,8 @@ class Journal:
         self.regular = True
         through = written_through(self.path)
         try:
-            if self.path.is_symlink() and not through:        # planted? its target is neither read nor written
-                replace_atomically(self.path, lambda fd: None)
+            if not through and (self.path.is_symlink() or not resume):    # a planted link's target is neither
+                replace_atomically(self.path, lambda fd: None)                # read nor written; a fresh file is new
             flags = os.O_RDWR | os.O_CREAT | os.O_APPEND | (0 if resume else os.O_TRUNC)
             self.fd = os.open(self.path, flags | (0 if through else os.O_NOFOLLOW), 0o666)
         except OSError as e:
