@@ -265,8 +265,9 @@ def _gone(pids: set[int], timeout: float = 5.0) -> bool:
 def _start(tmp_path: Path, inputs: list[str], out: Path, *extra: str) -> subprocess.Popen:
     os.mkfifo(tmp_path / "fifo")
     driver = DRIVER.format(fifo=str(tmp_path / "fifo"))
-    return subprocess.Popen([sys.executable, "-c", driver, "batch", *inputs, *TOPICS, "-q", "--jobs", "2", *extra],
-                            cwd=tmp_path, stdout=out.open("w"), stderr=subprocess.PIPE, text=True)
+    with out.open("w") as stdout:                       # the child holds its own copy
+        return subprocess.Popen([sys.executable, "-c", driver, "batch", *inputs, *TOPICS, "-q", "--jobs", "2",
+                                 *extra], cwd=tmp_path, stdout=stdout, stderr=subprocess.PIPE, text=True)
 
 
 def test_sigterm_kills_the_workers_keeps_whole_records_and_skip_done_resumes(capsys, monkeypatch, tmp_path):
