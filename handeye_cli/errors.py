@@ -88,7 +88,11 @@ class FitRejectedError(DataError):
 
 
 class WriteError(HandEyeError):
-    """A result, report or other output could not be written."""
+    """A result, report or other output could not be written; ``errno`` and ``strerror`` are the
+    operating system's when it refused (a full disk: ``ENOSPC``), else None."""
+
+    errno: int | None = None
+    strerror: str | None = None
 
 
 #: the library's keywords whose flag is not the keyword dashed (``max_jump`` ↔ ``--max-jump``), both ways:

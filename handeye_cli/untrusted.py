@@ -8,6 +8,10 @@ frame ids (from logs, nominals and the command line).
 * :func:`frame_id_problem` is the frame-id rule every stream, nominal and ``--name-a`` obeys:
   tf2's — no whitespace, no control or other unprintable characters (line and paragraph
   separators included), no quotes or backslash, at most :data:`MAX_FRAME_ID` characters.
+* :func:`numbers_problem` is the rule for the numbers of a transform read from a file (nominals,
+  priors, results read back): finite, and at most :data:`MAX_MAGNITUDE` (1e150) in absolute value,
+  so that their squares (a norm, a residual, a verdict's distance) and sums of many of them stay
+  finite: ``xyz="1e308 1e308 0"`` is refused where it is read, not met as an overflow later.
 
 See the threat model in docs/design.md.
 """
@@ -15,12 +19,17 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 import yaml
 
-__all__ = ["MAX_FRAME_ID", "MAX_YAML_DEPTH", "frame_id_problem", "load_yaml", "yaml_problem"]
+__all__ = ["MAX_FRAME_ID", "MAX_MAGNITUDE", "MAX_YAML_DEPTH", "frame_id_problem", "load_yaml", "numbers_problem",
+           "yaml_problem"]
 
 MAX_YAML_DEPTH = 100
 MAX_FRAME_ID = 256
+MAX_MAGNITUDE = 1e150
+"""The largest absolute value of a transform's number read from a file: its square, 1e300, and a sum of
+many such squares stay below float64's 1.8e308 (a metre of translation beyond it is no extrinsic)."""
 _QUOTES = "'\"`\\"
 
 
@@ -56,6 +65,16 @@ def yaml_problem(error: yaml.YAMLError, where: str) -> tuple[str, str]:
     mark = getattr(error, "problem_mark", None)
     problem = getattr(error, "problem", None) or "invalid YAML"
     return str(problem), f"{where}:{mark.line + 1}" if mark else where
+
+
+def numbers_problem(values: Any) -> str | None:
+    """Why the numbers ``values`` (an array) break the rule of :data:`MAX_MAGNITUDE`, or None when they keep it."""
+    a = np.asarray(values, dtype=float)
+    if not np.isfinite(a).all():
+        return "it holds a non-finite number (NaN or inf)"
+    if a.size and np.abs(a).max() > MAX_MAGNITUDE:
+        return f"it holds {a.flat[np.abs(a).argmax()]:g}, beyond ±{MAX_MAGNITUDE:g} (its square would overflow)"
+    return None
 
 
 def frame_id_problem(name: str) -> str | None:

@@ -129,6 +129,8 @@ def batch(ctx: click.Context, /, inputs: tuple[str, ...], **o: Any) -> None:
         from ..output.fleet_report import write_fleet_report
 
         write_fleet_report(o["report_file"], shown, "--report")
+    if summary.full:                      # a full disk: one line, even with -q (each record says what was written)
+        click.echo(f"error: {summary.full}", err=True)
     if not o["quiet"]:
         click.echo(summary.text(), err=True)
     ctx.exit(summary.exit_code)

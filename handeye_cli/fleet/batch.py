@@ -2,10 +2,12 @@
 
 Records are JSON Lines (one per input, in input order, written as soon as every earlier input is
 done): ``input``, ``status`` (``ok`` | ``drift`` | ``error``), ``error`` (one line) when it failed,
-the calibrate result's keys when it calibrated, ``log_span_ns``, ``verdict`` with a nominal, and
-``seconds`` last (the only field that differs between executors and runs). A result file that
-cannot be written (a full disk) makes its record an error that says so, keeping the result and
-verdict. Exit code: 1 when an input drifted (its verdict says so), else 2 when an input failed,
+the calibrate result's keys when it calibrated, ``log_span_ns``, ``verdict`` with a nominal,
+``result_file`` with ``--output-dir`` (the file written, or null when none was), and ``seconds``
+last (the only field that differs between executors and runs). A result file that cannot be
+written (a full disk) makes its record an error that says so, keeping the result and verdict; a
+full disk (ENOSPC, EDQUOT, or EFBIG from a file-size limit) is also told once, as
+:attr:`BatchSummary.full`, which the CLI prints as one ``error:`` line naming the folder. Exit code: 1 when an input drifted (its verdict says so), else 2 when an input failed,
 else 3 when ``strict`` and a result has warnings, else 0.
 """
 from __future__ import annotations
@@ -24,7 +26,8 @@ from ..io.nominal import Nominal
 from ..io.progress import Progress, progress
 from ..output.document import finite
 from ..output.records import BatchRecord
-from .cache import job_key, load_done, store
+from ..output.writers import FULL
+from .cache import job_key, load_done, result_path, store
 from .engine import Job, run_jobs
 
 __all__ = ["BatchSettings", "BatchSummary", "run_batch", "record_line"]
@@ -67,6 +70,13 @@ class BatchSummary:
     slowest: list[tuple[float, str]] = field(default_factory=list)
     worst: list[tuple[float, int, str, Verdict]] = field(default_factory=list)
     errors: list[tuple[str, str]] = field(default_factory=list)
+    full: str | None = None
+
+    def disk_full(self, folder: Path, reason: str) -> None:
+        """Note the first result file that a full disk kept from being written (``folder``: ``--output-dir``)."""
+        if self.full is None:
+            self.full = str(WriteError(f"cannot write the result files ({reason})", str(folder),
+                                       "free space there or choose another --output-dir"))
 
     def add(self, record: BatchRecord, reused: bool = False) -> None:
         """Count one record (``reused``: taken from a result file or the records file, not run)."""
@@ -145,6 +155,13 @@ def _judge(record: Record, s: BatchSettings) -> Record:
     return {**head, **record, "seconds": seconds}
 
 
+def _with_file(record: Record, path: Path | None) -> Record:
+    """``record`` with its ``result_file`` (``path``, or None: not written) just before ``seconds``."""
+    seconds = record.pop("seconds", None)
+    record.pop("result_file", None)
+    return {**record, "result_file": None if path is None else str(path), "seconds": seconds}
+
+
 class _Ordered:
     """Emits records in input order: a record that finishes before an earlier input's waits here
     (only those: the memory is the records finished ahead of the slowest running input, not the
@@ -204,14 +221,17 @@ def run_batch(jobs: Sequence[Job], settings: BatchSettings, emit: Callable[[str]
 
         def finish(i: int, record: Record) -> None:
             record = _judge(record, settings)
+            written = None
             if out_dir is not None and "matrix" in record:
                 try:
-                    store(out_dir, jobs[i], record, keys.get(i, ""), settings.fmt)
+                    written = store(out_dir, jobs[i], record, keys.get(i, ""), settings.fmt)
                 except HandEyeError as e:            # e.g. a full disk: this input's error, not the batch's
+                    if isinstance(e, WriteError) and e.errno in FULL:
+                        summary.disk_full(out_dir, e.strerror or "no space")
                     status = record.pop("status")
                     record = {"input": record.pop("input"), "status": "error",
                               "error": f"calibrated ({status}), but {e}", **record}
-            ordered.done(i, record)
+            ordered.done(i, record if out_dir is None else _with_file(record, written))
 
         todo = []
         for i, job in enumerate(jobs):
@@ -225,7 +245,8 @@ def run_batch(jobs: Sequence[Job], settings: BatchSettings, emit: Callable[[str]
             if stored is None:
                 todo.append(i)
             else:
-                ordered.done(i, _judge(stored, settings), reused=True)
+                ordered.done(i, _with_file(_judge(stored, settings), result_path(out_dir, job, settings.fmt)),
+                             reused=True)
         run_jobs([jobs[i] for i in todo], lambda k, r: finish(todo[k], r), workers=settings.workers,
                  scheduler=settings.scheduler)
     summary.seconds = time.perf_counter() - start

@@ -19,11 +19,13 @@ import dataclasses
 import hashlib
 import json
 import os
+import stat
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from ..errors import WriteError
 from ..output.formats import render_format
 from ..output.writers import SUFFIXES, write_output
 from ..untrusted import load_yaml
@@ -101,27 +103,56 @@ def _cache_path(path: Path, fmt: str) -> Path:
     return path if fmt in ("yaml", "json") else path.with_name(path.name + _SIDECAR)
 
 
-def store(output_dir: Path, job: Job, record: dict[str, Any], key: str, fmt: str) -> None:
+def store(output_dir: Path, job: Job, record: dict[str, Any], key: str, fmt: str) -> Path:
     """Write a calibrated record as its result file in ``fmt`` (atomically), and its cache file
-    beside it when ``fmt`` cannot carry the batch key."""
+    beside it when ``fmt`` cannot carry the batch key; the result file's path. The names are
+    handeye's, in a folder others may write to: whatever holds them (a planted link, a FIFO) is
+    replaced, never written through (``write_output(through=False)``). When the cache file
+    cannot be written, the result file just written is removed: a record says a file was written
+    only when both were."""
     path = result_path(output_dir, job, fmt)
     meta = {k: record[k] for k in ("input", "log_span_ns", "seconds") if k in record}
-    doc = {k: v for k, v in record.items() if k not in ("input", "status", "error", "log_span_ns", "seconds")}
+    doc = {k: v for k, v in record.items()
+           if k not in ("input", "status", "error", "result_file", "log_span_ns", "seconds")}
     cached: dict[str, Any] = {**doc, "batch": {**meta, "key": key}}
     if fmt not in ("yaml", "json"):
-        write_output(path, render_format(doc, fmt), "--output-dir")
-    write_output(_cache_path(path, fmt), render_format(cached, fmt if fmt in ("yaml", "json") else "json"),
-                 "--output-dir")
+        write_output(path, render_format(doc, fmt), "--output-dir", through=False)
+    try:
+        write_output(_cache_path(path, fmt), render_format(cached, fmt if fmt in ("yaml", "json") else "json"),
+                     "--output-dir", through=False)
+    except WriteError:
+        if fmt not in ("yaml", "json"):
+            path.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _own_file(path: Path) -> bool:
+    """Whether ``path`` is a regular file itself (not a link planted to another file, not a FIFO)."""
+    try:
+        return stat.S_ISREG(os.lstat(path).st_mode)
+    except OSError:
+        return False
+
+
+def _own_text(path: Path) -> str:
+    """The text of the regular file ``path`` itself: opened without following a link and without
+    blocking (a FIFO swapped in after :func:`_own_file`); OSError for anything but a regular file."""
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    with open(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(f"{path} is not a regular file")
+        return f.read().decode("utf-8")
 
 
 def load_done(output_dir: Path, job: Job, key: str, fmt: str) -> dict[str, Any] | None:
-    """The record stored for ``job`` when it was computed with ``key`` (without its verdict), else None."""
+    """The record stored for ``job`` when it was computed with ``key`` (without its verdict), else None:
+    a result or cache file that is not a regular file itself (a planted link, a FIFO) is not trusted."""
     path = result_path(output_dir, job, fmt)
-    if not path.is_file():
+    if not _own_file(path):
         return None
-    path = _cache_path(path, fmt)
     try:
-        doc = load_yaml(path.read_text(encoding="utf-8"))      # a shared folder: no aliases, bounded depth
+        doc = load_yaml(_own_text(_cache_path(path, fmt)))      # a shared folder: no aliases, bounded depth
     except (OSError, UnicodeDecodeError, yaml.YAMLError):
         return None
     meta = doc.get("batch") if isinstance(doc, dict) else None

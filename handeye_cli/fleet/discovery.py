@@ -9,10 +9,11 @@ by content (not by extension): logs are recognised by their magic bytes, a ROS 2
 its ``metadata.yaml``, and a folder holding exactly two text pose files of one format (TUM or
 EuRoC) gives one input of the two, in name order (a, then b). Files named like logs (``.mcap``,
 ``.bag``, ``.db3``) are kept even when damaged, so that they are reported rather than silently
-skipped; other files (CSV, YAML, images …) are skipped, and so are FIFOs, sockets and devices
-(found in a folder or matched by a pattern), with a warning (opening a FIFO no one writes would
-block forever; they are told apart by ``os.stat``, which does not open them). An argument that
-names nothing, or names such a special file, becomes an input that fails with that message. Glob
+skipped; other regular files (CSV, YAML, images …) are skipped. A FIFO, socket or device — found in
+a folder, matched by a pattern or named — is never opened (opening a FIFO no one writes would
+block forever; they are told apart by ``os.stat``, which does not open them) and never skipped: it
+becomes an input that fails, its record an ``error`` saying what it is, as does an argument that
+names nothing. Glob
 patterns with ``**`` are expanded by a walk that follows a symlinked folder only the first time it
 meets that folder, so a link to ``..`` cannot loop; an input met twice (a symlink and its target,
 overlapping arguments) is kept the first time only, told apart by the identity of its files
@@ -81,7 +82,7 @@ def _not_a_file(path: str, what: str) -> str:
             "(a FIFO no one writes would block it); copy the data to a file and give that")
 
 
-def _search(root: Path, warn: Warn) -> list[BatchInput]:
+def _search(root: Path) -> list[BatchInput]:
     """The inputs under a directory (see the module docstring)."""
     found: list[BatchInput] = []
     for folder, dirs, files in os.walk(root):
@@ -95,7 +96,7 @@ def _search(root: Path, warn: Warn) -> list[BatchInput]:
         for name in sorted(f for f in files if not f.startswith(".")):
             what = _special(here / name)
             if what is not None:
-                warn(f"skipped {here / name}: {what}, not a log file")
+                found.append(BatchInput((str(here / name),), _not_a_file(str(here / name), what)))
                 continue
             kind = _kind(here / name)
             if kind == "log":
@@ -110,19 +111,16 @@ def _search(root: Path, warn: Warn) -> list[BatchInput]:
     return sorted(found, key=lambda i: i.paths)
 
 
-def _expand(arg: str, warn: Warn, matched: bool = False) -> list[BatchInput]:
-    """One argument (or, ``matched``, a path a glob pattern matched): a file, a directory, or a
-    glob pattern. A special file given is an error input; one a pattern matched is skipped."""
+def _expand(arg: str) -> list[BatchInput]:
+    """One argument, or a path a glob pattern matched: a file, a directory, or a glob pattern. A
+    special file is an error input."""
     if is_url(arg):
         return _remote(arg)
     path = Path(arg)
     if path.is_dir() and not (path / "metadata.yaml").is_file():
-        inputs = _search(path, warn)
+        inputs = _search(path)
         return inputs or [BatchInput((arg,), f"no logs found in the folder {arg}")]
     what = _special(path)
-    if what is not None and matched:
-        warn(f"skipped {arg}: {what}, not a log file")
-        return []
     if what is not None:
         return [BatchInput((arg,), _not_a_file(arg, what))]
     if path.exists():
@@ -130,7 +128,7 @@ def _expand(arg: str, warn: Warn, matched: bool = False) -> list[BatchInput]:
     if glob.has_magic(arg):
         matches = _glob(arg)
         if matches:
-            return [i for m in matches for i in _expand(m, warn, matched=True)]
+            return [i for m in matches for i in _expand(m)]
         return [BatchInput((arg,), f"the pattern {arg} matches no file")]
     return [BatchInput((arg,), f"file not found: {arg}")]
 
@@ -227,7 +225,7 @@ def _unique(inputs: list[BatchInput], warn: Warn) -> list[BatchInput]:
     return out
 
 
-def _lines(lines: Iterable[str], where: str, warn: Warn) -> list[BatchInput]:
+def _lines(lines: Iterable[str], where: str) -> list[BatchInput]:
     out: list[BatchInput] = []
     for n, line in enumerate(lines, 1):
         try:
@@ -236,7 +234,7 @@ def _lines(lines: Iterable[str], where: str, warn: Warn) -> list[BatchInput]:
             out.append(BatchInput((line.strip(),), f"{where}:{n}: {e}"))
             continue
         if len(words) == 1:
-            out.extend(_expand(words[0], warn))
+            out.extend(_expand(words[0]))
         elif len(words) == 2:
             special = [(w, what) for w in words if (what := _special(w)) is not None]
             missing = [w for w in words if not is_url(w) and not Path(w).is_file()]
@@ -249,13 +247,13 @@ def _lines(lines: Iterable[str], where: str, warn: Warn) -> list[BatchInput]:
 
 def discover(args: Iterable[str], stdin: TextIO | None = None, warn: Warn | None = None) -> list[BatchInput]:
     """The batch inputs the arguments name, in argument order (see the module docstring); ``warn``
-    is told of the files skipped. A list is split at ``\\n`` only (a trailing ``\\r`` dropped), not
+    is told of the inputs skipped (met twice). A list is split at ``\\n`` only (a trailing ``\\r`` dropped), not
     at the other line breaks of :meth:`str.splitlines` (form feed, U+2028 …), which a path may hold."""
     warn = warn or (lambda message: None)
     out: list[BatchInput] = []
     for arg in args:
         if arg == "-":
-            out.extend(_lines(_split(stdin.read() if stdin else ""), "stdin", warn))
+            out.extend(_lines(_split(stdin.read() if stdin else ""), "stdin"))
         elif arg.startswith("@"):
             listing = Path(arg[1:])
             try:
@@ -263,9 +261,9 @@ def discover(args: Iterable[str], stdin: TextIO | None = None, warn: Warn | None
             except (OSError, UnicodeDecodeError) as e:
                 out.append(BatchInput((arg,), f"cannot read the list {listing}: {e}"))
                 continue
-            out.extend(_lines(_split(text), str(listing), warn))
+            out.extend(_lines(_split(text), str(listing)))
         else:
-            out.extend(_expand(arg, warn))
+            out.extend(_expand(arg))
     return _unique(out, warn)
 
 

@@ -7,6 +7,16 @@ not run again (error records too: delete a line to retry its input); a last line
 mid-write (no newline at its end) is cut off, with a warning, and its input run again; the new
 records are appended. A damaged line that ends in a newline is refused (exit 2): a kill does not
 write one. Without ``--skip-done`` the file is started afresh.
+
+A symbolic link at the path is never appended through (a link planted in a shared folder would
+make the batch write into another file) nor read: it is replaced by a new, empty regular file (a
+temporary file renamed over the link), so with ``--skip-done`` every input runs again, as a result
+file that is a link is not trusted either; the path is then opened with ``O_NOFOLLOW``, so a link
+planted again in between is one line (exit 2), not a write. Without ``--skip-done`` a regular file
+is replaced by a new empty one the same way (not truncated in place: a hard link to it keeps its
+content). A link to a FIFO or device
+(``/dev/stdout``) is written through, as the FIFO or device itself is (see
+:mod:`handeye_cli.output.writers`).
 """
 from __future__ import annotations
 
@@ -18,6 +28,7 @@ from typing import Any
 
 from ..errors import WriteError
 from ..output.records import intact_records
+from ..output.writers import replace_atomically, write_all, written_through
 
 __all__ = ["Journal"]
 
@@ -31,8 +42,12 @@ class Journal:
         self.path, self.flag = Path(path), flag
         self.done: dict[str, Record] = {}
         self.regular = True
+        through = written_through(self.path)
         try:
-            self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_APPEND | (0 if resume else os.O_TRUNC), 0o666)
+            if not through and (self.path.is_symlink() or not resume):    # a planted link's target is neither
+                replace_atomically(self.path, lambda fd: None)                # read nor written; a fresh file is new
+            flags = os.O_RDWR | os.O_CREAT | os.O_APPEND | (0 if resume else os.O_TRUNC)
+            self.fd = os.open(self.path, flags | (0 if through else os.O_NOFOLLOW), 0o666)
         except OSError as e:
             raise WriteError(f"cannot open the records file ({e.strerror})", str(self.path),
                              f"choose another {flag} path") from None
@@ -52,9 +67,7 @@ class Journal:
 
     def append(self, line: str) -> None:
         """Append one record line (``line`` without its newline) and make it durable."""
-        data = (line + "\n").encode("utf-8")
-        while data:
-            data = data[self._call(os.write, data):]
+        self._call(write_all, (line + "\n").encode("utf-8"))
         if self.regular:
             self._call(os.fsync)
 

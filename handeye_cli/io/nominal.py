@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 from ..errors import ReadError
 from ..geometry import dualquat as dq
 from ..geometry import se3
-from ..untrusted import frame_id_problem, load_yaml, yaml_problem
+from ..untrusted import frame_id_problem, load_yaml, numbers_problem, yaml_problem
 from .pairfile import extrinsic_of
 
 if TYPE_CHECKING:
@@ -141,14 +141,17 @@ def _rpy(rpy: Any) -> NDArray[np.float64]:
 
 
 def _floats(text: str | None, n: int, where: str, field: str) -> NDArray[np.float64]:
-    """The ``n`` finite numbers of ``text`` (blank: zeros); ReadError naming ``field`` otherwise."""
+    """The ``n`` numbers of ``text`` (blank: zeros), finite and within ``untrusted.MAX_MAGNITUDE``;
+    ReadError naming ``field`` otherwise."""
     try:
         values = np.array([float(v) for v in (text or " ".join(["0"] * n)).split()])
     except ValueError:
         values = np.array([])
-    if values.shape != (n,) or not np.isfinite(values).all():
-        raise ReadError(f"{field}: expected {n} finite number(s), got {text!r}", where,
-                        "fix the value (NaN and inf are not a transform)")
+    if values.shape != (n,):
+        raise ReadError(f"{field}: expected {n} number(s), got {text!r}", where, "fix the value")
+    problem = numbers_problem(values)
+    if problem:
+        raise ReadError(f"{field} {text!r}: {problem}", where, "fix the value")
     return values
 
 
@@ -340,8 +343,9 @@ def _kalibr(doc: dict[str, Any], where: str) -> tuple[Edge, ...]:
                 T = np.asarray(entry[key], dtype=float)
             except (TypeError, ValueError):
                 T = np.zeros(0)
-            if T.shape != (4, 4) or not (np.isfinite(T).all() and se3.is_rotation(T[:3, :3], 1e-6)):
-                raise ReadError(f"{name}.{key} is not a 4x4 rigid transform of finite numbers", where,
+            problem = numbers_problem(T) if T.shape == (4, 4) else "it is not 4x4 numbers"
+            if problem or not se3.is_rotation(T[:3, :3], 1e-6):
+                raise ReadError(f"{name}.{key} is not a 4x4 rigid transform ({problem or 'no rotation'})", where,
                                 "fix the Kalibr YAML")
             match = re.fullmatch(r"cam(\d+)", str(name))
             if other is None:

@@ -20,7 +20,7 @@ import yaml
 
 from ..errors import HandEyeError, ReadError
 from ..geometry import se3
-from ..untrusted import load_yaml, yaml_problem
+from ..untrusted import load_yaml, numbers_problem, yaml_problem
 
 __all__ = ["CSV_COLUMNS", "read_pairs", "write_pairs_csv", "read_extrinsic", "extrinsic_of"]
 
@@ -116,9 +116,9 @@ def _numbers(value: Any, shape: tuple[int, ...], key: str, where: str) -> np.nda
         a = np.zeros(0)
     if a.shape != shape:
         raise ReadError(f"'{key}' is not {' x '.join(map(str, shape))} numbers", where, "pass a handeye result file")
-    if not np.isfinite(a).all():
-        raise ReadError(f"'{key}' holds a non-finite number (NaN or inf)", where,
-                        "pass a result of a successful calibration")
+    problem = numbers_problem(a)
+    if problem:
+        raise ReadError(f"'{key}': {problem}", where, "pass a result of a successful calibration")
     return a
 
 

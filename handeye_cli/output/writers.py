@@ -1,10 +1,20 @@
-"""Where results go: stdout, a regular file (replaced atomically), or anything else written through.
+"""Where results go: stdout, a regular file (replaced atomically), or a FIFO or device written through.
 
 ``-`` (or no path) is stdout. A regular file is written to a temporary file in its folder and
 renamed over the target, so a reader never sees half a result and a failure leaves the old file
 as it was; it keeps the mode of the file it replaces (a new file gets 0666 less the umask). A
-FIFO, a character device (``/dev/null``, ``/dev/stdout``) or any other non-regular file is
-opened and written through: replacing it would destroy it. Every failure is a
+FIFO, a character device (``/dev/null``, ``/dev/stdout``) or any other non-regular file that the
+user names (``-o``, ``--report``) is opened and written through: replacing it would destroy it.
+
+A **symbolic link** is never written through to a regular file: a link to a regular file, a
+dangling link, or a link to anything in a name handeye chose (``--output-dir``) is itself replaced
+by the new file (the rename replaces the link, not its target; the new file gets a new file's
+mode, not the target's), so a link planted in a shared folder cannot make handeye overwrite
+another file. A link the user names to a FIFO or device (``/dev/stdout`` is one, to
+``/proc/self/fd/1``) is written through, as the FIFO or device itself would be. In a name
+handeye chose, a FIFO or device is replaced too (``through=False``): opening a planted FIFO
+would block. The write-through open never creates or truncates, and a file it finds regular
+after all (a link swapped in after the check) is refused. Every failure is a
 :class:`~handeye_cli.errors.WriteError` naming the path and the flag that chose it; a failure to
 write stdout (a full disk, a closed pipe) is one too, and stdout is then pointed at the null device
 so that the interpreter's last flush does not fail again.
@@ -12,15 +22,21 @@ so that the interpreter's last flush does not fail again.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import stat
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import ConfigError, WriteError
 
-__all__ = ["format_mismatch", "SUFFIXES", "output_format", "check_writable", "write_output", "write_stdout"]
+__all__ = ["format_mismatch", "SUFFIXES", "output_format", "check_writable", "write_output", "write_stdout",
+           "written_through", "replace_atomically", "write_all", "FULL"]
+
+# a full disk, and a file-size limit (RLIMIT_FSIZE; SIGXFSZ ignored) that acts like one
+FULL = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
 
 # File-name endings that choose the output format (see handeye_cli/output/formats.py); Kalibr YAML
 # needs --format kalibr.
@@ -92,11 +108,39 @@ def _umask() -> int:
     return mask
 
 
-def _replace_atomically(p: Path, text: str, old_mode: int | None) -> None:
+def written_through(p: Path, through: bool = True) -> bool:
+    """Whether ``p`` is written through (see the module docstring): a FIFO, device or socket, or a
+    link to one, and ``through`` (the user named it); never a regular file, a link to one, a
+    dangling link or a missing path."""
+    if not through:
+        return False
+    try:
+        mode = os.stat(p).st_mode                   # follows a link: what it leads to
+    except OSError:
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
+def _old_mode(p: Path) -> int | None:
+    """The mode a replacement keeps: a regular file's own (not a link's target's), else None."""
+    try:
+        st = os.lstat(p)
+    except OSError:
+        return None
+    return st.st_mode if stat.S_ISREG(st.st_mode) else None
+
+
+def replace_atomically(p: Path, write: Callable[[int], None]) -> None:
+    """Make ``p`` a new regular file holding what ``write(fd)`` writes: a temporary file in its
+    folder renamed over ``p`` — over the link itself when ``p`` is a symbolic link, whose target is
+    never opened. The replaced regular file's mode is kept (a new file: 0666 less the umask)."""
+    old_mode = _old_mode(p)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
+        try:
+            write(fd)
+        finally:
+            os.close(fd)
         # mkstemp creates 0600: keep the replaced file's mode, else give a new file the usual one
         os.chmod(tmp, stat.S_IMODE(old_mode) if old_mode is not None else 0o666 & ~_umask())
         os.replace(tmp, p)
@@ -105,24 +149,47 @@ def _replace_atomically(p: Path, text: str, old_mode: int | None) -> None:
         raise
 
 
-def write_output(path: str | Path | None, text: str, flag: str = "-o") -> None:
-    """Write ``text`` to stdout (``None`` or ``-``), through to a non-regular file, or atomically
-    to a regular file. Raises WriteError (one line, naming ``flag``) on failure."""
+def write_all(fd: int, data: bytes) -> None:
+    """Write all of ``data`` to the file descriptor ``fd`` (``os.write`` may write less)."""
+    while data:
+        data = data[os.write(fd, data):]
+
+
+def _replace_atomically(p: Path, text: str) -> None:
+    replace_atomically(p, lambda fd: write_all(fd, text.encode("utf-8")))
+
+
+def _write_through(p: Path, text: str) -> None:
+    """Write into the FIFO or device ``p`` leads to: opened without creating or truncating, refused
+    when what was opened is a regular file after all."""
+    fd = os.open(p, os.O_WRONLY | os.O_NOCTTY)
+    try:
+        if stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(errno.EEXIST, "it became a regular file while being opened")
+        write_all(fd, text.encode("utf-8"))
+    finally:
+        os.close(fd)
+
+
+def write_output(path: str | Path | None, text: str, flag: str = "-o", *, through: bool = True) -> None:
+    """Write ``text`` to stdout (``None`` or ``-``), through to a FIFO or device, or atomically as
+    a regular file (see the module docstring; ``through=False``: a name handeye chose, where nothing
+    is written through). Raises WriteError (one line, naming ``flag``) on failure."""
     if _is_stdout(path):
         write_stdout(text)
         return
     p = Path(str(path))
-    check_writable(p, flag)
+    if through:
+        check_writable(p, flag)
     try:
-        mode = os.stat(p).st_mode if p.exists() else None
-        if mode is not None and not stat.S_ISREG(mode):
-            with open(p, "w", encoding="utf-8") as f:       # FIFO, device, /dev/stdout: write through
-                f.write(text)
+        if written_through(p, through):
+            _write_through(p, text)
         else:
-            _replace_atomically(p, text, mode)
+            _replace_atomically(p, text)
     except OSError as e:
-        raise WriteError(f"cannot write ({e.strerror or e.__class__.__name__})", str(p),
-                         f"choose another {flag} path") from None
+        error = WriteError(f"cannot write ({e.strerror or e.__class__.__name__})", str(p), f"choose another {flag} path")
+        error.errno, error.strerror = e.errno, e.strerror
+        raise error from None
 
 
 def write_stdout(text: str) -> None:
