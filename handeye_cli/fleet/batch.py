@@ -7,8 +7,9 @@ the calibrate result's keys when it calibrated, ``log_span_ns``, ``verdict`` wit
 last (the only field that differs between executors and runs). A result file that cannot be
 written (a full disk) makes its record an error that says so, keeping the result and verdict; a
 full disk (ENOSPC, EDQUOT, or EFBIG from a file-size limit) is also told once, as
-:attr:`BatchSummary.full`, which the CLI prints as one ``error:`` line naming the folder. Exit code: 1 when an input drifted (its verdict says so), else 2 when an input failed,
-else 3 when ``strict`` and a result has warnings, else 0.
+:attr:`BatchSummary.full`, which the CLI prints as one ``error:`` line naming the folder. Exit
+code: 1 when an input drifted (its verdict says so), else 2 when an input failed, else 3 when
+``strict`` and a result has warnings, else 0.
 """
 from __future__ import annotations
 
@@ -242,7 +243,7 @@ def run_batch(jobs: Sequence[Job], settings: BatchSettings, emit: Callable[[str]
                 keys[i] = _key(job)
             stored = (load_done(out_dir, job, keys[i], settings.fmt)
                       if out_dir is not None and settings.skip_done and keys[i] else None)
-            if stored is None:
+            if stored is None or out_dir is None:
                 todo.append(i)
             else:
                 ordered.done(i, _with_file(_judge(stored, settings), result_path(out_dir, job, settings.fmt)),

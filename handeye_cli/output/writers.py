@@ -187,7 +187,8 @@ def write_output(path: str | Path | None, text: str, flag: str = "-o", *, throug
         else:
             _replace_atomically(p, text)
     except OSError as e:
-        error = WriteError(f"cannot write ({e.strerror or e.__class__.__name__})", str(p), f"choose another {flag} path")
+        error = WriteError(f"cannot write ({e.strerror or e.__class__.__name__})", str(p),
+                           f"choose another {flag} path")
         error.errno, error.strerror = e.errno, e.strerror
         raise error from None
 
