@@ -21,8 +21,6 @@ quaternions are x-y-z-w; time is int64 nanoseconds; metres and radians.
 """
 from __future__ import annotations
 
-import functools
-from collections.abc import Callable
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
@@ -61,36 +59,19 @@ __all__ = ["HandEyeError", "METHODS", "PoseStream", "Prior", "Solution", "solve"
 
 def document(result: Calibration | RigResult) -> dict[str, Any]:
     """The result document of a calibration or a rig calibration, as ``handeye calibrate`` / ``handeye
-    rig`` print it (keys and units in docs/design.md: ``matrix`` is ``T_a_b``, quaternions x-y-z-w)."""
+    rig`` print it (keys and units in docs/design.md: ``matrix`` is ``T_a_b``, quaternions x-y-z-w), its
+    warnings naming options as keyword arguments (``max_pairs=N``), where the CLI names their flags."""
     from .calibration import Calibration
+    from .errors import as_keywords, worded
     from .output.document import calibration_document
 
-    return calibration_document(result) if isinstance(result, Calibration) else result.document()
-
-
-# the functions of the Python API: their errors name keywords where the command line's name flags
-_FUNCTIONS = {"solve", "solve_pairs", "calibrate", "calibrate_files", "calibrate_rig", "calibrate_rig_files",
-              "compare_methods", "load_options"}
-
-
-def _in_keywords(f: Callable[..., Any]) -> Callable[..., Any]:
-    """``f`` raising its :class:`HandEyeError` in the Python API's words (:func:`.errors.in_keywords`)."""
-    from .errors import HandEyeError, in_keywords
-
-    @functools.wraps(f)
-    def api(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return f(*args, **kwargs)
-        except HandEyeError as e:
-            raise in_keywords(e) from None
-    return api
+    doc = calibration_document(result) if isinstance(result, Calibration) else result.document()
+    return worded(doc, as_keywords)
 
 
 def __getattr__(name: str) -> Any:
     if name in _HOMES:
         value = getattr(import_module(f".{_HOMES[name]}", __name__), name)
-        if name in _FUNCTIONS:
-            value = _in_keywords(value)
         globals()[name] = value
         return value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -48,7 +48,7 @@ def read_config(path: str | Path) -> dict[str, Any]:
     """The option values of a configuration file, by flat name (not yet checked)."""
     p = Path(path)
     if not p.is_file():
-        raise ConfigError("configuration file not found", str(p), "check the --config path")
+        raise ConfigError("configuration file not found", str(p), "check the ⟦config_file⟧ path")
     if p.stat().st_size > _MAX_CONFIG_BYTES:
         raise ConfigError("configuration file larger than 1 MiB", str(p), "pass a configuration, not data")
     try:

@@ -16,9 +16,13 @@ escape, :func:`one_line`). Callers that fall back on a failure catch the precise
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
+from typing import TypeVar, cast
 
-__all__ = ["one_line", "in_keywords", "KEYWORD_FLAGS", "HandEyeError", "ConfigError", "ReadError", "DataError",
-           "TooFewPairsError", "UnderdeterminedError", "FitRejectedError", "WriteError"]
+_T = TypeVar("_T")
+
+__all__ = ["one_line", "option", "as_keywords", "as_flags", "worded", "KEYWORD_FLAGS", "HandEyeError", "ConfigError",
+           "ReadError", "DataError", "TooFewPairsError", "UnderdeterminedError", "FitRejectedError", "WriteError"]
 
 
 class HandEyeError(ValueError):
@@ -45,12 +49,19 @@ class HandEyeError(ValueError):
 
     def __init__(self, what: str, where: str = "", fix: str = "") -> None:
         self.what, self.where, self.fix = what, where, fix
-        text = what
-        if where:
-            text += f" ({where})"
-        if fix:
-            text += f": {fix}"
-        super().__init__(one_line(text))
+        super().__init__(self.line(as_keywords))
+
+    def line(self, words: Callable[[str], str] | None = None) -> str:
+        """The message in one line, the options it names in ``words``: :func:`as_keywords` (``str(error)``,
+        the Python API's), :func:`as_flags` (the command line's), or None to keep them marked (for a message
+        or document that quotes it and is worded as a whole later). ``what``, ``where`` and ``fix`` keep the
+        options marked (:func:`option`), so that a message built from another's parts is worded once."""
+        text = self.what
+        if self.where:
+            text += f" ({self.where})"
+        if self.fix:
+            text += f": {self.fix}"
+        return one_line(text if words is None else words(text))
 
 
 def one_line(text: str) -> str:
@@ -95,38 +106,60 @@ class WriteError(HandEyeError):
     strerror: str | None = None
 
 
-#: the library's keywords whose flag is not the keyword dashed (``max_jump`` ↔ ``--max-jump``), both ways:
-#: the CLI's ``_as_flags`` and :func:`in_keywords` read this one table
+#: the library's keywords whose flag is not the keyword dashed (``max_jump`` ↔ ``--max-jump``): the CLI's
+#: ``_as_flags`` and :func:`as_flags` read this one table
 KEYWORD_FLAGS = {"preset": "--preset", "config_file": "--config", "fmt": "--format", "streams": "--stream"}
-_KEYWORD_OF = {flag[2:]: key for key, flag in KEYWORD_FLAGS.items()}
-_WORDS = {"to", "or", "and", "for", "with", "is", "the", "a", "an", "given", "instead", "first", "then", "on", "in",
-          "if", "when", "as", "of", "that", "it", "at", "by", "from", "each", "too", "also", "alone", "only"}
-_VALUE = re.compile(r"^/?[A-Za-z0-9_][A-Za-z0-9_.|*:/,=-]*$")     # a word, number, topic or stream source
-# a flag and up to two words after it; a word is cut at , ; : ) but a stream source (tf:PARENT,CHILD) is whole
-_FLAG = re.compile(r"--(no-)?([a-z][a-z0-9-]*)((?: (?![-])(?:[^\s,;:)]*tf:[^\s;:)]*[^\s,;:)]|[^\s,;:)]+)){0,2})")
+
+#: an option named in a message: ``⟦key⟧``, or ``⟦key=value⟧`` with the value as the keyword argument's
+#: (``⟦gate='off'⟧``, ``⟦invert_b=False⟧``, ``⟦max_pairs=N⟧``: an upper-case placeholder,
+#: ``⟦frames_a=(PARENT, CHILD)⟧``)
+_MENTION = re.compile(r"⟦([A-Za-z_*][A-Za-z0-9_*]*)(?:=([^⟦⟧]*))?⟧")
 
 
-def _keyword(m: re.Match[str]) -> str:
-    negated, name, rest = m.group(1), m.group(2), m.group(3)
-    key = _KEYWORD_OF.get(name, name.replace("-", "_"))
-    values: list[str] = []
-    for token in rest.split()[:2 if name.startswith("frames-") else 1]:     # --frames-a PARENT CHILD: two
-        if token.lower() in _WORDS or not _VALUE.match(token):
-            break
-        values.append(token)
-    tail = rest.split()[len(values):]
-    if negated or not values:
-        text = f"{key}={'False' if negated else 'True'}"
-    else:
-        shown = [v if v.isupper() or v.replace(".", "", 1).lstrip("-").isdigit() else repr(v) for v in values]
-        text = f"{key}={shown[0]}" if len(shown) == 1 else f"{key}=({', '.join(shown)})"
-    return " ".join([text, *tail])
+def option(key: str, value: object = None) -> str:
+    """The option ``key`` named in a message, with ``value`` (None: the option itself), which the Python API
+    says as a keyword (:func:`as_keywords`: ``max_pairs=N``) and the CLI as a flag (:func:`as_flags`:
+    ``--max-pairs N``). A value is written as the keyword argument's: a bool or number as is, an upper-case
+    placeholder (``N``, ``SECONDS``) bare, other text quoted, a tuple in parentheses. Messages written as
+    literals carry the same marker directly, e.g. ``"widen ⟦max_dt⟧ or try ⟦pairs='all'⟧"``."""
+    def shown(v: object) -> str:
+        return v if isinstance(v, str) and v.isupper() else repr(v) if isinstance(v, str) else f"{v}"
+    if value is None:
+        return f"⟦{key}⟧"
+    text = f"({', '.join(shown(v) for v in value)})" if isinstance(value, tuple) else shown(value)
+    return f"⟦{key}={text}⟧"
 
 
-def in_keywords(error: HandEyeError) -> HandEyeError:
-    """``error`` in the Python API's words: each flag its fix names (``--gate paper``, ``--no-invert-b``,
-    ``--frames-a PARENT CHILD``) written as the keyword argument (``gate='paper'``, ``invert_b=False``,
-    ``frames_a=(PARENT, CHILD)``). The one place the library turns the command line's words into its own; the
-    ``where`` part already names the option by its key."""
-    fix = _FLAG.sub(_keyword, error.fix)
-    return error if fix == error.fix else type(error)(error.what, error.where, fix)
+def as_keywords(text: str) -> str:
+    """``text`` in the Python API's words: each option it names (``⟦max_pairs=N⟧``) as the keyword
+    argument (``max_pairs=N``)."""
+    return _MENTION.sub(lambda m: m.group(0)[1:-1], text)
+
+
+def as_flags(text: str) -> str:
+    """``text`` in the command line's words: each option it names as its flag — ``⟦max_dt⟧`` and
+    ``⟦robust=True⟧`` as ``--max-dt``, ``--robust``; ``⟦invert_b=False⟧`` as ``--no-invert-b``;
+    ``⟦gate='off'⟧`` as ``--gate off``; ``⟦frames_a=(PARENT, CHILD)⟧`` as ``--frames-a PARENT CHILD``."""
+    def flag(m: re.Match[str]) -> str:
+        key, value = m.group(1), m.group(2)
+        name = KEYWORD_FLAGS.get(key, "--" + key.replace("_", "-"))
+        if value is None or value == "True":
+            return name
+        if value == "False":
+            return "--no-" + name[2:]
+        values = value[1:-1].split(", ") if value.startswith("(") and value.endswith(")") else [value]
+        return " ".join([name, *(v[1:-1] if len(v) > 1 and v[0] == v[-1] and v[0] in "'\"" else v
+                                 for v in values)])
+    return _MENTION.sub(flag, text)
+
+
+def worded(value: _T, words: Callable[[str], str]) -> _T:
+    """``value`` (a document: dicts, lists, tuples, strings, numbers) with every string in ``words``
+    (:func:`as_keywords` or :func:`as_flags`): how a result document leaves the library or the CLI."""
+    if isinstance(value, str):
+        return cast(_T, words(value))
+    if isinstance(value, dict):
+        return cast(_T, {k: worded(v, words) for k, v in value.items()})
+    if isinstance(value, (list, tuple)):
+        return cast(_T, type(value)(worded(v, words) for v in value))
+    return value

@@ -207,7 +207,7 @@ def storage_options(value: Any, where: str) -> tuple[tuple[str, str], ...]:
             key, eq, val = str(text).partition("=")
             if not eq or not key.strip():
                 raise ConfigError("bad storage option (its value is not shown: it may be a credential)", where,
-                                  "write KEY=VALUE, e.g. --storage-option endpoint_url=http://127.0.0.1:9000")
+                                  "write KEY=VALUE, e.g. ⟦storage_option='endpoint_url=http://127.0.0.1:9000'⟧")
             items.append((key.strip(), val))
     return tuple(items)
 
@@ -455,7 +455,7 @@ def _gate_limits(gates: GateOptions, given: Mapping[str, Any], where: str) -> Ga
         raise ConfigError(f"a pose-jump limit is given, but it belongs to the paper gate and gate {gates.gate} "
                           "ignores it",
                           f"{where}: {limits[0]}" if where else limits[0],
-                          "add --gate paper to use the per-step limits, or --gate off for no gate")
+                          "add ⟦gate='paper'⟧ to use the per-step limits, or ⟦gate='off'⟧ for no gate")
     return gates
 
 

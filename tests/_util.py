@@ -1,12 +1,15 @@
 """Helpers shared by the tests: run the CLI in-process, write TUM files, measure errors."""
 from __future__ import annotations
 
+import re
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from handeye_cli.cli import main
+from handeye_cli.errors import HandEyeError, as_flags
 from handeye_cli.geometry import se3
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,3 +35,15 @@ def pose_error(X: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
     X, truth = np.asarray(X, dtype=float), np.asarray(truth, dtype=float)
     return (float(np.rad2deg(se3.rotation_angle(X[:3, :3].T @ truth[:3, :3]))),
             float(np.linalg.norm(X[:3, 3] - truth[:3, 3])))
+
+
+def fails(call: Callable[[], object], *patterns: str) -> HandEyeError:
+    """``call()`` raises a one-line HandEyeError whose text in the command line's words (its options as flags,
+    as ``handeye`` prints it) matches every regex in ``patterns``."""
+    with pytest.raises(HandEyeError) as info:
+        call()
+    text = info.value.line(as_flags)
+    assert "\n" not in text and info.value.what
+    for p in patterns:
+        assert re.search(p, text), f"{p!r} not in {text!r}"
+    return info.value

@@ -67,7 +67,7 @@ def test_dqitr_is_certified_where_it_converges_and_warned_where_not():
         else:                                        # dqitr cycles: a genuinely worse point, and a warning
             warned += 1
             assert not sol.converged and sol.cost > solve(A, B, **kw).cost * (1 + 1e-6)
-            assert len(sol.warnings) == 1 and "--method dqopt" in sol.warnings[0]
+            assert len(sol.warnings) == 1 and "⟦method='dqopt'⟧" in sol.warnings[0]
     assert certified >= 30 and warned >= 1
 
 

@@ -8,7 +8,7 @@ import re
 import numpy as np
 import pytest
 
-from handeye_cli.errors import ConfigError, DataError
+from handeye_cli.errors import ConfigError, DataError, as_flags
 from handeye_cli.geometry import se3
 from handeye_cli.simulation import Rig, random_transform
 from handeye_cli.simulation.rates import Jumps, simulate_rates
@@ -117,12 +117,12 @@ def test_too_few_samples_name_the_flags_and_the_rates() -> None:
     rec = simulate_rates(Rig(X), 100, 1, duration_s=60, seed=9)
     with pytest.raises(DataError) as info:
         sync_and_gate(rec.a, rec.b, gate="paper", min_samples=10)    # a 1 Hz stream steps beyond 10 cm / 11.5°
-    text = str(info.value)
+    text = info.value.line(as_flags)                                  # as the CLI says it
     for flag in ("--gate auto", "--gate off", "--gate paper with wider --max-jump/--max-jump-deg",
                  "--time-offset SECONDS"):
         assert flag in text
     assert re.search(r"a 100 Hz, b (0\.99|1\.0|1) Hz", text) and "gates." not in text
-    with pytest.raises(DataError, match="--sync auto.*--max-dt"):
+    with pytest.raises(DataError, match="sync='auto'.*max_dt"):
         sync_and_gate(rec.a, rec.b.select(np.arange(len(rec.b)) % 4 == 0), sync="interpolate", max_dt_ns=10**9,
                       min_samples=10)
 

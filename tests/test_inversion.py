@@ -7,7 +7,7 @@ import yaml
 from _util import pose_error, run, write_tum
 
 from handeye_cli.analysis.inversion import Candidate, InversionVerdict, check_inversion
-from handeye_cli.errors import DataError, in_keywords
+from handeye_cli.errors import DataError, as_flags
 from handeye_cli.simulation.arm import simulate_arm
 from handeye_cli.stages.stations import detect_stations
 
@@ -29,7 +29,7 @@ def test_an_inverted_station_stream_is_named_with_the_numbers():
     # Inverting a instead also satisfies T_a X = Y T_b (X and Y swapped): both are candidates.
     assert set(verdict.streams) == {"a", "b"}
     assert verdict.given[0] > 5 and all(c.inverted[0] < 0.3 and c.ratio > 50 for c in verdict.candidates)
-    text = verdict.message()
+    text = as_flags(verdict.message())                    # the options as the CLI names them
     assert "--invert-b" in text and "--invert-a" in text and f"{verdict.given[0]:.3g}°" in text
 
 
@@ -39,8 +39,9 @@ def test_refusal_with_or_without_an_explicit_invert_flag():
     for explicit in (False, True):
         with pytest.raises(DataError) as info:
             raise verdict.refusal(explicit)
-        text = str(info.value)
+        text = info.value.line(as_flags)
         assert "no result was written" in text and "--invert-b or --invert-a" in text
+        assert "invert_b=True or invert_a=True" in str(info.value)                # the API's
         assert ("contradict the data" in text) is explicit
 
 
@@ -49,11 +50,12 @@ def test_an_explicit_flag_decisively_contradicted_is_refused_below_overwhelming(
     below the 10× that refuses a default reading, it was a warning with exit 0 and a result 0.6 m wrong. An
     explicit flag the data decisively contradict, with an implausible given fit, is refused; the same evidence
     without a flag stays a warning, and a plausible given fit is never refused for a flag."""
-    candidate = Candidate("b", (0.5, 0.0024), 6.2, "--invert-b")
+    candidate = Candidate("b", (0.5, 0.0024), 6.2, "⟦invert_b=True⟧")
     contradicted = InversionVerdict((1.02, 0.0147), (candidate,), overwhelming=False, implausible=True)
     refusal = contradicted.refusal(explicit=True)
-    assert refusal is not None and "contradict the data" in str(refusal) and "--accept-poor-fit" in str(refusal)
-    assert "accept_poor_fit=True (exit code 3)" in in_keywords(refusal).fix      # the API's words, not ='keeps'
+    assert refusal is not None and "contradict the data" in str(refusal)
+    assert "accept_poor_fit=True (exit code 3)" in str(refusal) and "--" not in str(refusal)     # the API's words
+    assert "--accept-poor-fit (exit code 3)" in refusal.line(as_flags)                          # the CLI's
     assert contradicted.refusal(explicit=False) is None
     plausible = InversionVerdict((0.2, 0.004), (candidate,), overwhelming=False, implausible=False)
     assert plausible.refusal(explicit=True) is None
@@ -66,7 +68,7 @@ def test_flag_names_the_undo_when_the_user_inverted_the_wrong_stream():
     st = detect_stations(c.robot.inverted(), c.camera.inverted())     # --invert-a --invert-b, a wrongly
     i, j = np.triu_indices(len(st), 1)
     verdict = check_inversion(st.synced.T_a, st.synced.T_b, i, j, inverted_now=(True, True))
-    assert {c.flag for c in verdict.candidates} == {"--no-invert-a", "--no-invert-b"}
+    assert {as_flags(c.flag) for c in verdict.candidates} == {"--no-invert-a", "--no-invert-b"}
 
 
 @pytest.fixture()

@@ -20,9 +20,9 @@ from _logs import (
     write_mcap,
     write_tum,
 )
+from _util import fails
 from mcap.reader import make_reader
 
-from handeye_cli.errors import HandEyeError
 from handeye_cli.io import inspect_log, read_stream
 from handeye_cli.simulation import Rig, simulate_rig
 
@@ -36,15 +36,6 @@ def recs() -> list[tuple]:
     return records(a, "world", "")
 
 
-def fails(call, *patterns: str) -> HandEyeError:
-    """``call()`` raises a one-line HandEyeError whose text matches every regex in ``patterns``."""
-    with pytest.raises(HandEyeError) as info:
-        call()
-    text = str(info.value)
-    assert "\n" not in text and info.value.what and info.value.fix
-    for p in patterns:
-        assert re.search(p, text), f"{p!r} not in {text!r}"
-    return info.value
 
 
 def cut(path: Path, keep: int | float) -> Path:

@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from _logs import POSE, Channel, pose_channel, records, write_mcap, write_tum
+from _util import fails
 
 from handeye_cli.cli import main
-from handeye_cli.errors import HandEyeError
 from handeye_cli.io import detect_format, read_stream, valid_frame_id
 from handeye_cli.simulation import Rig, simulate_rig
 
@@ -31,14 +31,6 @@ def rig():
     return simulate_rig(Rig(np.eye(4)), duration_s=20.0, rate_a=30.0, rate_b=20.0, seed=21)
 
 
-def fails(call, *patterns: str) -> HandEyeError:
-    with pytest.raises(HandEyeError) as info:
-        call()
-    text = str(info.value)
-    assert "\n" not in text
-    for p in patterns:
-        assert re.search(p, text), f"{p!r} not in {text!r}"
-    return info.value
 
 
 def tum_lines(path: Path) -> list[str]:
@@ -158,7 +150,7 @@ def test_time_units(tmp_path, rig, fmt, unit, scale, since_start, warned):
     if fmt == "tum" and since_start and unit != "s":
         expected, warned = t * 10**9, False              # TUM: seconds, as defined
     np.testing.assert_array_equal(s.stamps_ns, expected)
-    assert any("--time-unit" in w for w in s.warnings) == warned
+    assert any("⟦time_unit" in w for w in s.warnings) == warned
     assert read_stream(path, time_unit=unit).warnings == ()
 
 

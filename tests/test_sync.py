@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handeye_cli.errors import ConfigError, DataError, HandEyeError
+from handeye_cli.errors import ConfigError, DataError, HandEyeError, as_flags
 from handeye_cli.geometry import se3
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
 from handeye_cli.stages.sync import Synced, associate, default_max_dt_ns
@@ -185,7 +185,7 @@ def test_no_sample_through_the_gate_names_flags_and_rates() -> None:
     b = analytic_stream(T0 + 500_000_000 + np.arange(20) * 1_000_000_000)
     with pytest.raises(DataError) as info:
         associate(a, b, method="interpolate", max_dt_ns=100_000_000)
-    text = str(info.value)
+    text = info.value.line(as_flags)                                  # as the CLI says it
     assert "a 100 Hz, b 1 Hz" in text and "--sync auto" in text and "--max-dt" in text and "max_dt 0.100 s" in text
     assert "sync." not in text and "gates." not in text
 

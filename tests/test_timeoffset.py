@@ -82,7 +82,7 @@ def test_a_search_bound_is_honoured() -> None:
     a, b = rig(offset, seed=7, duration_s=30)
     assert abs(estimate_time_offset(a, b, max_offset_s=150).offset_ns - offset) < 1 * MS
     # The true offset lies outside ±50 s: the estimate is refused, and the fix names the bound's flag.
-    with pytest.raises(HandEyeError, match="widen --max-time-offset"):
+    with pytest.raises(HandEyeError, match="widen max_time_offset=SECONDS"):
         estimate_time_offset(a, b, max_offset_s=50)
 
 

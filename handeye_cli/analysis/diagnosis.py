@@ -32,16 +32,16 @@ def too_few_pairs(n_pairs: int, samples: SampleCounts, options: Options) -> TooF
              f"{s.keyframes} samples/keyframes gave {s.candidate_pairs} candidate pairs by the {p.pairs} pair strategy")
     by_time = s.dropped_timestamp_gate + s.dropped_outside_span
     if s.candidate_pairs >= need:
-        fix = f"the cap of pairs keeps too few: raise --max-pairs N (now {p.max_pairs})"   # N: in_keywords's value
+        fix = f"the cap of pairs keeps too few: raise ⟦max_pairs=N⟧ (now {p.max_pairs})"   # N: in_keywords's value
     elif s.synced_kept >= 2 * need:
-        fix = (f"the motion rotates too little between samples: lower --min-rotation (now {p.min_rotation:g}) "
-               "or try --pairs all")
+        fix = (f"the motion rotates too little between samples: lower ⟦min_rotation⟧ (now {p.min_rotation:g}) "
+               "or try ⟦pairs='all'⟧")
     elif s.dropped_pose_jump >= by_time:
-        fix = ("the pose-jump gate dropped most samples: try --gate auto (it follows the sampling rate) or switch it "
-               "off with --gate off (station captures: --preset robot-arm)")
+        fix = ("the pose-jump gate dropped most samples: try ⟦gate='auto'⟧ (it follows the sampling rate) or switch it "
+               "off with ⟦gate='off'⟧ (station captures: ⟦preset='robot-arm'⟧)")
     else:
-        fix = (f"the timestamp gate dropped most samples: widen --max-dt (now {options.sync.max_dt}), let the slower "
-               "stream set the sample times with --sync auto, or give the clock offset with --time-offset SECONDS")
+        fix = (f"the timestamp gate dropped most samples: widen ⟦max_dt⟧ (now {options.sync.max_dt}), let the slower "
+               "stream set the sample times with ⟦sync='auto'⟧, or give the clock offset with ⟦time_offset=SECONDS⟧")
     return TooFewPairsError(f"only {n_pairs} motion pair(s) left, {need} needed", story, fix)
 
 
@@ -56,9 +56,9 @@ def data_warning(res: Residuals, weights: np.ndarray | None, samples: SampleCoun
         return None
     if large:
         return (f"large residuals (median {base.rotation_median_deg:.2f}° / {base.translation_median_m:.3f} m): the "
-                "streams may not be rigidly attached, be mis-synchronised (give --time-offset SECONDS), come from "
-                "the wrong topics, or b's translations have another scale (monocular odometry: --scale auto)")
+                "streams may not be rigidly attached, be mis-synchronised (give ⟦time_offset=SECONDS⟧), come from "
+                "the wrong topics, or b's translations have another scale (monocular odometry: ⟦scale='auto'⟧)")
     return (f"the pose-jump gate dropped {samples.dropped_pose_jump} of {samples.synced} samples "
             f"({100 * dropped:.0f} %): the sensors move faster than its limits allow at this rate; try "
-            "--gate auto (it follows the rate), widen --gate paper's --max-jump / --max-jump-deg, or check the "
+            "⟦gate='auto'⟧ (it follows the rate), widen ⟦gate='paper'⟧'s ⟦max_jump⟧ / ⟦max_jump_deg⟧, or check the "
             "tracking")

@@ -153,23 +153,24 @@ class FitTest:
 def _causes(options: Options, stations: bool, inverted: bool, test: FitTest) -> str:
     """The likely causes, most likely first, each with the flag that tests it."""
     read, solver = options.read, options.solver
-    unit = f"stamps in another unit (--time-unit s|ms|us|ns; now {read.time_unit})"
-    wxyz = ("quaternions not stored w first after all (drop --wxyz-a / --wxyz-b)" if read.wxyz_a or read.wxyz_b
-            else "quaternions stored w first (--wxyz-a / --wxyz-b)")
-    invert = ("a stream recorded as T_sensor_world (--invert-a / --invert-b"
+    unit = f"stamps in another unit (⟦time_unit='s|ms|us|ns'⟧; now {read.time_unit})"
+    wxyz = ("quaternions not stored w first after all (drop ⟦wxyz_a=True⟧ / ⟦wxyz_b=True⟧)"
+            if read.wxyz_a or read.wxyz_b
+            else "quaternions stored w first (⟦wxyz_a=True⟧ / ⟦wxyz_b=True⟧)")
+    invert = ("a stream recorded as T_sensor_world (⟦invert_a=True⟧ / ⟦invert_b=True⟧"
               + (", or drop the one given)" if read.invert_a or read.invert_b else ")"))
     causes = [invert, wxyz, unit] if inverted else [unit, wxyz, invert] if stations else [wxyz, invert, unit]
-    causes.append("TF frames in the wrong order (--stream-a tf:PARENT,CHILD, the parent first)")
+    causes.append("TF frames in the wrong order (⟦stream_a='tf:PARENT,CHILD'⟧, the parent first)")
     if options.sync.time_offset != "auto":
-        causes.append("a clock offset (--time-offset auto, with --max-time-offset SECONDS for a large one)")
+        causes.append("a clock offset (⟦time_offset='auto'⟧, with ⟦max_time_offset=SECONDS⟧ for a large one)")
     if solver.scale == 1.0:
-        scale = "b's translations in another unit (--scale auto)"
+        scale = "b's translations in another unit (⟦scale='auto'⟧)"
         causes.insert(0 if test.translation.ratio > 3 * test.rotation.ratio else len(causes), scale)
     if not options.analysis.robust:
-        causes.append("outliers (--robust)")
+        causes.append("outliers (⟦robust=True⟧)")
     causes.append("streams that are not rigidly attached, or the wrong topics")
     return ("check " + "; ".join(f"{k + 1}. {c}" for k, c in enumerate(causes))
-            + "; to keep this result anyway: --accept-poor-fit (exit code 3)")
+            + "; to keep this result anyway: ⟦accept_poor_fit=True⟧ (exit code 3)")
 
 
 def _stream_sigmas(stream: PoseStream, noise: StreamNoise | None, interpolated: str | None, n: int

@@ -113,10 +113,10 @@ class InversionVerdict:
         if not (self.overwhelming or (explicit and self.implausible)):
             return None
         if explicit:
-            return DataError("the --invert-*/--no-invert-* flags given contradict the data: a stream fits far "
+            return DataError("the ⟦invert_*⟧/⟦invert_*=False⟧ flags given contradict the data: a stream fits far "
                              "better the other way; no result was written", self._evidence(),
                              f"{self._fix(self.candidates)} (or drop the flag you gave); to keep the result "
-                             "anyway: --accept-poor-fit (exit code 3)")
+                             "anyway: ⟦accept_poor_fit=True⟧ (exit code 3)")
         return DataError("a stream is almost certainly inverted (T_sensor_world instead of T_world_sensor); "
                          "no result was written", self._evidence(), self._fix(self.candidates))
 
@@ -161,8 +161,8 @@ def check_inversion(T_a: NDArray[np.float64], T_b: NDArray[np.float64], i: NDArr
         if alt is None:
             continue
         if alt.decisively_better_than(base):
-            flag = (f"--stream-{name} tf:{pair[1]},{pair[0]} (tf:PARENT,CHILD, the parent first)" if pair and
-                    not now else f"--no-invert-{name}" if now else f"--invert-{name}")
+            flag = (f"⟦stream_{name}='tf:{pair[1]},{pair[0]}'⟧ (tf:PARENT,CHILD, the parent first)" if pair and
+                    not now else f"⟦invert_{name}=False⟧" if now else f"⟦invert_{name}=True⟧")
             found.append(Candidate(name, alt.medians, float(max(alt.gains_over(base))), flag))
     if not found:
         return None

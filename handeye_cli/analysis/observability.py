@@ -34,7 +34,7 @@ from .covariance import LinearCovariance, linear_covariance, select_samples
 
 __all__ = ["ObservabilityWarning", "Observability", "assess_observability", "common_axis", "describe_direction"]
 
-PRIOR_HINT = "pass --prior FILE (a known approximate extrinsic) to fix it"
+PRIOR_HINT = "pass ⟦prior=FILE⟧ (a known approximate extrinsic) to fix it"
 PRIOR_GIVEN = "rely on the given prior, which alone determines it"
 MIN_ROTATION_DEG = 1.0          # motions below this count as not rotating
 MAX_AXIS_SPREAD_DEG = 2.0       # rotation axes spread less than this: one common axis (single_axis / planar)

@@ -50,7 +50,7 @@ CHECKED_PAIRS = 500       # pairs of a solved calibration its checks of a readin
 _TINY = (1e-9, 1e-12)     # floors [deg, m] so that noise-free fits compare as finite ratios
 SCALE_FLOOR = 0.01        # b's translations scaled by less than 1 % off 1 are metric …
 SCALE_GAIN = 1.25         # … and a scale that lowers the median translation residual less than this is not seen
-_FLAGS = {"xyzw": "--no-wxyz-{}", "wxyz": "--wxyz-{}"}
+_FLAGS = {"xyzw": "⟦wxyz_{}=False⟧", "wxyz": "⟦wxyz_{}=True⟧"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -271,7 +271,8 @@ class OrderContradiction:
         """The error refusing the result: an extrinsic from misread quaternions is tens of degrees wrong, while
         their residuals, on drifting odometry, can stay within the fit test's allowance for drift."""
         return DataError("the quaternion order given contradicts the data; no result was written",
-                         self._evidence(), f"{self._fix()}; to keep the result anyway: --accept-poor-fit (exit code 3)")
+                         self._evidence(),
+                         f"{self._fix()}; to keep the result anyway: ⟦accept_poor_fit=True⟧ (exit code 3)")
 
     def message(self) -> str:
         """The warning when the result is kept anyway (``--accept-poor-fit``)."""

@@ -203,7 +203,7 @@ def robust_solve(motions_a: FloatArray, motions_b: FloatArray, *, method: str = 
     if sample_size < 2 or n < 2 * sample_size:
         raise TooFewPairsError(f"{n} motion pairs are too few for outlier rejection with samples of "
                            f"{sample_size}", "robust", f"record at least {2 * max(sample_size, 2)} "
-                           "motion pairs, or solve without --robust")
+                           "motion pairs, or solve without ⟦robust=True⟧")
     rng = np.random.default_rng(seed)
     cand = minimal_hypotheses(A, B, _sample_sets(n, sample_size, hypotheses, rng))
     scored = np.sort(rng.choice(n, score_pairs, replace=False)) if n > score_pairs else slice(None)

@@ -54,7 +54,7 @@ ADVICE = {
     "x": "drive a figure eight (translate while turning, not only around one fixed point)",
     "y": "drive a figure eight (translate while turning, not only around one fixed point)",
 }
-PRIOR_ADVICE = "pass the robot's nominal instead: --prior robot.urdf (a URDF, launch file, " \
+PRIOR_ADVICE = "pass the robot's nominal instead: ⟦prior='robot.urdf'⟧ (a URDF, launch file, " \
                "static_transform_publisher arguments, Kalibr YAML or handeye result)"
 
 

@@ -43,13 +43,13 @@ def stream_specs(inputs: Sequence[Source], *, stream_a: str | StreamSpec | None 
     if len(inputs) > 2 - sum(own):
         raise ConfigError(f"{len(inputs)} inputs given for {2 - sum(own)} stream(s) read from them", shown,
                           "pass one log, or one file per stream (a then b); a stream named as a FILE "
-                          "(--stream-a FILE) takes none")
+                          "(⟦stream_a=FILE⟧) takes none")
     if not inputs and not all(own):
         raise ConfigError("no input given", "inputs", "pass a log, or one pose file per stream (a then b), or name "
-                          "both streams as files (--stream-a FILE --stream-b FILE)")
+                          "both streams as files (⟦stream_a=FILE⟧ ⟦stream_b=FILE⟧)")
     if len(inputs) == 1 and not any(own) and not all(s is not None for s in sources):
         raise ConfigError("one input needs a topic or a TF chain for each stream", shown,
-                          "add --stream-a/--stream-b /topic or tf:PARENT,CHILD (see 'handeye inspect "
+                          "add ⟦stream_a⟧/⟦stream_b='/topic'⟧ or tf:PARENT,CHILD (see 'handeye inspect "
                           f"{inputs[0]}'), or pass two pose files")
     specs: list[StreamSpec | PoseStream] = []
     for k, source in enumerate(sources):
@@ -163,6 +163,7 @@ def read_prior(options: Options, frames: tuple[str, str] | None = None) -> Prior
     try:
         T = read_nominal(s.prior).transform(*(frames or (None, None)))
     except HandEyeError as e:                 # name the flag that chose the file
-        fix = e.fix.replace("--against", "--prior") if e.fix else "check --prior"
-        raise type(e)(e.what, e.where, fix if "--prior" in fix else f"{fix} given with --prior") from None
+        fix = e.fix.replace("⟦against⟧", "⟦prior⟧") if e.fix else "check ⟦prior⟧"
+        raise type(e)(e.what, e.where.replace("⟦against⟧", "⟦prior⟧"),
+                      fix if "⟦prior⟧" in fix else f"{fix} given with ⟦prior⟧") from None
     return Prior(T, *s.prior_weights)

@@ -21,6 +21,7 @@ from ..analysis.observability import Observability
 from ..analysis.selection import Selection
 from ..analysis.subspace import ESTIMATED, Subspace
 from ..analysis.verdict import Judged
+from ..errors import as_keywords
 from ..geometry import se3
 from ..options import Options
 from ..solvers import Solution
@@ -94,7 +95,9 @@ class Calibration:
     stream_a, stream_b: the streams as used (after inversion, before the time offset).
     synced: the samples that passed sync and gates; pairs: the motions solved.
     samples: what each stage read, kept and dropped; options: the options used.
-    warnings: human-readable warnings; diagnostics: what the analyses found (:class:`Diagnostics`: typed,
+    warnings: human-readable warnings, each option they name marked as its keyword argument (``⟦max_dt⟧``,
+    ``⟦gate='off'⟧``: :func:`~handeye_cli.errors.option`; :func:`handeye_cli.document` drops the marks, the CLI
+    writes flags); diagnostics: what the analyses found (:class:`Diagnostics`: typed,
     and the result's diagnostic keys: time offset, residuals…);
     inputs: what was read; residuals: per-pair residuals at the solution; weights: per-pair
     weights used (inlier mask with ``robust``, else None); robust, bootstrap: those analyses.
@@ -167,7 +170,7 @@ class Calibration:
         if unc is not None:
             rows.append((f"σ ({unc.method})", f"rotation {np.array2string(unc.rotation_std_deg, precision=3)} °, "
                                               f"translation {np.array2string(unc.translation_std_m, precision=4)} m"))
-        rows += [("warning", html.escape(w)) for w in self.warnings]
+        rows += [("warning", html.escape(as_keywords(w))) for w in self.warnings]
         body = "".join(f"<tr><th style='text-align:left'>{k}</th><td>{v}</td></tr>" for k, v in rows)
         return f"<table>{body}</table>"
 

@@ -211,7 +211,8 @@ def _scale_by_fit(a: PoseStream, b: PoseStream, reading: Reading, paired: Paired
     if not found.decisive:
         findings.append(Finding.warning("scale", f"stream b's translations fit {found.gain:.3g}× better scaled by "
                                         f"{found.scale:.4g} (median residual {found.medians_m[0]:.3g} → "
-                                        f"{found.medians_m[1]:.3g} m): if its scale is off (SLAM), pass --scale auto"))
+                                        f"{found.medians_m[1]:.3g} m): if its scale is off (SLAM), pass "
+                                        "⟦scale='auto'⟧"))
         return paired, solved
     paired, section = scaled(a, b, paired, opts, reading.offset_ns, reading.prior, noise_of)
     diagnostics["scale"] = section
@@ -219,7 +220,7 @@ def _scale_by_fit(a: PoseStream, b: PoseStream, reading: Reading, paired: Paired
     findings.append(Finding.warning("scale", f"stream b's translations fit a rigid rig {found.gain:.3g}× better "
                                     f"scaled (median residual {found.medians_m[0]:.3g} m as given): its scale was "
                                     f"estimated with T_a_b, {section['value']:.6g} ± {section['std']:.2g} m per unit "
-                                    "(--scale auto); give it with --scale NUMBER to fix it"))
+                                    "(⟦scale='auto'⟧); give it with ⟦scale=NUMBER⟧ to fix it"))
     return paired, solved
 
 
@@ -272,8 +273,8 @@ def _robust_retry(reading: Reading, opts: Options, inputs: dict[str, Any] | None
         return None
     n, kept = len(inliers), int(inliers.sum())
     note = (f"outliers rejected: the fit of all pairs was refused ({refused.message}); {n - kept} of {n} pairs did "
-            f"not fit the consensus of the others and were dropped, as --robust does, and the {kept} left fit as "
-            "clean data do (robust.rejected lists them; --accept-poor-fit keeps the fit of all pairs, exit 3)")
+            f"not fit the consensus of the others and were dropped, as ⟦robust=True⟧ does, and the {kept} left fit as "
+            "clean data do (robust.rejected lists them; ⟦accept_poor_fit=True⟧ keeps the fit of all pairs, exit 3)")
     return replace(cal, warnings=[note, *cal.warnings])
 
 

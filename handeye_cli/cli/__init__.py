@@ -26,7 +26,7 @@ if not {"OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"} & set(os.e
 
 import click
 
-from ..errors import KEYWORD_FLAGS, HandEyeError
+from ..errors import KEYWORD_FLAGS, HandEyeError, as_flags
 from ..version import __version__
 from .common import CONTEXT, Drifted, StrictFailure
 
@@ -87,13 +87,13 @@ def main(argv: list[str] | None = None) -> None:
     try:
         code = cli.main(args=args, prog_name="handeye", standalone_mode=False)
     except HandEyeError as e:
-        _fail(f"error: {_as_flags(e)}", 2, debug)
+        _fail(f"error: {_as_flags(e).line(as_flags)}", 2, debug)
     except click.ClickException as e:       # usage errors are 2; click's generic ones would be 1 (= drift)
         ctx = getattr(e, "ctx", None)
         hint = f" (run '{ctx.command_path} --help')" if ctx is not None else ""
         _fail(f"error: {e.format_message()}{hint}", 2, debug)
     except Drifted as e:
-        _fail(f"drift: {e}", 1, False)
+        _fail(f"drift: {as_flags(str(e))}", 1, False)
     except StrictFailure as e:
         _fail(f"error: {e}", 3, False)
     except SystemExit as e:                 # click exits 1 by itself only when stdout is a closed pipe

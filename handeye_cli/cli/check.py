@@ -10,6 +10,7 @@ from typing import Any
 import click
 
 from ..analysis.verdict import DEFAULT_MAX_ROTATION_DEG, DEFAULT_MAX_TRANSLATION_M, Judged, verdict_for
+from ..errors import as_flags, worded
 from ..io.nominal import read_nominal, read_result
 from ..output.document import render
 from ..output.formats import SUMMARY_FORMATS
@@ -62,5 +63,6 @@ def check(ctx: click.Context, result_file: str, against: str | None, max_rotatio
         raise click.UsageError("--against NOMINAL is required", ctx)
     result = Judged.from_document(read_result(result_file))         # the file read back, parsed once here
     verdict = verdict_for(result, read_nominal(against), max_rotation_deg, max_translation_m)
-    write_stdout(verdict.summary() + "\n" if fmt == "text" else render(verdict.as_dict(), fmt))
+    write_stdout(as_flags(verdict.summary()) + "\n" if fmt == "text"
+                 else render(worded(verdict.as_dict(), as_flags), fmt))
     ctx.exit(1 if verdict.drift else 0)

@@ -6,7 +6,7 @@ from typing import Any
 
 import click
 
-from ..errors import HandEyeError, one_line
+from ..errors import HandEyeError, as_flags, one_line, worded
 from ..output.formats import render_format
 from ..output.writers import check_writable, format_mismatch, output_format, write_output
 
@@ -24,8 +24,9 @@ class Drifted(Exception):
 
 
 def emit(doc: dict[str, Any], output: str | None, fmt: str | None) -> None:
-    """Print the result to stdout (no ``-o`` or ``-o -``) or write it to ``output``."""
-    write_output(output, render_format(doc, output_format(output, fmt)))
+    """Print the result to stdout (no ``-o`` or ``-o -``) or write it to ``output``, the options its
+    warnings and diagnostics name as flags (:func:`~handeye_cli.errors.as_flags`)."""
+    write_output(output, render_format(worded(doc, as_flags), output_format(output, fmt)))
 
 
 def result_format(output: str | None, fmt: str | None) -> str:
@@ -41,7 +42,7 @@ def result_format(output: str | None, fmt: str | None) -> str:
 def warn(message: str) -> None:
     """One ``warning:`` line on stderr; names from a log or file it quotes cannot break the line
     (newlines, U+2028, terminal escapes are written as escapes)."""
-    click.echo(f"warning: {one_line(message)}", err=True)
+    click.echo(f"warning: {one_line(as_flags(message))}", err=True)
 
 
 def report_failure(write: Callable[[], None]) -> HandEyeError | None:
@@ -68,7 +69,7 @@ def finish(doc: dict[str, Any], *, strict: bool, quiet: bool, drift: str | None 
     if drift is not None:
         raise Drifted(drift)
     if within is not None and not quiet:
-        click.echo(within, err=True)
+        click.echo(as_flags(within), err=True)
     if poor_fit_accepted:
         raise StrictFailure("the result failed a check (the fit test, the inversion check or a given quaternion "
                             "order: its first warning says which) and was written because of --accept-poor-fit")

@@ -5,6 +5,7 @@ from typing import Any
 
 import click
 
+from ..errors import as_flags, worded
 from ..output.document import plain, render
 from ..output.formats import SUMMARY_FORMATS
 from ..output.writers import write_stdout
@@ -93,5 +94,5 @@ def inspect(input_file: str, fmt: str, quiet: bool, **remote: Any) -> None:
     from ..io.remote import session_of
 
     with session_of(options_from_cli(remote).read):
-        info = plain(inspect_log(input_file, quiet=quiet))
+        info = worded(plain(inspect_log(input_file, quiet=quiet)), as_flags)
     write_stdout(_inspect_text(info) if fmt == "text" else render(info, fmt))

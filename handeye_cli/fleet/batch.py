@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from ..analysis.verdict import Judged, Verdict, verdict_for
-from ..errors import HandEyeError, WriteError
+from ..errors import HandEyeError, WriteError, as_flags, worded
 from ..io.nominal import Nominal
 from ..io.progress import Progress, progress
 from ..output.document import finite
@@ -139,13 +139,14 @@ def record_line(record: Record) -> str:
 
 
 def _judge(record: Record, s: BatchSettings) -> Record:
-    """The record in its final key order, with the verdict (status drift) when there is a nominal."""
+    """The record in its final key order, with the verdict (status drift) when there is a nominal, the options
+    it names as flags (a batch is the command line's)."""
     seconds = record.pop("seconds")
     if record["status"] != "error" and s.nominal is not None:
         try:
             verdict = verdict_for(Judged.from_document(record), s.nominal, s.max_rotation_deg, s.max_translation_m)
         except HandEyeError as e:
-            record.update(status="error", error=str(e))
+            record.update(status="error", error=e.line(as_flags))
         except Exception as e:  # a bug met by one input's result: that input's error, not the batch's
             record.update(status="error", error=f"unexpected {type(e).__name__} judging the result: "
                                                 f"{' '.join(str(e).split())} ({record['input']}): this is a bug, "
@@ -153,7 +154,7 @@ def _judge(record: Record, s: BatchSettings) -> Record:
         else:
             record.update(status="drift" if verdict.drift else "ok", verdict=verdict.as_dict())
     head: Record = {k: record.pop(k) for k in ("input", "status", "error") if k in record}
-    return {**head, **record, "seconds": seconds}
+    return worded({**head, **record, "seconds": seconds}, as_flags)
 
 
 def _with_file(record: Record, path: Path | None) -> Record:

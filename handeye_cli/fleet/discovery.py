@@ -31,7 +31,7 @@ from fnmatch import fnmatchcase
 from pathlib import Path
 from typing import TextIO
 
-from ..errors import HandEyeError
+from ..errors import HandEyeError, as_flags
 from ..io.detect import LOG_FORMATS, detect_format
 from ..io.remote import current, is_url
 
@@ -151,7 +151,7 @@ def _remote(url: str) -> list[BatchInput]:
         for name in [n for n, folder in found if folder]:
             found += session.listing(name)
     except HandEyeError as e:
-        return [BatchInput((url,), str(e))]
+        return [BatchInput((url,), e.line(as_flags))]
     bags = sorted({name.rsplit("/", 1)[0] for name, _ in found if name.endswith("/metadata.yaml")})
     logs = {name for name, folder in found if not folder and name.lower().endswith(_LOG_SUFFIXES)
             and not any(name.startswith(bag + "/") for bag in bags)}

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
-from ..errors import ConfigError, HandEyeError
+from ..errors import ConfigError, HandEyeError, as_flags
 from ..io.remote import is_url
 from ..io.spec import StreamSpec
 from ..options import Options
@@ -127,7 +127,7 @@ def _attempt(job: Job) -> Record:
     try:
         return {"status": "ok", **_calibrate(job)}
     except HandEyeError as e:
-        return {"status": "error", "error": str(e)}
+        return {"status": "error", "error": e.line(as_flags)}
     except Exception as e:  # a damaged log must become a record, never abort the batch
         return {"status": "error", "error": f"unexpected {type(e).__name__}: {' '.join(str(e).split())} "
                                             f"({job.input.label}): run handeye calibrate --debug on it for the "

@@ -113,7 +113,7 @@ def read_specs(specs: Sequence[StreamSpec], *, time_source: str = "header", colu
             in_log.setdefault(spec.path, []).append(k)
         elif spec.topic is not None or spec.frames is not None:
             raise ConfigError(f"a {fmt.upper()} text file holds one stream: no topic/frames and one file per stream",
-                              str(p), "drop --topic/--frames and pass one text file per stream")
+                              str(p), "drop ⟦topic⟧/⟦frames⟧ and pass one text file per stream")
         else:
             stream = read_text(_local(p), fmt, columns, quaternion_order=orders[k], time_unit=time_unit)
             streams[k] = _noted(stream, [spec.path])
@@ -149,7 +149,7 @@ def _read_log(plist: list[Path | RemoteObject], fmts: list[str], requests: Seque
     for topic, frames in requests:
         if (topic is None) == (frames is None):
             raise ConfigError("give exactly one of a topic or a (parent, child) frame pair", ", ".join(map(str, plist)),
-                              "name each stream as /topic or tf:PARENT,CHILD (--stream-a/--stream-b)")
+                              "name each stream as /topic or tf:PARENT,CHILD (⟦stream_a⟧/⟦stream_b⟧)")
     with open_log(plist, fmts) as src:
         if any(map(is_url, names)):
             src.name = ", ".join(names)

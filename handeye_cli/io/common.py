@@ -225,7 +225,7 @@ class PoseBuffer:
 
 _MAX_POSITION_M = 1e8        # |x| beyond this is a corrupt sample, not a position
 _MIN_JUMP_NS = 500_000_000   # a backward step shorter than this (or 10 median steps) is jitter, not a clock jump
-LOG_STAMPS_FIX = "the publisher did not set header.stamp; use the recorder's clock with --time-source log"
+LOG_STAMPS_FIX = "the publisher did not set header.stamp; use the recorder's clock with ⟦time_source='log'⟧"
 
 
 def _drop_invalid(idx: np.ndarray, xyz: np.ndarray, quat: np.ndarray, source: str,
@@ -307,7 +307,7 @@ def make_stream(stamps: np.ndarray, xyz: np.ndarray, quat: np.ndarray, *, source
         raise DataError(f"the stamps are all zero ({len(stamps)} samples)", source, zero_stamps_fix)
     if len(stamps) > 1 and (stamps == stamps[0]).all():     # before the per-sample copies below
         raise DataError(f"all {len(stamps)} samples carry the same stamp ({int(stamps[0])} ns): one pose, no motion",
-                        source, "record a trajectory: stamps must advance (wrong time column? --csv-columns t=COL)")
+                        source, "record a trajectory: stamps must advance (wrong time column? ⟦csv_columns='t=COL'⟧)")
     idx = _drop_invalid(np.arange(len(stamps)), xyz, quat, source, where, notes)
     idx = idx[_longest_run(stamps[idx], source, lambda i: where(int(idx[i])), notes)]
     idx = idx[np.argsort(stamps[idx], kind="stable")]

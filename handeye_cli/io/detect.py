@@ -31,7 +31,7 @@ def _classify_header(name: str, suffix: str, line: str) -> str:
         folder = str(Path(name).parent)
         raise _not_a_stream(name, "a ROS 2 bag's metadata.yaml", f"pass the bag's folder: {folder}")
     if suffix in (".yaml", ".yml") or _YAML_LINE.match(line):
-        raise _not_a_stream(name, "a YAML file", "pass a configuration with --config; " + _SUPPORTED)
+        raise _not_a_stream(name, "a YAML file", "pass a configuration with ⟦config_file⟧; " + _SUPPORTED)
     if line.count(",") >= 7:
         return "csv"
     kind = ("a Markdown/text document" if suffix in (".md", ".rst", ".txt")

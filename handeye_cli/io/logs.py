@@ -91,7 +91,7 @@ def _topic_stream(src: LogSource, topic: str, buf: PoseBuffer | FastPoses, time_
     if len(buf.pairs) > 1:
         pairs = ", ".join(f"{_clip(p) or '?'}->{_clip(c) or '?'}" for p, c in list(buf.pairs)[:8])
         raise DataError(f"topic carries poses of several frame pairs ({pairs})", source,
-                        "select one pair as a TF chain, the parent first: --stream-a tf:PARENT,CHILD")
+                        "select one pair as a TF chain, the parent first: ⟦stream_a='tf:PARENT,CHILD'⟧")
     frame, child = next(iter(buf.pairs), ("", ""))
     stamps, xyz, quat = buf.arrays()
     truncated = getattr(src, "truncated", False)

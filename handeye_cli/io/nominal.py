@@ -85,7 +85,7 @@ class Nominal:
             if name not in frames:
                 raise ReadError(f"frame {name!r} is not in the nominal (it names {', '.join(frames)}), and no single "
                                 "one of them is named by the stream's topic", self.source,
-                                "name the result's frames as the nominal does with --name-a/--name-b")
+                                "name the result's frames as the nominal does with ⟦name_a⟧/⟦name_b⟧")
         return self._chain(str(a), str(b))
 
     def frames_for(self, a: str | None, b: str | None, topics: tuple[str | None, str | None] = (None, None)
@@ -243,7 +243,7 @@ def _command_lines(text: str, where: str) -> tuple[Edge, ...]:
     edges = []
     for n, line in enumerate(text.replace("\\\n", " ").splitlines(), 1):
         if _STP in line and not line.lstrip().startswith("#"):
-            at = f"{where}:{n}" if where != "--against" else where
+            at = f"{where}:{n}" if where != "⟦against⟧" else where
             words = _split(line, at, comments=True)
             if _STP in words:
                 edges.append(static_publisher_transform(words[words.index(_STP) + 1:], at))
@@ -412,8 +412,8 @@ def read_nominal(nominal: str | Path) -> Nominal:
     path = Path(nominal)
     if not path.is_file():
         if _STP in text:
-            return Nominal("command line", "tf-static", _command_lines(text, "--against"))
-        raise ReadError("nominal file not found", text, "check the --against path")
+            return Nominal("command line", "tf-static", _command_lines(text, "⟦against⟧"))
+        raise ReadError("nominal file not found", text, "check the ⟦against⟧ path")
     kind, edges = _parse_file(path)
     if not edges:
         raise ReadError(f"no transform found in this {kind} file", text, _FIX)

@@ -117,6 +117,6 @@ class BagSource:
                                     "not bytes at an integer time [ns] (a NULL, TEXT or INTEGER value in the "
                                     "bag's messages table)", f"{self.name}:{conn.topic}, message {counts[conn.topic]}",
                                     "the bag is corrupt: repair its messages table, or read another topic "
-                                    "(--stream-a/--stream-b /topic)")
+                                    "(⟦stream_a⟧/⟦stream_b='/topic'⟧)")
                 counts[conn.topic] += 1
                 yield conn.topic, log_ns, raw, decoders[(conn.topic, conn.msgtype)]

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConfigError
+from ..errors import ConfigError, option
 from .remote import is_url
 
 __all__ = ["SOURCE_FORMS", "StreamSpec", "stream_source"]
@@ -54,12 +54,11 @@ class StreamSpec:
 
 
 def _example(key: str) -> str:
-    """A TF chain written as the flag of ``key`` takes it (the fix texts are the command line's words; the Python
-    API rewrites them as keywords, :func:`handeye_cli.errors.in_keywords`)."""
+    """A TF chain as the option ``key`` takes it (:func:`~handeye_cli.errors.option`: a flag on the command line,
+    a keyword in Python)."""
     if key == "streams":
-        return "--stream NAME=tf:odom,base_link"
-    flag = "--" + key.replace("_", "-")
-    return f"{flag} odom base_link" if key.startswith("frames_") else f"{flag} tf:odom,base_link"
+        return option("streams", "NAME=tf:odom,base_link")
+    return option(key, ("odom", "base_link") if key.startswith("frames_") else "tf:odom,base_link")
 
 
 def _tf_chain(frames: object, key: str, given: str, where: str) -> StreamSpec:

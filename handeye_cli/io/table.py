@@ -76,7 +76,7 @@ class Table:
 
 def _range_error(token: str, name: str, line: int) -> ReadError:
     return ReadError(f"timestamp {token} is out of the int64 nanosecond range (wrong time unit?)",
-                     f"{name}, line {line}", "pass the right unit with --time-unit s|ms|us|ns")
+                     f"{name}, line {line}", "pass the right unit with ⟦time_unit='s|ms|us|ns'⟧")
 
 
 def _blocks(f: BinaryIO) -> Iterator[tuple[int, bytes]]:

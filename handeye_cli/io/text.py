@@ -69,7 +69,7 @@ def _csv_layout(path: Path | str, columns: Mapping[str, str] | None) -> tuple[in
         found = next((lower[n.lower()] for n in names if n.lower() in lower), None)
         if found is None:
             raise ReadError(f"CSV column for {key!r} not found (looked for {', '.join(names)})",
-                            f"{name}, line {header_no}", f"map it with --csv-columns {key}=COLUMN; header has: "
+                            f"{name}, line {header_no}", f"map it with ⟦csv_columns='{key}=COLUMN'⟧; header has: "
                             f"{', '.join(header)}")
         index.append(found)
     if unit is None:        # "timestamp [ns]", "t_ns", "stamp_us" … name their unit
@@ -109,7 +109,7 @@ def _auto_unit(t: NDArray[np.float64], name: str, notes: list[str], *, seconds_d
     unit = "ms" if step <= 1e3 else "us" if step <= 1e6 else "ns"
     notes.append(f"the stamps of {name} are small (median {magnitude:g}) and step by a median {step:g}: read as "
                  f"{unit} since start ({10 ** (9 - _DIGITS[unit]) / step:.4g} Hz); if that is "
-                 "wrong, pass the unit with --time-unit s|ms|us|ns")
+                 "wrong, pass the unit with ⟦time_unit='s|ms|us|ns'⟧")
     return unit
 
 
@@ -123,9 +123,10 @@ def _columns(values: NDArray[np.float64], cols: NDArray[np.intp]) -> NDArray[np.
 def _check_args(quaternion_order: str, time_unit: str) -> None:
     if quaternion_order not in QUATERNION_ORDERS:
         raise ConfigError(f"unknown quaternion order {quaternion_order!r}", "quaternion_order",
-                          "use auto (the format's), xyzw (--no-wxyz-a / --no-wxyz-b) or wxyz (--wxyz-a / --wxyz-b)")
+                          "use auto (the format's), xyzw (⟦wxyz_a=False⟧ / ⟦wxyz_b=False⟧) or wxyz "
+                          "(⟦wxyz_a=True⟧ / ⟦wxyz_b=True⟧)")
     if time_unit not in TIME_UNITS:
-        raise ConfigError(f"unknown time unit {time_unit!r}", "time_unit", "use --time-unit auto|s|ms|us|ns")
+        raise ConfigError(f"unknown time unit {time_unit!r}", "time_unit", "use ⟦time_unit='auto|s|ms|us|ns'⟧")
 
 
 def read_text(path: Path | str, fmt: str, columns: Mapping[str, str] | None = None, *, quaternion_order: str = "auto",

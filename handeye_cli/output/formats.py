@@ -101,7 +101,7 @@ def _refuse(frames: list[Frame], fmt: str, problem: Callable[[str], str | None])
         why = problem(name)
         if why:
             raise ConfigError(f"frame name {name!r} cannot be written as {fmt}: {why}", "fmt",
-                              "name the frames with --name-a/--name-b (letters, digits, '_', '.', '/', '-')")
+                              "name the frames with ⟦name_a⟧/⟦name_b⟧ (letters, digits, '_', '.', '/', '-')")
 
 
 def _xml_problem(name: str) -> str | None:

@@ -33,6 +33,7 @@ from scipy.spatial.transform import Rotation
 
 from .._typing import BoolArray, FloatArray, IntArray
 from ..analysis.residuals import pair_residuals
+from ..errors import as_flags
 from ..geometry import dualquat as dq
 from ..geometry.lie import nearest_rotation
 from ..version import __version__
@@ -116,7 +117,8 @@ def fmt(value: Any, digits: int = 6) -> str:
 
 
 def esc(value: Any) -> str:
-    return html.escape(str(value), quote=True)
+    """``value`` as HTML text; the options a message names as flags (a report is the command line's ``--report``)."""
+    return html.escape(as_flags(str(value)), quote=True)
 
 
 def _empty(value: Any) -> bool:
@@ -443,6 +445,6 @@ def write_report(path: str | Path, calibration: Calibration) -> None:
     :class:`~handeye_cli.errors.HandEyeError` when the file cannot be written; a regular file is
     replaced atomically, so a failure leaves no half-written report.
     """
-    check_writable(path, "--report")           # fail before the rendering work
+    check_writable(path, "⟦report⟧")           # fail before the rendering work
     page = render_report(calibration, calibration.bootstrap_deviations())
-    write_output(path, page, "--report")
+    write_output(path, page, "⟦report⟧")

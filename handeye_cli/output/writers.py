@@ -61,7 +61,7 @@ def output_format(path: str | Path | None, fmt: str | None, flag: str = "-o") ->
         return chosen
     if not Path(str(path)).exists() or Path(str(path)).is_file():
         raise ConfigError(f"cannot tell the output format from {str(path)!r}", flag,
-                          f"name the file {', '.join(SUFFIXES)} or pass --format")
+                          f"name the file {', '.join(SUFFIXES)} or pass ⟦fmt⟧")
     return "yaml"    # a FIFO or device without a suffix: the default format
 
 
@@ -82,7 +82,7 @@ def format_mismatch(path: str | Path | None, fmt: str | None) -> str | None:
     if named is None or fmt in _KIN.get(named, (named,)):
         return None
     said = named.lstrip(".").upper() if named.startswith(".") else named
-    return f"{name} is written as --format {fmt}, though its name says {said}"
+    return f"{name} is written as ⟦fmt='{fmt}'⟧, though its name says {said}"
 
 
 def check_writable(path: str | Path | None, flag: str) -> None:

@@ -106,7 +106,7 @@ def per_stream(options: RigOptions, names: list[str]) -> dict[str, dict[str, Any
                           "keep one of the two")
     if options.options.solver.scale != 1.0:
         raise ConfigError("scale is of one pair's stream b, not of a rig's streams", "scale",
-                          "give a rig stream's scale by name (scales / --scale NAME=VALUE)")
+                          "give a rig stream's scale by name (scales / ⟦scale=NAME=VALUE⟧)")
     return out
 
 
@@ -120,15 +120,16 @@ def check_prior(names: list[str], options: Options) -> None:
     try:
         check_sensor_names(names, read_nominal(options.solver.prior))
     except HandEyeError as e:                     # name the option that chose the file
-        fix = (e.fix or "check the file").replace("--against", "--prior")
-        raise type(e)(e.what, e.where, fix if "--prior" in fix else f"{fix}, or another --prior") from None
+        fix = (e.fix or "check the file").replace("⟦against⟧", "⟦prior⟧")
+        raise type(e)(e.what, e.where.replace("⟦against⟧", "⟦prior⟧"),
+                      fix if "⟦prior⟧" in fix else f"{fix}, or another ⟦prior⟧") from None
 
 
 def _check(names: list[str], options: RigOptions) -> int:
     if len(names) < 2:
-        raise ConfigError(f"{len(names)} stream(s) given", "streams", "name at least two streams (--stream NAME=…)")
+        raise ConfigError(f"{len(names)} stream(s) given", "streams", "name at least two streams (⟦streams⟧ NAME=…)")
     if len(set(names)) != len(names):
-        raise ConfigError("stream names repeat", ", ".join(names), "give every --stream a different NAME")
+        raise ConfigError("stream names repeat", ", ".join(names), "give every ⟦streams⟧ a different NAME")
     if not options.block_s > 0:
         raise ConfigError(f"bad block length {options.block_s!r}", "block_s", "give a number of seconds > 0")
     if options.reference is not None and options.reference not in names:
@@ -194,16 +195,16 @@ def _consistency_warnings(cons: Consistency, names: list[str], reference: int) -
            f"{cons.dof} degrees of freedom (p = {cons.p_value:.2g} < {CONSISTENCY_P_VALUE:g})")
     s = cons.suspect
     if s is None:
-        return [f"{rig}, and no single stream explains it; check every stream's clock offset (--time-offset), "
-                "inversion (--invert) and scale, whether a mount is loose, and whether an odometry drifts "
+        return [f"{rig}, and no single stream explains it; check every stream's clock offset (⟦time_offset⟧), "
+                "inversion (⟦invert⟧) and scale, whether a mount is loose, and whether an odometry drifts "
                 "other than at a constant rate"]
     name = names[s]
-    role = (f"; it is the reference, so every T_{name}_k rests on its pairs: choose another (--reference NAME)"
+    role = (f"; it is the reference, so every T_{name}_k rests on its pairs: choose another (⟦reference=NAME⟧)"
             if s == reference else ", so its pairs inform no other sensor")
     return [f"stream {name} is inconsistent with the others: {rig}; without {name}'s pairs it falls by "
             f"{cons.reductions[s]:.4g} on {cons.reduction_dof[s]} (p = {cons.reduction_p[s]:.2g}){role}. Check "
-            f"{name}'s scale (monocular odometry?), its clock offset (--time-offset {name}=auto), its inversion "
-            f"(--invert {name}), and its mount: a loose mount changes the extrinsic mid-log (calibrate the log's "
+            f"{name}'s scale (monocular odometry?), its clock offset (⟦time_offset='{name}=auto'⟧), its inversion "
+            f"(⟦invert⟧ {name}), and its mount: a loose mount changes the extrinsic mid-log (calibrate the log's "
             "halves apart and compare)"]
 
 

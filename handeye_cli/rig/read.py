@@ -31,7 +31,7 @@ def parse_stream(text: str) -> StreamSpec:
     name, source = name.strip(), source.strip()
     if not sep or not name or not source:
         raise ConfigError(f"bad stream {text!r}", "streams", f"write NAME=SOURCE, SOURCE one of {SOURCE_FORMS}")
-    name = str(frame_name(name, f"--stream {text}"))       # the name is the sensor's frame in every output
+    name = str(frame_name(name, f"⟦streams='{text}'⟧"))       # the name is the sensor's frame in every output
     spec = stream_source("streams", source)
     assert spec is not None                                 # a source was given
     return replace(spec, name=name)
@@ -47,11 +47,11 @@ def read_rig(log: str | None, specs: list[StreamSpec], options: Options | None =
     names = [s.name or "" for s in specs]
     if not all(names) or len(set(names)) != len(names):
         raise ConfigError("stream names repeat or are missing", ", ".join(names),
-                          "give every --stream a different NAME")
+                          "give every ⟦streams⟧ a different NAME")
     in_log = [s for s in specs if s.path is None]
     if in_log and log is None:
         raise ConfigError(f"stream {in_log[0].name} names a topic or TF chain but no log is given", "handeye rig",
-                          "pass the log as the first argument: handeye rig LOG --stream …")
+                          "pass the log as the first argument: handeye rig LOG ⟦streams⟧ …")
     located = [s if s.path is not None else replace(s, path=log) for s in specs]
     orders = ["auto" if name not in (wxyz or {}) else "wxyz" if (wxyz or {})[name] else "xyzw" for name in names]
     return dict(zip(names, read_streams(located, options, quiet=quiet, quaternion_orders=orders), strict=True))

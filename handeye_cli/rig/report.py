@@ -124,5 +124,5 @@ def render_rig_report(result: RigResult) -> str:
 def write_rig_report(path: str | Path, result: RigResult) -> None:
     """Write the rig's report to ``path`` (``-``: stdout; a regular file replaced atomically). Raises
     :class:`~handeye_cli.errors.HandEyeError` (a ``WriteError``) when it cannot be written."""
-    check_writable(path, "--report")
-    write_output(path, render_rig_report(result), "--report")
+    check_writable(path, "⟦report⟧")
+    write_output(path, render_rig_report(result), "⟦report⟧")

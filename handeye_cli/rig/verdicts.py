@@ -26,7 +26,7 @@ def check_sensor_names(names: list[str], nominal: Nominal) -> None:
     missing = [name for name in names if name not in set(nominal.frames)]
     if len(names) > 2 and missing:
         raise ReadError(f"sensor(s) {', '.join(missing)} not in the nominal (it names {', '.join(nominal.frames)})",
-                        nominal.source, "name the streams as the nominal's frames: --stream FRAME=SOURCE")
+                        nominal.source, "name the streams as the nominal's frames: ⟦streams=FRAME=SOURCE⟧")
 
 
 def rig_verdicts(result: RigResult, nominal: Nominal, max_rotation_deg: float,

@@ -100,8 +100,8 @@ class Solution:
         c = self.certificate
         if self.method not in OPTIMAL or c is None or c.certified:
             return ()
-        fix = ("dqitr did not reach the optimum: use --method dqopt (method='dqopt')" if self.method == "dqitr" else
-               "a numerical failure of dqopt: compare with --method dqitr (method='dqitr') and report the data")
+        fix = ("dqitr did not reach the optimum: use ⟦method='dqopt'⟧" if self.method == "dqitr" else
+               "a numerical failure of dqopt: compare with ⟦method='dqitr'⟧ and report the data")
         return (f"the {self.method} solution is not certified as the global optimum (solver.certificate: smallest "
                 f"eigenvalue {c.min_eigenvalue:.3g}, stationarity {c.stationarity:.3g}, tolerance {c.tolerance:.3g}): "
                 f"{fix}",)
@@ -132,7 +132,7 @@ def _check_determined(problem: Problem) -> None:
         raise UnderdeterminedError("the motions cannot determine the extrinsic: a family of solutions fits "
                            "them exactly (all motions about one axis, or planar, or too few)",
                            "motions", "add motion about a second rotation axis, or pass a prior "
-                           "(--prior FILE) to fix the unobservable directions")
+                           "(⟦prior=FILE⟧) to fix the unobservable directions")
 
 
 def solve(motions_a: FloatArray, motions_b: FloatArray, method: str = "dqopt", alpha: float = 1.0,

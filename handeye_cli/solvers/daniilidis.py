@@ -41,7 +41,7 @@ def daniilidis(E: FloatArray, F: FloatArray, alpha: float = 1.0,
         disc = b * b - 4 * a * c
         if disc < 0:
             raise DataError("Daniilidis' method found no real solution (noisy or degenerate motions)",
-                               "daniilidis", "use --method dqopt, which always has one")
+                               "daniilidis", "use ⟦method='dqopt'⟧, which always has one")
         roots = (-b + np.array([1.0, -1.0]) * np.sqrt(disc)) / (2 * a)
         # pick the root maximising |s u1 + u2|², then scale to |q| = 1
         norms = [(s * u1 + u2) @ (s * u1 + u2) for s in roots]
@@ -52,5 +52,5 @@ def daniilidis(E: FloatArray, F: FloatArray, alpha: float = 1.0,
     n_q = np.linalg.norm(q)
     if not np.isfinite(n_q) or n_q < 1e-12:     # e.g. every translation 0: the root picked has no rotation part
         raise DataError("Daniilidis' method degenerates on these motions (its chosen root has no rotation part; "
-                        "every translation zero?)", "daniilidis", "use --method dqopt, which always has a solution")
+                        "every translation zero?)", "daniilidis", "use ⟦method='dqopt'⟧, which always has a solution")
     return q / n_q, qd / n_q

@@ -215,7 +215,7 @@ def _residuals(p: NDArray[np.float64], A: NDArray[np.float64], B: NDArray[np.flo
 def _undetermined(why: str) -> DataError:
     return DataError(f"the scale of stream b cannot be determined: {why}", "scale",
                      "record motion that translates the sensors (not only rotations in place), or give the "
-                     "scale as a number with --scale")
+                     "scale as a number with ⟦scale⟧")
 
 
 def _gauss_newton_variance(fit: Any) -> float:

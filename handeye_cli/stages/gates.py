@@ -201,14 +201,14 @@ def _too_few(kept: int, need: int, counts: dict[str, int], gate: str, max_dt_ns:
     dt = "the default max_dt" if max_dt_ns is None else f"max_dt {max_dt_ns / 1e9:g} s"
     story = (f"{rates_text(steps)}; the timestamp gate ({dt}) dropped {counts.get('dropped_timestamp_gate', 0)} "
              f"and {counts.get('dropped_outside_span', 0)} lay outside the other stream's span; the pose-jump gate "
-             f"(--gate {gate}) dropped {by_jump}")
+             f"(⟦gate='{gate}'⟧) dropped {by_jump}")
     if by_jump > by_time:
-        fix = ("the pose-jump gate dropped most: try --gate auto (it follows the sampling rate), --gate paper with "
-               "wider --max-jump/--max-jump-deg, or --gate off; if the streams are not aligned in time, "
-               "--time-offset SECONDS (auto, the default, estimates it where the data allow)")
+        fix = ("the pose-jump gate dropped most: try ⟦gate='auto'⟧ (it follows the sampling rate), ⟦gate='paper'⟧ with "
+               "wider ⟦max_jump⟧/⟦max_jump_deg⟧, or ⟦gate='off'⟧; if the streams are not aligned in time, "
+               "⟦time_offset=SECONDS⟧ (auto, the default, estimates it where the data allow)")
     else:
-        fix = ("the timestamp gate dropped most: let the slower stream set the sample times with --sync auto, widen "
-               "--max-dt, or give the clock offset with --time-offset SECONDS")
+        fix = ("the timestamp gate dropped most: let the slower stream set the sample times with ⟦sync='auto'⟧, widen "
+               "⟦max_dt⟧, or give the clock offset with ⟦time_offset=SECONDS⟧")
     return DataError(f"only {kept} sample(s) left after the gates, {need} needed", story, fix)
 
 

@@ -156,8 +156,8 @@ def _check(a: PoseStream, b: PoseStream, method: str, time_offset_ns: int) -> No
         raise DataError(
             "the two pose streams do not overlap in time",
             f"a spans {span['a']}, b spans {span['b']} after a time offset of {time_offset_ns / 1e9:.6f} s",
-            ("the default --time-offset auto found no offset it could apply (too little rotation to correlate, "
-             "or outside --max-time-offset): give it with --time-offset SECONDS"))
+            ("the default ⟦time_offset='auto'⟧ found no offset it could apply (too little rotation to correlate, "
+             "or outside ⟦max_time_offset⟧): give it with ⟦time_offset=SECONDS⟧"))
 
 
 def associate(a: PoseStream, b: PoseStream, *, method: str = "auto", max_dt_ns: int | None = None,
@@ -216,6 +216,6 @@ def associate(a: PoseStream, b: PoseStream, *, method: str = "auto", max_dt_ns: 
             "no sample passed the timestamp gate",
             f"{rates_text(steps)}; max_dt {gate_ns / 1e9:.3f} s; {counts['dropped_timestamp_gate']} samples of "
             f"{reference} too far from {o}'s, {counts['dropped_outside_span']} outside {o}'s span",
-            "let the slower stream set the sample times with --sync auto, widen --max-dt, or fix the clock offset "
-            "with --time-offset SECONDS (auto, the default, estimates it where the data allow)")
+            "let the slower stream set the sample times with ⟦sync='auto'⟧, widen ⟦max_dt⟧, or fix the clock offset "
+            "with ⟦time_offset=SECONDS⟧ (auto, the default, estimates it where the data allow)")
     return synced, counts

@@ -229,7 +229,7 @@ def angular_velocity(stream: PoseStream, window_ns: int, smooth_ns: float,
     centres = t0 + np.arange(max((int(stamps[-1]) - half - t0) // step + 1, 0), dtype=np.int64) * step
     if len(centres) < 2:
         raise DataError("pose stream too short for its sample rate to estimate a time offset", stream.source,
-                           "record more samples while rotating, or give a fixed --time-offset")
+                           "record more samples while rotating, or give a fixed ⟦time_offset⟧")
     q = on_grid.quat_xyzw[:len(centres) + 2 * steps]
     omega = dq.to_rotvec(dq.relative(q[:-2 * steps], q[2 * steps:]))     # within [stamps[0], stamps[-1]]: all inside
     omega /= 2 * half / 1e9
@@ -307,7 +307,7 @@ def _coarse(sa: _Signal, sb: _Signal, max_offset_ns: int | None) -> tuple[float,
     """Global search: (offset [ns] from the parabola through the peak, peak correlation, warnings)."""
     if not (sa.valid.any() and sb.valid.any()):   # every ω point touches a gap or a jump: nothing to correlate
         raise DataError("the streams are too short or too gappy to correlate their rotations", "time offset",
-                        "give a fixed --time-offset, or widen --max-time-offset")
+                        "give a fixed ⟦time_offset⟧, or widen ⟦max_time_offset⟧")
     speed_a, speed_b = np.linalg.norm(sa.omega, axis=1), np.linalg.norm(sb.omega, axis=1)
     lags, ncc, n = _masked_ncc(speed_a, sa.valid, speed_b, sb.valid)
     offsets = (sb.t0_ns - sa.t0_ns) + lags.astype(np.int64) * sa.step_ns
@@ -316,7 +316,7 @@ def _coarse(sa: _Signal, sb: _Signal, max_offset_ns: int | None) -> tuple[float,
         allowed &= np.abs(offsets) <= max_offset_ns
     if not allowed.any():
         raise DataError("the streams are too short or too gappy to correlate their rotations", "time offset",
-                           "give a fixed --time-offset, or widen --max-time-offset")
+                           "give a fixed ⟦time_offset⟧, or widen ⟦max_time_offset⟧")
     score = np.where(allowed, ncc, -np.inf)
     k = int(np.argmax(score))
     best = float(score[k])
@@ -324,7 +324,7 @@ def _coarse(sa: _Signal, sb: _Signal, max_offset_ns: int | None) -> tuple[float,
         raise DataError(
             f"the two streams' angular speeds do not correlate (peak {best:.2f} < {MIN_CORRELATION})",
             "time offset", "the sensors must rotate (linear motion carries no timing information) and "
-            "record the same motion; otherwise give a fixed --time-offset")
+            "record the same motion; otherwise give a fixed ⟦time_offset⟧")
     warnings = []
     if best < _WEAK_CORRELATION:
         warnings.append(f"weak angular-speed correlation {best:.2f}: the time offset may be wrong")
@@ -363,7 +363,7 @@ class _Refiner:
         keep[keep] &= valid_b[idx_b[keep]]
         if keep.sum() < 10:
             raise DataError("too little overlap to refine the time offset", "time offset",
-                               "give a fixed --time-offset")
+                               "give a fixed ⟦time_offset⟧")
         self.ta, self.wa = ta[keep], sa.omega[keep]
 
     def _fit(self, tau_s: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -481,7 +481,7 @@ class _StepRefiner:
         steps = steps[np.linspace(0, len(steps) - 1, min(len(steps), _SCAN_STEPS)).astype(np.int64)]
         if len(grid) == 0 or len(steps) < 10:
             raise DataError("the streams are too short or too gappy to correlate their rotations", "time offset",
-                               "give a fixed --time-offset, or widen --max-time-offset")
+                               "give a fixed ⟦time_offset⟧, or widen ⟦max_time_offset⟧")
         best = self._scan_grid(grid, steps)
         while spacing > _SCAN_NS:
             finer = max(float(_SCAN_NS), 2 * spacing / _MAX_SCAN_OFFSETS)
@@ -566,7 +566,7 @@ def _on_steps(a: PoseStream, b: PoseStream, max_offset_ns: int | None) -> TimeOf
         raise DataError(
             f"the two streams' step rotations do not correlate (peak {corr:.2f} < {MIN_CORRELATION})",
             "time offset", "the sensors must rotate (linear motion carries no timing information) and "
-            "record the same motion; otherwise give a fixed --time-offset")
+            "record the same motion; otherwise give a fixed ⟦time_offset⟧")
     warnings = (f"weak step-rotation correlation {corr:.2f}: the time offset may be wrong",) \
         if corr < _WEAK_CORRELATION else ()
     return TimeOffset(offset_ns=offset_ns, std_ns=std_ns, coarse_ns=int(round(coarse)), correlation=corr,
@@ -605,7 +605,7 @@ def _windowed_refiners(a: PoseStream, b: PoseStream, coarse_ns: float, window_ns
         except DataError:                                  # a window too short or too gappy: the others refine
             continue
     if not out:
-        raise DataError("too little overlap to refine the time offset", "time offset", "give a fixed --time-offset")
+        raise DataError("too little overlap to refine the time offset", "time offset", "give a fixed ⟦time_offset⟧")
     return out
 
 
@@ -640,8 +640,8 @@ def _check_reachable(a: PoseStream, b: PoseStream, max_ns: int | None, auto: boo
     raise DataError(f"the two streams' stamps do not overlap (by a third of the shorter, as the search needs) at "
                     f"any clock offset searched ({bound}): a spans "
                     f"{span['a']}, b spans {span['b']}, {need:.6g} s apart", "time offset",
-                    f"if the clocks differ by that much, widen --max-time-offset SECONDS ({every} covers every "
-                    f"offset at which they overlap) or give the offset with --time-offset SECONDS; otherwise "
+                    f"if the clocks differ by that much, widen ⟦max_time_offset=SECONDS⟧ ({every} covers every "
+                    f"offset at which they overlap) or give the offset with ⟦time_offset=SECONDS⟧; otherwise "
                     "the two inputs are not of one recording")
 
 
@@ -669,7 +669,7 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
         if span < _MIN_SPAN_NS:
             raise DataError(f"pose stream {name} spans {span / 1e9:.2f} s ({len(stream)} samples), too short "
                                "to estimate a time offset", stream.source or f"stream {name}",
-                               f"record at least {_MIN_SPAN_NS / 1e9:.0f} s of rotation, or give a fixed --time-offset")
+                               f"record at least {_MIN_SPAN_NS / 1e9:.0f} s of rotation, or give a fixed ⟦time_offset⟧")
     intervals = [np.median(np.diff(s.stamps_ns)) for s in (a, b)]
     max_ns = search_bound_ns(a, b, max_offset_s)
     _check_reachable(a, b, max_ns, max_offset_s == "auto")

@@ -85,7 +85,7 @@ def moved_mount(paired: Paired, res: Residuals, options: Options, alpha: float,
             f"fit another T_a_b, and each part fits its own {gain:.3g}× better than one fits both")
     return Finding.refusal("moved", FitRejectedError(
         what, "fit test", "check that the sensor is rigidly mounted and calibrate the stations before "
-        "and after apart; to keep this result anyway: --accept-poor-fit (exit code 3)"), what)
+        "and after apart; to keep this result anyway: ⟦accept_poor_fit=True⟧ (exit code 3)"), what)
 
 
 def suspect_data(verdict: InversionVerdict | None, res: Residuals, weights: np.ndarray | None,

@@ -140,7 +140,7 @@ def policy(findings: Sequence[Finding], *, accept_poor_fit: bool, robust: bool) 
     if refusals and not accept_poor_fit:
         first = refusals[0]
         return Outcome(first.error, first.kind == "fit" and not robust, (), ())
-    accepted = [Finding("accepted", f"poor fit accepted with --accept-poor-fit: {f.message}")
+    accepted = [Finding("accepted", f"poor fit accepted with ⟦accept_poor_fit=True⟧: {f.message}")
                 for f in refusals if f.kind in _ACCEPTED_NOTE]
     warnings = [f for f in findings if f.error is None]
     return Outcome(None, False, tuple(f.kind for f in refusals), ordered([*accepted, *warnings]))

@@ -109,16 +109,16 @@ def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, d
             if "do not overlap" in e.what:
                 raise
             raise DataError(f"the two streams' stamps do not overlap and no clock offset could be estimated "
-                            f"({e.what})", "time offset", "give the offset with --time-offset SECONDS, or widen "
-                            "--max-time-offset") from None
-        return 0, {"seconds": 0.0, "method": "not estimated", "applied": False, "reason": str(e)}, []
+                            f"({e.what})", "time offset", "give the offset with ⟦time_offset=SECONDS⟧, or widen "
+                            "⟦max_time_offset⟧") from None
+        return 0, {"seconds": 0.0, "method": "not estimated", "applied": False, "reason": e.line()}, []
     applied = est.applicable
     report = {"seconds": est.offset_ns / 1e9 if applied else 0.0, "applied": applied,
               "estimated_seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,
               "coarse_seconds": est.coarse_ns / 1e9, "correlation": est.correlation, "method": est.method,
               "significant_sigma": SIGNIFICANT_SIGMA}
     warnings = [f"a clock offset of {est.offset_ns / 1e9:.6g} ± {est.std_ns / 1e9:.2g} s was estimated but not "
-                f"applied ({'; '.join(est.warnings)}): if it is right, pass --time-offset {est.offset_ns / 1e9:.6g}"
+                f"applied ({'; '.join(est.warnings)}): if it is right, pass ⟦time_offset={est.offset_ns / 1e9:.6g}⟧"
                 ] if est.significant and est.warnings else []
     return (est.offset_ns if applied else 0), report, warnings
 
@@ -139,7 +139,7 @@ def _large_offset_warning(a: PoseStream, b: PoseStream, report: dict[str, Any]) 
     why = ("the streams' stamps did not overlap without it" if not lo <= 0 <= hi else
            f"more than {LARGE_OFFSET_PERIODS:g} sample periods of the slower stream ({period_s:.3g} s)")
     return (f"a clock offset of {offset_s:.6g} ± {float(report['std_seconds']):.2g} s was applied: {why}; pass "
-            "--time-offset 0 if the clocks are known to agree")
+            "⟦time_offset=0⟧ if the clocks are known to agree")
 
 
 def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Prior | None, report: dict[str, Any],

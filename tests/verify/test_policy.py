@@ -46,9 +46,9 @@ def test_accept_poor_fit_keeps_every_refusal_and_says_so_first() -> None:
     assert outcome.error is None and not outcome.retry
     assert outcome.accepted == ("inversion", "order", "fit", "moved")
     # an accepted inversion has no note of its own: its message is the suspect warning that follows
-    assert outcome.warnings == ("poor fit accepted with --accept-poor-fit: order evidence",
-                                "poor fit accepted with --accept-poor-fit: fit evidence",
-                                "poor fit accepted with --accept-poor-fit: moved evidence",
+    assert outcome.warnings == ("poor fit accepted with ⟦accept_poor_fit=True⟧: order evidence",
+                                "poor fit accepted with ⟦accept_poor_fit=True⟧: fit evidence",
+                                "poor fit accepted with ⟦accept_poor_fit=True⟧: moved evidence",
                                 "suspect", "read", "obs")
 
 
