@@ -29,6 +29,10 @@ from handeye_cli.fleet.discovery import _glob, discover
 from handeye_cli.options import Options
 from handeye_cli.output import writers
 
+# issue 36: run under -W error, every warning a failure (an unclosed file or pipe: its ResourceWarning,
+# reported at garbage collection as PytestUnraisableExceptionWarning); not a filter to hide one
+pytestmark = pytest.mark.filterwarnings("error")
+
 LOG = ROOT / "sample_data" / "rig.mcap"
 TRUTH = ROOT / "sample_data" / "truth.yaml"
 TOPICS = ["--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose"]

@@ -30,6 +30,10 @@ from mcap.records import Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Me
 from handeye_cli.io import common, inputs, read_stream
 from handeye_cli.io.rosbag1_scan import check_lengths
 
+# issue 36: run under -W error, every warning a failure (an unclosed file or pipe: its ResourceWarning,
+# reported at garbage collection as PytestUnraisableExceptionWarning); not a filter to hide one
+pytestmark = pytest.mark.filterwarnings("error")
+
 ADDRESS_LIMIT = 1536 << 20      # [B] a bomb asking for gigabytes dies with MemoryError under this
 PEAK_LIMIT_MB = 500             # peak RSS [MB] of a refused input
 TIMEOUT_S = 30
