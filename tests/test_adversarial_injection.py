@@ -32,6 +32,10 @@ from handeye_cli.output.formats import ALL_FORMATS, render_format
 from handeye_cli.rig.result import transform_entry
 from handeye_cli.simulation import Rig, random_transform, simulate_rig
 
+# issue 36: run under -W error, every warning a failure (an unclosed file or pipe: its ResourceWarning,
+# reported at garbage collection as PytestUnraisableExceptionWarning); not a filter to hide one
+pytestmark = pytest.mark.filterwarnings("error")
+
 MARK = "PWNED_MARKER"     # replaced by a path in the test's folder: the payloads create that file
 
 

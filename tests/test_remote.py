@@ -173,23 +173,27 @@ def test_an_object_cut_short_is_salvaged_like_a_local_file(s3, capsys, tmp_path)
     assert any("recovered" in w for w in b["warnings"]) and any("cache" in w for w in b["warnings"])
 
 
-def _silent_server() -> tuple[socket.socket, int]:
-    """A server that accepts connections and never answers."""
+def _silent_server() -> tuple[socket.socket, int, list[socket.socket]]:
+    """A server that accepts connections and never answers: (its socket, its port, the connections it holds)."""
     srv = socket.socket()
     srv.bind(("127.0.0.1", 0))
     srv.listen(16)
     held: list[socket.socket] = []
     threading.Thread(target=lambda: [held.append(srv.accept()[0]) for _ in range(16)], daemon=True).start()
-    return srv, srv.getsockname()[1]
+    return srv, srv.getsockname()[1], held
 
 
 def test_a_stalled_server_is_a_timeout_not_a_hang(s3, capsys):
-    srv, port = _silent_server()
+    srv, port, held = _silent_server()
     start = time.monotonic()
-    code, out, err = run(capsys, "calibrate", f"s3://{BUCKET}/logs/rig.mcap", *TOPICS, "-q",
-                         "--storage-option", f"endpoint_url=http://127.0.0.1:{port}",
-                         "--remote-timeout", "0.5", "--remote-retries", "2")
-    srv.close()
+    try:
+        code, out, err = run(capsys, "calibrate", f"s3://{BUCKET}/logs/rig.mcap", *TOPICS, "-q",
+                             "--storage-option", f"endpoint_url=http://127.0.0.1:{port}",
+                             "--remote-timeout", "0.5", "--remote-retries", "2")
+    finally:
+        srv.close()
+        for conn in held:                               # else each a ResourceWarning
+            conn.close()
     assert time.monotonic() - start < 8
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
     assert "failed 2 times (no answer in time" in err
@@ -455,6 +459,7 @@ def test_planned_ranges_go_in_several_requests_at_once_with_the_serial_bytes(tmp
     assert len(gets) == len(planned) and max(active for *_, active in gets) >= 2
     assert s.bytes_fetched == sum(n for _, n in planned)
     server.shutdown()
+    server.server_close()                       # its listening socket (else a ResourceWarning)
 
 
 def test_ranges_ahead_are_bounded_by_bytes(tmp_path, monkeypatch):
@@ -471,6 +476,7 @@ def test_ranges_ahead_are_bounded_by_bytes(tmp_path, monkeypatch):
     assert views == [data[a:a + n] for a, n in planned]
     assert max(active for method, _, active in server.log if method == "GET") == 2
     server.shutdown()
+    server.server_close()                       # its listening socket (else a ResourceWarning)
 
 
 def test_an_mcap_over_http_asks_size_head_and_tail_at_once_then_the_chunks_together(tmp_path):
@@ -498,6 +504,7 @@ def test_an_mcap_over_http_asks_size_head_and_tail_at_once_then_the_chunks_toget
     chunks = server.log[3:]
     assert len(chunks) == 8 and max(active for *_, active in chunks) >= 2 and s.requests == 2 + 8
     server.shutdown()
+    server.server_close()                       # its listening socket (else a ResourceWarning)
 
 
 @pytest.mark.parametrize("mode", ["fail", "stall"])
@@ -515,6 +522,7 @@ def test_a_chunk_request_that_fails_or_stalls_is_one_line(tmp_path, capsys, mode
     assert f"{base}/img.mcap" in err and "failed 2 times" in err
     assert ("no answer in time" in err) == (mode == "stall")
     server.shutdown()
+    server.server_close()                       # its listening socket (else a ResourceWarning)
 
 
 def test_over_plain_http_a_missing_object_and_a_server_ignoring_ranges_are_one_line(tmp_path, capsys):
@@ -525,11 +533,13 @@ def test_over_plain_http_a_missing_object_and_a_server_ignoring_ranges_are_one_l
     code, out, err = run(capsys, "calibrate", f"{base}/missing.mcap", *TOPICS, "-q")
     assert code == 2 and out == "" and err.startswith("error: no such object") and len(err.splitlines()) == 1
     server.shutdown()
+    server.server_close()                       # its listening socket (else a ResourceWarning)
     server, base = _served(tmp_path, "ignore")
     code, out, err = run(capsys, "calibrate", f"{base}/rig.mcap", *TOPICS, "-q")
     assert code == 2 and out == "" and "ignores byte ranges (answered 200" in err and len(err.splitlines()) == 1
     assert len(server.log) <= 4                 # no retries of a wrong answer
     server.shutdown()
+    server.server_close()                       # its listening socket (else a ResourceWarning)
 
 
 class _Store:

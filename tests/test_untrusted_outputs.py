@@ -19,6 +19,10 @@ from pathlib import Path
 import pytest
 from _util import ROOT
 
+# issue 36: run under -W error, every warning a failure (an unclosed file or pipe: its ResourceWarning,
+# reported at garbage collection as PytestUnraisableExceptionWarning); not a filter to hide one
+pytestmark = pytest.mark.filterwarnings("error")
+
 LOG = ROOT / "sample_data" / "rig.mcap"
 TRUTH = ROOT / "sample_data" / "truth.yaml"
 TOPICS = ["--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose"]

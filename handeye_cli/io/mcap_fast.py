@@ -192,10 +192,15 @@ class _Mapped:
     """A local file mapped, not read: a chunk is decompressed straight from the page cache, without
     first copying it (1.6 GB of images cost 0.15 s to copy, more than decompressing them); the
     pages of a chunk leave the process once the next is asked for, so its resident memory holds
-    one chunk, not the file; the map dies with this object."""
+    one chunk, not the file; the map dies with this object and the last array viewing it.
 
-    def __init__(self, f: Any) -> None:
-        self._mm = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+    The file is closed as soon as it is mapped (the map holds its own descriptor): no file object
+    stays open through the read, so an interrupt (Ctrl-C, a batch's SIGTERM or time limit) at any
+    point of it cannot leave one unclosed (a ResourceWarning)."""
+
+    def __init__(self, path: Path) -> None:
+        with open(path, "rb") as f:
+            self._mm = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
         self._map = memoryview(self._mm)
         self._used = (0, 0)             # the bytes [start, stop) of the last view
 
@@ -392,8 +397,7 @@ def _views(path: Path | RemoteObject, planned: list[tuple[int, int]]) -> Iterato
         with path.ranges(planned) as ranges:
             yield ranges
         return
-    with open(path, "rb") as f:
-        yield _Mapped(f)
+    yield _Mapped(path)
 
 
 def read_fast(path: Path | RemoteObject, chunks: Sequence[Any], channels: dict[int, tuple[str, str]], *,
