@@ -47,7 +47,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from ..errors import ConfigError, ReadError
-from ..untrusted import REMOTE_RETRIES, REMOTE_TIMEOUT_S
+from ..untrusted import REMOTE_DEADLINE_S, REMOTE_RETRIES, REMOTE_TIMEOUT_S
 
 __all__ = ["is_url", "Session", "session", "session_of", "current", "RemoteObject", "CACHE_LIMIT", "scrub"]
 
@@ -93,6 +93,7 @@ class Session:
     storage_options: tuple[tuple[str, str], ...]
     timeout: float              # [s] per request (``remote_timeout``)
     retries: int                # tries per request (``remote_retries``)
+    deadline: float = REMOTE_DEADLINE_S     # [s] an object without an answered request (``remote_deadline``)
     bytes_fetched: int = 0
     requests: int = 0               # range requests answered (what benchmarks/remote.py reports)
     urls: list[str] = field(default_factory=list)
@@ -106,6 +107,7 @@ class Session:
     _cached: dict[str, Path] = field(default_factory=dict)
     _cached_bytes: int = 0
     _lock: threading.Lock = field(default_factory=threading.Lock)   # the counts, added to from a Ranges pool
+    _stalls: dict[str, list[Any]] = field(default_factory=dict)     # URL → [clock start [s] or None, tries since]
 
     def count(self, n: int) -> None:
         """Count one request answered with ``n`` bytes [B] (safe from the threads of :class:`Ranges`)."""
@@ -149,14 +151,45 @@ class Session:
                               "--storage-option", "pass the keyword arguments of the fsspec file system") from exc
         return fs, fs._strip_protocol(url)
 
+    def _left(self, url: str, what: str, start: bool = False) -> float:
+        """The seconds [s] left of the :attr:`deadline` of the object ``url``: what its clock, running
+        since the first try after its last answered request, has not used (``start``: a try starts, the
+        clock with it unless it runs, and is counted); a one-line ReadError once nothing is left."""
+        with self._lock:
+            stall = self._stalls.setdefault(url, [None, 0])
+            now = time.monotonic()
+            if stall[0] is None:
+                if not start:
+                    return self.deadline
+                stall[0] = now
+            left = float(self.deadline - (now - stall[0]))
+            if left <= 0:
+                tried = f"{stall[1]} request{'s' * (stall[1] != 1)} tried"
+                raise ReadError(f"{what}: no progress for {self.deadline:g} s ({tried})", url,
+                                "check the endpoint (AWS_ENDPOINT_URL) and the network, or raise "
+                                "--remote-deadline SECONDS")
+            stall[1] += start
+        return left
+
+    def _answered(self, url: str) -> None:
+        """A request of ``url`` was answered: the object's clock stops (the next try starts it anew)."""
+        with self._lock:
+            self._stalls[url] = [None, 0]
+
     def call(self, url: str, what: str, fn: Any, *args: Any, tries: int | None = None) -> Any:
         """``fn(*args)`` tried up to ``tries`` (default :attr:`retries`) times; a one-line ReadError
-        naming ``url`` when the object is missing, access is denied, or every try failed or overran
-        :attr:`timeout`."""
+        naming ``url`` when the object is missing, access is denied, every try failed or overran
+        :attr:`timeout`, or the object went :attr:`deadline` seconds without an answered request (its
+        clock runs from the first try after its last answer, whichever request of it that was: each try
+        is cut at what is left, so a stalled object fails in :attr:`deadline` seconds, a large one that
+        keeps answering never)."""
         tries = self.retries if tries is None else tries
         for attempt in range(1, tries + 1):
+            limit = min(self.timeout * 2 + 1, self._left(url, what, start=True))     # [s] this try's
             try:
-                return _within(self.timeout * 2 + 1, fn, *args)
+                result = _within(limit, fn, *args)
+                self._answered(url)
+                return result
             except FileNotFoundError as exc:
                 raise ReadError("no such object", url, "check the bucket, the key and the endpoint "
                                 "(AWS_ENDPOINT_URL)") from exc
@@ -171,11 +204,12 @@ class Session:
                 if not type(exc).__module__.startswith(_CLIENTS):
                     raise
                 error = exc
+            left = self._left(url, what)     # the deadline's line once spent, whatever tries are left
             if attempt < tries:
-                time.sleep(min(2.0, 0.1 * 2 ** attempt))
+                time.sleep(min(2.0, 0.1 * 2 ** attempt, left))
         raise ReadError(f"{what} failed {tries} times ({_kind(error)}; {self.timeout:g} s each)", url,
-                        "check the endpoint (AWS_ENDPOINT_URL) and the network, or raise --remote-timeout / "
-                        "--remote-retries") from error
+                        "check the endpoint (AWS_ENDPOINT_URL) and the network, or raise --remote-timeout SECONDS / "
+                        "--remote-retries N") from error
 
     def open(self, url: str) -> RemoteObject:
         """The object at ``url`` (its size asked once; opened once per session), holding the first and
@@ -385,10 +419,11 @@ _SESSION: ContextVar[Session | None] = ContextVar("handeye_remote_session", defa
 
 
 @contextlib.contextmanager
-def session(storage_options: Sequence[tuple[str, str]], timeout: float, retries: int) -> Iterator[Session]:
+def session(storage_options: Sequence[tuple[str, str]], timeout: float, retries: int,
+            deadline: float = REMOTE_DEADLINE_S) -> Iterator[Session]:
     """A :class:`Session` that the readers in this context use (the read options ``storage_option``,
-    ``remote_timeout``, ``remote_retries``); its downloads are removed at its end."""
-    s = Session(tuple(storage_options), timeout, retries)
+    ``remote_timeout``, ``remote_retries``, ``remote_deadline``); its downloads are removed at its end."""
+    s = Session(tuple(storage_options), timeout, retries, deadline)
     token = _SESSION.set(s)
     try:
         yield s
@@ -399,7 +434,7 @@ def session(storage_options: Sequence[tuple[str, str]], timeout: float, retries:
 
 def session_of(read: Any) -> contextlib.AbstractContextManager[Session]:
     """:func:`session` with the settings of the read options ``read`` (a :class:`handeye_cli.options.ReadOptions`)."""
-    return session(read.storage_option, read.remote_timeout, read.remote_retries)
+    return session(read.storage_option, read.remote_timeout, read.remote_retries, read.remote_deadline)
 
 
 def current() -> Session:
@@ -407,7 +442,7 @@ def current() -> Session:
     (a reader called outside :func:`handeye_cli.calibrate_files` and the commands)."""
     s = _SESSION.get()
     if s is None:
-        s = Session((), REMOTE_TIMEOUT_S, REMOTE_RETRIES)
+        s = Session((), REMOTE_TIMEOUT_S, REMOTE_RETRIES, REMOTE_DEADLINE_S)
         _SESSION.set(s)
     return s
 
