@@ -389,7 +389,8 @@ def test_planned_ranges_near_ones_joined_far_ones_apart_and_asked_ahead():
     object's bytes whichever request brought them, and the requests ahead are all answered by the end."""
     import fsspec
 
-    from handeye_cli.io.remote import _GAP, session
+    from handeye_cli.io.remote import session
+    from handeye_cli.io.remote.ranges import _GAP
 
     data = bytes(range(256)) * (1 << 13)                  # 2 MiB
     with fsspec.open("memory://ranges/obj.bin", "wb") as f:
@@ -460,12 +461,13 @@ def test_planned_ranges_go_in_several_requests_at_once_with_the_serial_bytes(tmp
 def test_ranges_ahead_are_bounded_by_bytes(tmp_path, monkeypatch):
     """With _AHEAD at two spans, at most two requests are ever under way, and the bytes are right."""
     from handeye_cli.io import remote
+    from handeye_cli.io.remote import ranges as ranges_module  # where Ranges reads _AHEAD
 
     data = np.random.default_rng(2).bytes(1 << 20)
     (tmp_path / "obj.bin").write_bytes(data)
     server, base = _served(tmp_path, "overlap")
     planned = [(k * (100 << 10), 30_000) for k in range(8)]
-    monkeypatch.setattr(remote, "_AHEAD", 2 * 30_000)
+    monkeypatch.setattr(ranges_module, "_AHEAD", 2 * 30_000)
     with remote.session((), 10.0, 2) as s, s.open(f"{base}/obj.bin").ranges(planned) as ranges:
         views = [bytes(ranges.view(a, n)) for a, n in planned]
     assert views == [data[a:a + n] for a, n in planned]

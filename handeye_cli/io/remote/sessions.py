@@ -1,44 +1,17 @@
-"""Inputs named by URL (``s3://bucket/key.mcap``, ``gs://…``, ``https://…``, ``memory://…``): the one
-home of remote reading — opening through fsspec, bounded retries, byte counting, the download cache.
-
-fsspec (and s3fs for S3: the extra ``remote``, ``pip install 'handeye-cli[remote]'``; gcsfs for gs://:
-``[gcs]``) is imported only when a URL is read. Credentials and the endpoint come the standard way
-(``AWS_ENDPOINT_URL``, ``AWS_ACCESS_KEY_ID``/``AWS_SECRET_ACCESS_KEY``, ``AWS_PROFILE`` …) or from the storage options
-(``--storage-option KEY=VALUE``: fsspec's keyword arguments of the file system); neither is ever
-written to a message, record or result: errors are handeye's own sentences, and a URL holding
-credentials (``https://user:pass@host/…``) is refused.
-
-An object is read by byte range (:class:`RemoteObject`): every request asks for exactly the bytes
-its reader needs (at least :data:`_READAHEAD` for small reads), gets at most
-``remote_retries`` tries of ``remote_timeout`` seconds each, and adds what it got to the
-session's :attr:`Session.bytes_fetched` (and one to :attr:`Session.requests`). Detecting the
-format asks for the object's size together with its first :data:`_READAHEAD` and last
-:data:`_TAIL` bytes (one round trip: :meth:`Session.is_folder`). The MCAP reader reads the footer,
-the summary and then only the chunks it needs; an indexed ROS 1 bag's reader
-(:class:`.rosbag1_scan.Bag1Index`) its header, its index and then only the chunks it needs. Both
-ask for chunks through :meth:`RemoteObject.ranges`, which joins ranges at most :data:`_GAP` apart
-into one request of at most :data:`_SPAN` and keeps up to :data:`_PARALLEL` requests holding up to
-:data:`_AHEAD` bytes under way at once, so memory holds a few chunks, never the object. A plain
-http(s) object is read with the standard library's client (:class:`_Plain`), anything else
-through fsspec. What cannot be read by range — text files, ROS 2
-bags, a ROS 1 bag without a usable index, split ROS 1 bags, an MCAP without a summary (cut short,
-or written without one) — is downloaded once to the session's cache (:meth:`Session.cached`): at
-most :data:`CACHE_LIMIT` bytes, removed when the session ends and at exit, with a one-line note.
-"""
+"""The remote reading of one calibration (:class:`Session`: settings, bounded retries, the per-object deadline,
+byte counting, the download cache), the session of a context (:func:`session`, :func:`session_of`,
+:func:`current`), and what a URL is (:func:`is_url`, :func:`scrub`)."""
 from __future__ import annotations
 
 import atexit
-import bisect
 import concurrent.futures
 import contextlib
 import os
 import re
 import shutil
-import struct
 import tempfile
 import threading
 import time
-from collections import OrderedDict
 from collections.abc import Iterator, Sequence
 from contextvars import ContextVar
 from dataclasses import dataclass, field
@@ -46,26 +19,17 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
-from ..errors import ConfigError, ReadError
-from ..untrusted import REMOTE_DEADLINE_S, REMOTE_RETRIES, REMOTE_TIMEOUT_S
-
-__all__ = ["is_url", "Session", "session", "session_of", "current", "RemoteObject", "CACHE_LIMIT", "scrub"]
+from ...errors import ConfigError, ReadError
+from ...untrusted import REMOTE_DEADLINE_S, REMOTE_RETRIES, REMOTE_TIMEOUT_S
+from .http import _kind, _Overran, _Plain, _within
+from .objects import _READAHEAD, _TAIL, RemoteObject
+from .ranges import _PARALLEL
 
 CACHE_LIMIT = 8 << 30
 """The most bytes [B] one session downloads to its cache (objects that cannot be read by range)."""
-_READAHEAD = 4 << 10        # [B] the least a request asks for (small reads: headers, records of a summary)
-_TAIL = 16 << 10            # [B] an object's last bytes, asked for with its size (an MCAP's footer and summary,
-                            # a ROS 1 bag's index: the rest, if longer, in one more request)
-_SPAN = 16 << 20            # [B] the most one request of adjacent chunks asks for
-_GAP = 64 << 10             # [B] planned ranges this close are asked for in one request (the gap's bytes with them)
-_PARALLEL = 16              # requests of one object's planned ranges under way at once, at most …
-_AHEAD = 64 << 20           # [B] … holding at most this many bytes asked for ahead of the reader (or one span)
-_HELD = 64 << 20            # [B] the most fetched bytes kept for re-reading (footer, summary, head)
 _PIECE = 16 << 20           # [B] a download's request size
 _CLIENTS = ("botocore", "aiobotocore", "aiohttp", "urllib3", "asyncio", "gcsfs", "google", "fsspec", "s3fs")
 _URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.\-]*://")
-_FOOTER = 37                # Footer record (opcode 1 + length 8 + 8 + 8 + 4) + magic 8
-_MCAP_MAGIC = b"\x89MCAP0\r\n"
 _CREDENTIAL_ENV = ("AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY", "AWS_SESSION_TOKEN", "GOOGLE_APPLICATION_CREDENTIALS")
 _FIX_CREDENTIALS = ("set AWS_ACCESS_KEY_ID / AWS_SECRET_ACCESS_KEY or AWS_PROFILE, or pass "
                     "--storage-option key=… --storage-option secret=…")
@@ -330,90 +294,6 @@ class Session:
         self._cached.clear()
 
 
-class _Plain:
-    """The two calls an object's reading makes of its file system — ``info`` (its size) and
-    ``cat_file`` (a byte range; ``start`` < 0: the last ``-start`` bytes) — for a plain http(s) URL,
-    on the standard library's client: no aiohttp to import (0.3 s of every command), and a body read
-    in one call (fsspec's http file system took 3-5 x as long as one GET for 200 MB of ranges from
-    the loopback server of benchmarks/remote.py). No proxy from the environment, as fsspec's;
-    storage options (headers, auth) and folder listings go through fsspec. Answers map to the errors
-    :meth:`Session.call` knows: 404/410 FileNotFoundError, 401/403 PermissionError, no answer in
-    ``timeout`` [s] TimeoutError, anything else OSError; a server that ignores ``Range`` (answers 200
-    with the whole object) is a ReadError at once, never the wrong bytes."""
-
-    def __init__(self, timeout: float) -> None:
-        import urllib.request
-
-        self._timeout = timeout
-        self._opener = urllib.request.build_opener(urllib.request.ProxyHandler({}))
-
-    def _open(self, url: str, method: str, headers: dict[str, str]) -> Any:
-        import urllib.error
-        import urllib.request
-
-        try:
-            return self._opener.open(urllib.request.Request(url, method=method, headers={
-                "Accept-Encoding": "identity", **headers}), timeout=self._timeout)
-        except urllib.error.HTTPError as exc:
-            exc.close()
-            if exc.code in (404, 410):
-                raise FileNotFoundError(url) from None
-            if exc.code in (401, 403):
-                raise PermissionError(url) from None
-            raise OSError(f"HTTP {exc.code}") from None
-        except urllib.error.URLError as exc:
-            if isinstance(exc.reason, TimeoutError):
-                raise TimeoutError from None
-            raise OSError(str(exc.reason)) from None
-
-    def info(self, url: str) -> dict[str, Any]:
-        with self._open(url, "HEAD", {}) as r:
-            size = r.headers.get("Content-Length")
-        if size is None:
-            raise ReadError("the server does not say the object's size (no Content-Length)", url,
-                            "download the object and pass its local path")
-        return {"name": url, "size": int(size), "type": "file"}
-
-    def cat_file(self, url: str, start: int = 0, end: int | None = None) -> bytes:
-        import http.client
-
-        asked = f"bytes=-{-start}" if start < 0 else f"bytes={start}-{'' if end is None else end - 1}"
-        try:
-            with self._open(url, "GET", {"Range": asked}) as r:
-                n = int(r.headers.get("Content-Length", -1))
-                whole = -start if start < 0 else end if start == 0 else -1     # the object, when no longer
-                if r.status != 206 and not (r.status == 200 and n >= 0 and (whole is None or n <= whole)):
-                    raise ReadError(f"the server ignores byte ranges (answered {r.status} to a Range request)",
-                                    url, "serve the object where Range requests are answered, or download it "
-                                    "and pass its local path")
-                data: bytes = r.read()
-        except http.client.HTTPException as exc:        # cut short: IncompleteRead, a bad status line
-            raise OSError(type(exc).__name__) from None
-        return data
-
-
-class _Overran(Exception):
-    """A request still running past its time limit."""
-
-
-def _within(seconds: float, fn: Any, *args: Any) -> Any:
-    """``fn(*args)``, or :class:`_Overran` after ``seconds`` (the file systems' own timeouts come
-    first; this is the bound when one of them does not apply, e.g. a server that accepts and is silent)."""
-    pool = concurrent.futures.ThreadPoolExecutor(1)
-    try:
-        return pool.submit(fn, *args).result(seconds)
-    except concurrent.futures.TimeoutError as exc:
-        raise _Overran from exc
-    finally:
-        pool.shutdown(wait=False)
-
-
-def _kind(error: BaseException) -> str:
-    if isinstance(error, (_Overran, TimeoutError)) or "timeout" in type(error).__name__.lower():
-        return "no answer in time"
-    return type(error).__name__
-
-
 _SESSION: ContextVar[Session | None] = ContextVar("handeye_remote_session", default=None)
 
 
@@ -445,215 +325,3 @@ def current() -> Session:
         s = Session((), REMOTE_TIMEOUT_S, REMOTE_RETRIES, REMOTE_DEADLINE_S)
         _SESSION.set(s)
     return s
-
-
-class RemoteObject:
-    """One object read by byte range: ``size`` [B]; what :meth:`read_at` fetched is kept (at most
-    :data:`_HELD` bytes, oldest dropped first) so that re-reading a header or the summary costs nothing."""
-
-    def __init__(self, owner: Session, url: str, fs: Any, path: str, size: int) -> None:
-        self.session, self.url, self._fs, self._path, self.size = owner, url, fs, path, size
-        self.name = url
-        self._held: OrderedDict[int, bytes] = OrderedDict()
-
-    def __str__(self) -> str:
-        return self.url
-
-    def fetch(self, start: int, stop: int) -> bytes:
-        """The bytes ``[start, stop)`` in one request (fewer only if the object ends first), counted."""
-        stop = min(stop, self.size)
-        if stop <= start:
-            return b""
-        data: bytes = self.session.call(self.url, f"reading bytes {start}-{stop}",
-                                        lambda: self._fs.cat_file(self._path, start=start, end=stop))
-        self.session.count(len(data))
-        return data
-
-    def hold(self, start: int, data: bytes) -> None:
-        """Keep ``data``, the object's bytes from ``start``, for re-reading (at most :data:`_HELD`: oldest out)."""
-        self._held[start] = data
-        while sum(map(len, self._held.values())) > _HELD and len(self._held) > 1:
-            self._held.popitem(last=False)
-
-    def held(self, start: int, n: int) -> memoryview | None:
-        """The ``n`` bytes from ``start`` if one block held has them all, else None."""
-        for s, d in self._held.items():
-            if s <= start and start + n <= s + len(d):
-                return memoryview(d)[start - s:start - s + n]
-        return None
-
-    def unheld(self, start: int, stop: int) -> tuple[int, int]:
-        """The bytes ``[start, stop)`` less what blocks held give at either end (the object's first
-        and last bytes, read ahead): ``(a, b)``, empty (``a == b``) if nothing is left."""
-        a, b = start, stop
-        for s, d in self._held.items():
-            if s <= a < s + len(d):
-                a = min(stop, s + len(d))
-        for s, d in self._held.items():
-            if s < b <= s + len(d):
-                b = s
-        return a, max(a, b)
-
-    def read_at(self, pos: int, n: int) -> bytes:
-        """``n`` bytes from ``pos`` (fewer at the end): from what is held, else one request of at least
-        :data:`_READAHEAD` bytes."""
-        out = bytearray()
-        while n > 0 and pos < self.size:
-            block = next(((s, d) for s, d in self._held.items() if s <= pos < s + len(d)), None)
-            if block is None:
-                nxt = min((s for s in self._held if s > pos), default=self.size)
-                want = min(max(n, _READAHEAD), nxt - pos) if nxt - pos >= n else nxt - pos
-                data = self.fetch(pos, pos + want)
-                if not data:
-                    break
-                self.hold(pos, data)
-                block = (pos, data)
-            s, d = block
-            piece = d[pos - s:pos - s + n]
-            out += piece
-            pos, n = pos + len(piece), n - len(piece)
-        return bytes(out)
-
-    def prefetch_summary(self) -> bool:
-        """Hold the MCAP footer and the summary it points at (what the object's last bytes, held since
-        it was opened, do not cover: in one request); whether there is a summary (False: no footer —
-        cut short — or written without one)."""
-        if self.size < len(_MCAP_MAGIC) + _FOOTER:
-            return False
-        tail = self.read_at(self.size - _FOOTER, _FOOTER)
-        if tail[-8:] != _MCAP_MAGIC or tail[0] != 0x02:
-            return False
-        (summary_start,) = struct.unpack_from("<Q", tail, 9)
-        if not 0 < summary_start < self.size - _FOOTER:
-            return False
-        self.read_at(summary_start, self.size - _FOOTER - summary_start)
-        return True
-
-    def file(self) -> RangeFile:
-        """A seekable binary file object reading this object by range."""
-        return RangeFile(self)
-
-    def ranges(self, planned: Sequence[tuple[int, int]]) -> Ranges:
-        """Views of the byte ranges ``planned`` [(start, length)], to be asked for in that order."""
-        return Ranges(self, planned)
-
-
-class RangeFile:
-    """A read-only, seekable binary file on a :class:`RemoteObject` (reads never past its end)."""
-
-    def __init__(self, obj: RemoteObject) -> None:
-        self._obj, self._pos = obj, 0
-        self.name = obj.url
-
-    def read(self, n: int | None = -1) -> bytes:
-        if n is None or n < 0:
-            n = self._obj.size - self._pos
-        data = self._obj.read_at(self._pos, n)
-        self._pos += len(data)
-        return data
-
-    def readinto(self, buf: Any) -> int:
-        data = self.read(len(buf))
-        memoryview(buf).cast("B")[:len(data)] = data
-        return len(data)
-
-    def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
-        base = {os.SEEK_SET: 0, os.SEEK_CUR: self._pos, os.SEEK_END: self._obj.size}[whence]
-        self._pos = max(0, base + offset)
-        return self._pos
-
-    def tell(self) -> int:
-        return self._pos
-
-    def seekable(self) -> bool:
-        return True
-
-    def readable(self) -> bool:
-        return True
-
-    def close(self) -> None:
-        """Nothing to release: the object's held bytes belong to its session."""
-
-    def __enter__(self) -> RangeFile:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-class Ranges:
-    """Byte ranges of an object asked for in a planned order (use as a context manager): ranges at
-    most :data:`_GAP` apart are fetched together, up to :data:`_SPAN` bytes a request; the spans
-    after the one being read are asked for at once, on a small thread pool, while the reader works
-    through it — at most :data:`_PARALLEL` requests holding at most :data:`_AHEAD` bytes (or one
-    span) —, so that the requests' first-byte latencies overlap and fetching overlaps decoding; a
-    span is dropped once the reader moves past it (memory holds the span being read and
-    :data:`_AHEAD` bytes: a few chunks, never the object)."""
-
-    def __init__(self, obj: RemoteObject, planned: Sequence[tuple[int, int]]) -> None:
-        self._obj = obj
-        self._spans: list[tuple[int, int]] = []
-        for first, n in sorted(planned):
-            start, stop = obj.unheld(first, min(first + n, obj.size))   # what was read ahead is not asked again
-            last = self._spans[-1] if self._spans else None
-            if start == stop:
-                continue
-            if last and start - last[1] <= _GAP and max(last[1], stop) - last[0] <= _SPAN:
-                self._spans[-1] = (last[0], max(last[1], stop))
-            else:
-                self._spans.append((start, stop))
-        self._starts = [a for a, _ in self._spans]
-        self._span = (0, b"")
-        self._pool: concurrent.futures.ThreadPoolExecutor | None = None
-        self._asked: dict[int, concurrent.futures.Future[bytes]] = {}    # span number → its bytes
-        self._next = 0                  # the next span to ask for
-
-    def __enter__(self) -> Ranges:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        """Requests not yet sent are dropped; those under way are waited for (each bounded by the
-        session's timeout), so that :attr:`Session.bytes_fetched` is complete."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-        self._asked.clear()
-
-    def _ask(self, k: int) -> None:
-        """Span ``k`` and those after it asked for, up to :data:`_PARALLEL` requests and :data:`_AHEAD`
-        bytes [B] (at least span ``k``); earlier ones forgotten."""
-        for old in [j for j in self._asked if j < k]:
-            self._asked.pop(old).cancel()
-        self._next = max(self._next, k)
-        ahead = sum(self._spans[j][1] - self._spans[j][0] for j in self._asked)
-        while self._next < len(self._spans) and len(self._asked) < _PARALLEL:
-            start, stop = self._spans[self._next]
-            if self._asked and ahead + stop - start > _AHEAD:
-                break
-            if self._pool is None:
-                self._pool = concurrent.futures.ThreadPoolExecutor(_PARALLEL, thread_name_prefix="handeye-range")
-            self._asked[self._next] = self._pool.submit(self._obj.fetch, start, stop)
-            ahead += stop - start
-            self._next += 1
-
-    def view(self, start: int, n: int) -> memoryview:
-        """The ``n`` bytes from ``start`` (fewer where the object ends)."""
-        n = max(0, min(n, self._obj.size - start))
-        s, data = self._span
-        if s <= start and start + n <= s + len(data):
-            return memoryview(data)[start - s:start - s + n]
-        if (held := self._obj.held(start, n)) is not None:      # read ahead with the object's size
-            return held
-        a, b = self._obj.unheld(start, start + n)
-        if not (s <= a and b <= s + len(data)):
-            self._span = (0, b"")           # the previous span goes before the next arrives
-            k = bisect.bisect_right(self._starts, a) - 1
-            if k >= 0 and self._spans[k][0] <= a and b <= self._spans[k][1] and (k in self._asked or k >= self._next):
-                self._ask(k)
-                s, data = self._spans[k][0], self._asked.pop(k).result()
-            else:                           # outside the plan (or read already): asked for alone
-                s, data = a, self._obj.fetch(a, b)
-            self._span = (s, data)
-        if (a, b) == (start, start + n):
-            return memoryview(data)[start - s:start - s + n]
-        ends = self._obj.held(start, a - start), self._obj.held(b, start + n - b)     # read ahead: joined to it
-        return memoryview(b"".join((ends[0] or b"", memoryview(data)[a - s:b - s], ends[1] or b"")))
