@@ -33,7 +33,7 @@ from typing import Any
 
 from .errors import ConfigError
 from .solvers import METHODS
-from .untrusted import REMOTE_RETRIES, REMOTE_TIMEOUT_S, frame_id_problem
+from .untrusted import REMOTE_DEADLINE_S, REMOTE_RETRIES, REMOTE_TIMEOUT_S, frame_id_problem
 
 __all__ = ["Options", "ReadOptions", "SyncOptions", "GateOptions", "PairOptions", "SolverOptions",
            "AnalysisOptions", "OutputOptions", "SECTIONS", "FIELDS", "OptionInfo"]
@@ -274,6 +274,10 @@ class ReadOptions:
                                    "request may take [s] before it is tried again.", "SECONDS", commands=REMOTE)
     remote_retries: int = option(REMOTE_RETRIES, integer(low=1), "For URL inputs: how many times a request is "
                                  "tried before the input fails.", "N", commands=REMOTE)
+    remote_deadline: float = option(REMOTE_DEADLINE_S, number(unit="seconds"), "For URL inputs: how long one object "
+                                    "may go without an answered request [s] (the clock starts with the first try "
+                                    "after its last answer) before the input fails, whatever the timeout and "
+                                    "retries allow.", "SECONDS", commands=REMOTE)
 
 
 @dataclass(frozen=True)

@@ -97,3 +97,7 @@ REMOTE_TIMEOUT_S = 30.0
 hang a batch): the default of the ``remote_timeout`` option."""
 REMOTE_RETRIES = 3
 """How many times a request to object storage is tried before the input fails: the default of ``remote_retries``."""
+REMOTE_DEADLINE_S = 60.0
+"""How long [s] one object may go without an answered request while its requests are tried (the clock starts with the
+first try after its last answer, and an answer stops it: a large object that keeps answering is never cut), whatever
+``remote_timeout`` x ``remote_retries`` allow: the default of the ``remote_deadline`` option."""

@@ -25,10 +25,11 @@ VALUES = {
     "keyframe_rotation": 3.0, "keyframe_translation": 0.05, "max_pairs": 60, "seed": 3, "alpha": 2.0,
     "scale": 1.5, "prior": "PRIOR", "prior_weights": "0.5,2", "min_pairs": 5, "bootstrap": 3,
     "name_a": "cam_a", "name_b": "cam_b", "storage_option": ["anon=true"], "remote_timeout": 5.0, "remote_retries": 2,
+    "remote_deadline": 20.0,
 }
 # calibrate refuses these for in-memory streams: only a file reader applies them
 REFUSED = {"wxyz_a", "wxyz_b", "time_unit", "csv_columns", "time_source", "storage_option", "remote_timeout",
-           "remote_retries"}
+           "remote_retries", "remote_deadline"}
 # under every run (unless it is the option tested): consecutive pairs take 0.05 s where the default noise
 # model's 2000 pairs take 0.7 s; both surfaces get the same options either way
 FAST = {"pairs": "consecutive"}

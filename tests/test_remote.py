@@ -393,7 +393,8 @@ def test_planned_ranges_near_ones_joined_far_ones_apart_and_asked_ahead():
     object's bytes whichever request brought them, and the requests ahead are all answered by the end."""
     import fsspec
 
-    from handeye_cli.io.remote import _GAP, session
+    from handeye_cli.io.remote import session
+    from handeye_cli.io.remote.ranges import _GAP
 
     data = bytes(range(256)) * (1 << 13)                  # 2 MiB
     with fsspec.open("memory://ranges/obj.bin", "wb") as f:
@@ -465,12 +466,13 @@ def test_planned_ranges_go_in_several_requests_at_once_with_the_serial_bytes(tmp
 def test_ranges_ahead_are_bounded_by_bytes(tmp_path, monkeypatch):
     """With _AHEAD at two spans, at most two requests are ever under way, and the bytes are right."""
     from handeye_cli.io import remote
+    from handeye_cli.io.remote import ranges as ranges_module  # where Ranges reads _AHEAD
 
     data = np.random.default_rng(2).bytes(1 << 20)
     (tmp_path / "obj.bin").write_bytes(data)
     server, base = _served(tmp_path, "overlap")
     planned = [(k * (100 << 10), 30_000) for k in range(8)]
-    monkeypatch.setattr(remote, "_AHEAD", 2 * 30_000)
+    monkeypatch.setattr(ranges_module, "_AHEAD", 2 * 30_000)
     with remote.session((), 10.0, 2) as s, s.open(f"{base}/obj.bin").ranges(planned) as ranges:
         views = [bytes(ranges.view(a, n)) for a, n in planned]
     assert views == [data[a:a + n] for a, n in planned]
@@ -576,3 +578,69 @@ def test_a_failed_read_ahead_is_asked_again_but_a_bug_is_not_hidden(monkeypatch,
         else:
             with pytest.raises(KeyError, match="a bug in a reader"):
                 s.open(url)
+
+
+def test_a_stalled_object_fails_at_its_deadline_whatever_the_retries(capsys):
+    """Issue 36: every request of an object stalling, 0.5 s × 5 tries would take > 2.5 s (30 s × 4 by default:
+    > 120 s); the object's deadline of 1.5 s without an answer ends it: exit 2, one line naming the URL, the
+    deadline and the requests tried."""
+    srv, port = _silent_server()
+    url = f"http://127.0.0.1:{port}/stalled.mcap"
+    start = time.monotonic()
+    code, out, err = run(capsys, "calibrate", url, *TOPICS, "-q", "--remote-timeout", "0.5", "--remote-retries", "5",
+                         "--remote-deadline", "1.5")
+    took = time.monotonic() - start
+    srv.close()
+    assert 1.4 < took < 4, took
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+    assert url in err and "no progress for 1.5 s (" in err and "requests tried)" in err, err
+    assert "--remote-deadline" in err and int(err.split("no progress for 1.5 s (")[1].split()[0]) >= 2
+
+
+def test_a_batch_gives_the_stalled_object_its_error_record_and_reads_the_others(tmp_path, capsys):
+    """A batch of a stalled URL and a good one: the stalled one's record is an error naming its deadline, the
+    good one's is ok; exit 2."""
+    (tmp_path / "rig.mcap").write_bytes((SAMPLES / "rig.mcap").read_bytes())
+    server, base = _served(tmp_path)
+    srv, port = _silent_server()
+    stalled = f"http://127.0.0.1:{port}/stalled.mcap"
+    start = time.monotonic()
+    code, out, err = run(capsys, "batch", stalled, f"{base}/rig.mcap", *TOPICS, "-q", "--jobs", "1",
+                         "--remote-timeout", "0.5", "--remote-retries", "5", "--remote-deadline", "1")
+    took = time.monotonic() - start
+    srv.close()
+    server.shutdown()
+    records = {r["input"]: r for r in map(json.loads, out.splitlines())}
+    assert code == 2 and set(records) == {stalled, f"{base}/rig.mcap"}, (out, err)
+    assert records[f"{base}/rig.mcap"]["status"] == "ok"
+    bad = records[stalled]
+    assert bad["status"] == "error" and "no progress for 1 s (" in bad["error"] and "\n" not in bad["error"]
+    assert "remote-deadline" in bad["error"] and took < 5, took
+
+
+def test_a_slow_object_that_keeps_answering_is_never_cut(tmp_path):
+    """The deadline is time without an answered request: each answer (0.2 s late) stops the clock, so eight
+    requests in a row (1.6 s) and a pause of the reader longer than the deadline (decoding) pass a deadline of
+    0.4 s; an answer later than the deadline is the deadline's line."""
+    from handeye_cli.errors import ReadError
+    from handeye_cli.io import remote
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from remote import http_server
+
+    data = np.random.default_rng(3).bytes(1 << 20)
+    (tmp_path / "obj.bin").write_bytes(data)
+    server = http_server(tmp_path, latency=0.2)
+    url = f"http://127.0.0.1:{server.server_address[1]}/obj.bin"
+    start = time.monotonic()
+    with remote.session((), 5.0, 1, 0.4) as s:
+        obj = s.open(url)
+        got = [obj.fetch(k << 17, (k << 17) + 1000) for k in range(8)]
+        time.sleep(0.5)                                 # the reader busy: no request under way, no clock
+        got.append(obj.fetch(5, 10))
+    assert time.monotonic() - start > 0.4 * 4 and s.requests == 9
+    assert got == [data[k << 17:(k << 17) + 1000] for k in range(8)] + [data[5:10]]
+    server.latency = 0.6
+    with remote.session((), 5.0, 3, 0.4) as s, pytest.raises(ReadError, match=r"no progress for 0.4 s \(1 request tri"):
+        s.open(url)
+    server.shutdown()

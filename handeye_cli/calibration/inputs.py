@@ -111,7 +111,7 @@ _FILE_ONLY: dict[str, tuple[tuple[int, ...], str]] = {
     "time_source": ((0, 1), "a PoseStream's stamps are the ones it was built with: leave time_source unset, or "
                             "read the log with calibrate_files"),
     **{name: ((0, 1), f"in-memory PoseStreams are read from no URL: leave {name} unset")
-       for name in ("storage_option", "remote_timeout", "remote_retries")},
+       for name in ("storage_option", "remote_timeout", "remote_retries", "remote_deadline")},
 }
 
 

@@ -96,7 +96,7 @@ def open_log(paths: list[Path | RemoteObject], fmts: list[str]) -> contextlib.Ab
 def opened(url: str, fmt: str) -> Path | RemoteObject:
     """What the reader of format ``fmt`` opens for ``url``: the object read by byte range where the format
     and the object allow it (:attr:`Format.whole`, :attr:`Format.by_range`), else its local copy
-    (:meth:`.remote.Session.cached`, with a note saying why)."""
+    (:meth:`.remote.sessions.Session.cached`, with a note saying why)."""
     session, f = current(), BY_NAME[fmt]
     if f.whole:
         return session.cached(url, f.whole)

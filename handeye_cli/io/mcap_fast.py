@@ -233,7 +233,7 @@ class _Chunks:
     """
 
     def __init__(self, source: Any) -> None:
-        self._source = source           # :class:`_Mapped` (a local file) or :class:`.remote.Ranges`
+        self._source = source           # :class:`_Mapped` (a local file) or :class:`.remote.ranges.Ranges`
         self._raw = bytearray()         # decompressed zstd records
 
     @staticmethod

@@ -6,7 +6,7 @@ the damaged cases rosbags refuses.
   within the file; a single bag it refuses (never indexed, cut off, a record claiming more than the
   file holds) is scanned linearly (:class:`.rosbag1_scan.Bag1Scan`) with a warning; one indexed
   bag named by URL is read by byte range (:class:`.rosbag1_scan.Bag1Index`), any other remote bag
-  from its download (:meth:`.remote.Session.cached`, with a note saying why);
+  from its download (:meth:`.remote.sessions.Session.cached`, with a note saying why);
 * ROS 2 bag directories → AnyReader when ``metadata.yaml`` is there and parses; a corrupt one is
   a one-line error; without one the single storage file is read directly (``.mcap`` through
   McapSource, ``.db3`` through AnyReader) with a warning. A directory with one ``.mcap`` storage
