@@ -83,7 +83,7 @@ def test_rosbags_internals_are_pinned() -> None:
 
 def test_a_too_few_pairs_error_names_keywords_in_the_api_and_flags_on_the_command_line(capsys):
     """Issue 37: ``calibrate_files(pairs='consecutive', max_pairs=2)`` said 'with --pairs consecutive' (in the part
-    ``in_keywords`` does not rewrite) and 'raise max_pairs=True' (a value flag named without its value): the API's
+    the old flag-to-keyword rewrite missed) and 'raise max_pairs=True' (a value flag named without its value): the API's
     message names no flag and a keyword with a value; the CLI's names the flag."""
     from _util import ROOT, run
 

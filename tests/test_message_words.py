@@ -91,9 +91,10 @@ def test_every_install_hint_names_this_distribution() -> None:
 
 @pytest.mark.parametrize(("value", "keyword", "flag"), [
     (None, "max_dt", "--max-dt"), (True, "robust=True", "--robust"), (False, "invert_b=False", "--no-invert-b"),
-    ("off", "gate='off'", "--gate off"), ("N", "max_pairs=N", "--max-pairs N"), (0.25, "time_offset=0.25",
-                                                                                   "--time-offset 0.25"),
-    (("PARENT", "CHILD"), "frames_a=(PARENT, CHILD)", "--frames-a PARENT CHILD"), ("json", "fmt='json'", "--format json"),
+    ("off", "gate='off'", "--gate off"), ("N", "max_pairs=N", "--max-pairs N"),
+    (0.25, "time_offset=0.25", "--time-offset 0.25"),
+    (("PARENT", "CHILD"), "frames_a=(PARENT, CHILD)", "--frames-a PARENT CHILD"),
+    ("json", "fmt='json'", "--format json"),
 ])
 def test_an_option_is_worded_once_by_each_front_end(value, keyword, flag) -> None:
     key = keyword.split("=")[0]

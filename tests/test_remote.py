@@ -584,13 +584,16 @@ def test_a_stalled_object_fails_at_its_deadline_whatever_the_retries(capsys):
     """Issue 36: every request of an object stalling, 0.5 s × 5 tries would take > 2.5 s (30 s × 4 by default:
     > 120 s); the object's deadline of 1.5 s without an answer ends it: exit 2, one line naming the URL, the
     deadline and the requests tried."""
-    srv, port = _silent_server()
+    srv, port, held = _silent_server()
     url = f"http://127.0.0.1:{port}/stalled.mcap"
     start = time.monotonic()
-    code, out, err = run(capsys, "calibrate", url, *TOPICS, "-q", "--remote-timeout", "0.5", "--remote-retries", "5",
-                         "--remote-deadline", "1.5")
-    took = time.monotonic() - start
-    srv.close()
+    try:
+        code, out, err = run(capsys, "calibrate", url, *TOPICS, "-q", "--remote-timeout", "0.5", "--remote-retries",
+                             "5", "--remote-deadline", "1.5")
+        took = time.monotonic() - start
+    finally:
+        for s in (srv, *held):
+            s.close()
     assert 1.4 < took < 4, took
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
     assert url in err and "no progress for 1.5 s (" in err and "requests tried)" in err, err
@@ -602,14 +605,18 @@ def test_a_batch_gives_the_stalled_object_its_error_record_and_reads_the_others(
     good one's is ok; exit 2."""
     (tmp_path / "rig.mcap").write_bytes((SAMPLES / "rig.mcap").read_bytes())
     server, base = _served(tmp_path)
-    srv, port = _silent_server()
+    srv, port, held = _silent_server()
     stalled = f"http://127.0.0.1:{port}/stalled.mcap"
     start = time.monotonic()
-    code, out, err = run(capsys, "batch", stalled, f"{base}/rig.mcap", *TOPICS, "-q", "--jobs", "1",
-                         "--remote-timeout", "0.5", "--remote-retries", "5", "--remote-deadline", "1")
-    took = time.monotonic() - start
-    srv.close()
-    server.shutdown()
+    try:
+        code, out, err = run(capsys, "batch", stalled, f"{base}/rig.mcap", *TOPICS, "-q", "--jobs", "1",
+                             "--remote-timeout", "0.5", "--remote-retries", "5", "--remote-deadline", "1")
+        took = time.monotonic() - start
+    finally:
+        for s in (srv, *held):
+            s.close()
+        server.shutdown()
+        server.server_close()
     records = {r["input"]: r for r in map(json.loads, out.splitlines())}
     assert code == 2 and set(records) == {stalled, f"{base}/rig.mcap"}, (out, err)
     assert records[f"{base}/rig.mcap"]["status"] == "ok"

@@ -1,6 +1,7 @@
 """What went wrong, in words a user can act on: too few pairs, and data that look wrong.
 
-Every fix names command-line flags (``--gate off``), never configuration keys.
+Every fix names options by key (``⟦gate='off'⟧``, :func:`~handeye_cli.errors.option`): the CLI says the flag,
+Python the keyword.
 """
 from __future__ import annotations
 
@@ -32,7 +33,7 @@ def too_few_pairs(n_pairs: int, samples: SampleCounts, options: Options) -> TooF
              f"{s.keyframes} samples/keyframes gave {s.candidate_pairs} candidate pairs by the {p.pairs} pair strategy")
     by_time = s.dropped_timestamp_gate + s.dropped_outside_span
     if s.candidate_pairs >= need:
-        fix = f"the cap of pairs keeps too few: raise ⟦max_pairs=N⟧ (now {p.max_pairs})"   # N: in_keywords's value
+        fix = f"the cap of pairs keeps too few: raise ⟦max_pairs=N⟧ (now {p.max_pairs})"
     elif s.synced_kept >= 2 * need:
         fix = (f"the motion rotates too little between samples: lower ⟦min_rotation⟧ (now {p.min_rotation:g}) "
                "or try ⟦pairs='all'⟧")

@@ -32,7 +32,7 @@ _CLIENTS = ("botocore", "aiobotocore", "aiohttp", "urllib3", "asyncio", "gcsfs",
 _URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.\-]*://")
 _CREDENTIAL_ENV = ("AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY", "AWS_SESSION_TOKEN", "GOOGLE_APPLICATION_CREDENTIALS")
 _FIX_CREDENTIALS = ("set AWS_ACCESS_KEY_ID / AWS_SECRET_ACCESS_KEY or AWS_PROFILE, or pass "
-                    "--storage-option key=… --storage-option secret=…")
+                    "⟦storage_option='key=…'⟧ ⟦storage_option='secret=…'⟧")
 
 
 def is_url(path: object) -> bool:
@@ -85,7 +85,7 @@ class Session:
         page) the standard library's client instead (:class:`_Plain`)."""
         if urlsplit(url).password is not None or "@" in urlsplit(url).netloc:
             raise ConfigError("a URL holding credentials is refused", scrub(url.split("@", 1)[-1]),
-                              "pass credentials through the environment or --storage-option")
+                              "pass credentials through the environment or ⟦storage_option⟧")
         if not listing and not self.storage_options and url.split("://", 1)[0].lower() in ("http", "https"):
             return _Plain(self.timeout), url
         try:
@@ -112,7 +112,7 @@ class Session:
                               "in a checkout: pip install '.[remote]' or '.[gcs]'") from exc
         except (TypeError, ValueError) as exc:
             raise ConfigError(f"bad storage options for {protocol}://: {type(exc).__name__}",
-                              "--storage-option", "pass the keyword arguments of the fsspec file system") from exc
+                              "storage_option", "pass the keyword arguments of the fsspec file system") from exc
         return fs, fs._strip_protocol(url)
 
     def _left(self, url: str, what: str, start: bool = False) -> float:
@@ -131,7 +131,7 @@ class Session:
                 tried = f"{stall[1]} request{'s' * (stall[1] != 1)} tried"
                 raise ReadError(f"{what}: no progress for {self.deadline:g} s ({tried})", url,
                                 "check the endpoint (AWS_ENDPOINT_URL) and the network, or raise "
-                                "--remote-deadline SECONDS")
+                                "⟦remote_deadline=SECONDS⟧")
             stall[1] += start
         return left
 
@@ -172,8 +172,8 @@ class Session:
             if attempt < tries:
                 time.sleep(min(2.0, 0.1 * 2 ** attempt, left))
         raise ReadError(f"{what} failed {tries} times ({_kind(error)}; {self.timeout:g} s each)", url,
-                        "check the endpoint (AWS_ENDPOINT_URL) and the network, or raise --remote-timeout SECONDS / "
-                        "--remote-retries N") from error
+                        "check the endpoint (AWS_ENDPOINT_URL) and the network, or raise ⟦remote_timeout=SECONDS⟧ / "
+                        "⟦remote_retries=N⟧") from error
 
     def open(self, url: str) -> RemoteObject:
         """The object at ``url`` (its size asked once; opened once per session), holding the first and
