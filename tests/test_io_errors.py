@@ -253,3 +253,23 @@ def test_inspect_errors(tmp_path):
     fails(lambda: inspect_log(tmp_path / "none.bag"), "file not found")
     (tmp_path / "x.mcap").write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 10)
     fails(lambda: inspect_log(tmp_path / "x.mcap"), "cannot read file", "x.mcap")
+
+
+def test_two_unknown_topics_name_stream_a_first_whatever_the_hash_seed() -> None:
+    """Both topics missing: the error names a's, in every process (it named whichever a set's order gave first,
+    which differs with PYTHONHASHSEED)."""
+    import os
+    import subprocess
+    import sys
+
+    from _util import ROOT
+
+    lines = set()
+    for seed in ("1", "2", "3", "4"):
+        log = str(ROOT / "sample_data" / "ground.mcap")
+        out = subprocess.run([sys.executable, "-m", "handeye_cli", "calibrate", log, "--topic-a", "/nope_a",
+                              "--topic-b", "/nope_b"], capture_output=True, text=True,
+                             env={**os.environ, "PYTHONHASHSEED": seed}, cwd=ROOT)
+        assert out.returncode == 2
+        lines.add(out.stderr.split("(")[0])
+    assert lines == {"error: unknown topic '/nope_a' "}, lines

@@ -142,7 +142,7 @@ def read_requests(src: LogSource, requests: Sequence[Request], *, time_source: s
     the TF topics (TFMessage, Foxglove FrameTransform(s))."""
     infos = src.topics()
     wanted = {topic for topic, _ in requests if topic is not None}
-    for topic in wanted:
+    for topic in dict.fromkeys(topic for topic, _ in requests if topic is not None):    # in the order asked
         _check_topic(src, infos, topic)
     tf_topics = set()
     if any(frames is not None for _, frames in requests):
