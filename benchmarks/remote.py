@@ -239,7 +239,7 @@ class RangeHandler(http.server.BaseHTTPRequestHandler):
 def http_server(root: Path, latency: float = 0.0,
                 handler: type[RangeHandler] = RangeHandler) -> http.server.ThreadingHTTPServer:
     """The files in ``root`` served on 127.0.0.1 (by ``handler``: :class:`RangeHandler`), each answer
-    ``latency`` [s] late (tests/test_remote.py serves with it too)."""
+    ``latency`` [s] late (tests/io/test_remote.py serves with it too)."""
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
     server.daemon_threads = True
     server.root = str(root)                 # type: ignore[attr-defined]

@@ -7,7 +7,7 @@
    pairwise results (chosen in hindsight: the chain with the smallest RMS, separately for rotation
    and translation), rotation [deg] / translation [mm], the ratios joint / best chain with the
    p-value of the paired test that the joint is worse than that chain (exact one-sided Wilcoxon
-   signed-rank on the per-seed error differences, as tests/test_rig.py) and the ratio's standard
+   signed-rank on the per-seed error differences, as tests/rig/test_rig.py) and the ratio's standard
    error (paired bootstrap of the seeds), the RMS error the joint's noise model predicts (root of
    the mean predicted variance) and the model's joint / direct pair: where the model expects a gain
    of a few per cent, 20 seeds cannot resolve it (a ratio of 1.03 ± 0.04 is no loss).

@@ -9,7 +9,7 @@ they pass. Run from the repository root, in a checkout whose ``handeye_cli`` is 
 
     python scripts/mutation.py                 # every mutant, the default test subset
     python scripts/mutation.py --list          # the mutants only
-    python scripts/mutation.py -k gates -k document --tests tests/test_mutations.py
+    python scripts/mutation.py -k gates -k document --tests tests/calibration/test_mutations.py
 
 mutmut and cosmic-ray mutate every operator of a module and run the suite for each: thousands of
 runs, hours on a shared 2-core machine. This fixed list of realistic bugs (wrong order, unit,
@@ -28,9 +28,10 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 # The fast tests of the mutated modules (the 10 dqopt-vs-brute-force cases take ~2 min: left out).
-TESTS = ("tests/test_solvers.py", "tests/test_sync.py", "tests/test_gates.py", "tests/test_pairs.py",
-         "tests/test_cli.py", "tests/test_mutations.py",
-         "--deselect=tests/test_solvers.py::test_dqopt_is_the_global_optimum")
+TESTS = ("tests/solvers/test_solvers.py", "tests/stages/test_sync.py", "tests/stages/test_gates.py",
+         "tests/stages/test_pairs.py",
+         "tests/cli/test_cli.py", "tests/calibration/test_mutations.py",
+         "--deselect=tests/solvers/test_solvers.py::test_dqopt_is_the_global_optimum")
 
 
 @dataclass(frozen=True)

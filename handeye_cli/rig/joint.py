@@ -56,7 +56,7 @@ _EIGEN_FLOOR = 1e-12      # the smallest eigenvalue of C kept, relative to the l
 # The rig is called inconsistent, and a stream named, when the χ² is this improbable under the noise
 # model. Measured on 20 clean simulated rigs of each kind (seeds 0–19): with tracking gaps and drift
 # 1 is called inconsistent (2 at 0.01), with gaps 0, with neither 0, with drift 0; the noise model's
-# residual errors make the tail heavier than a χ²'s. tests/test_rig.py checks the rest of its rigs
+# residual errors make the tail heavier than a χ²'s. tests/rig/test_rig.py checks the rest of its rigs
 # (gaps, drifting wheels) without their bad stream: 2 of 20 below it.
 CONSISTENCY_P_VALUE = 1e-3
 

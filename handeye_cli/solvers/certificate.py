@@ -36,7 +36,7 @@ __all__ = ["Certificate", "RELATIVE_TOLERANCE", "certify"]
 
 RELATIVE_TOLERANCE = 1e-9
 """The certificate's tolerance over ``trace(Q)``. Solves of the paper's scenarios reach ~1e-16 (rounding);
-the wrong stationary points of the relaxation miss by ~1e-2 or more (tests/test_certificate.py)."""
+the wrong stationary points of the relaxation miss by ~1e-2 or more (tests/solvers/test_certificate.py)."""
 
 # C1 and C2 flattened, so that one product forms λ C1 + μ C2
 _C12 = np.stack((np.diag([0.0] * 4 + [1.0] * 4),

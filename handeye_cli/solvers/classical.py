@@ -20,7 +20,7 @@ linear least squares ``(R_Ai - I) t = R t_Bi - t_Ai`` (except Andreff, which sol
     rotation block is then projected onto SO(3) (sign of the determinant, then SVD).
 
 OpenCV forms its motions from consecutive absolute poses as ``Hg_j⁻¹ Hg_i`` for all i < j; fed
-the same motions these functions return its results (``tests/test_classical.py``). OpenCV reads
+the same motions these functions return its results (``tests/solvers/test_classical.py``). OpenCV reads
 the quaternions of rotations beyond 120° with either sign (it picks the branch by the largest
 diagonal entry); here every quaternion has its scalar part ≥ 0, as Tsai's and Horaud's
 equations need.

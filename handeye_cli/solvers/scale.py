@@ -40,7 +40,7 @@ it is in), it is the delete-a-group jackknife over the samples: the samples are 
 ``_JACKKNIFE_GROUPS`` consecutive groups, the fit is repeated without the pairs that touch each
 group, and ``var = (G-1)/G Σ (log s_g - mean)²``. On 20 simulated 15-station arm captures the
 Gauss–Newton figure with a pairs-per-sample inflation under-stated the spread about twofold (RMS
-of error/std 1.9); the jackknife's figure is checked in tests/test_scale.py. Ten groups, not more: the
+of error/std 1.9); the jackknife's figure is checked in tests/analysis/test_scale.py. Ten groups, not more: the
 errors of neighbouring samples are correlated (drifting odometry, an arm's kinematic errors along its path),
 and short groups split what is shared — on 10 seeds of benchmarks/monocular.py, 30 groups covered the
 scale's error at 95 % on 7/10 (continuous arm) and 8/10 (VIO), 10 groups on 9/10 and 10/10.

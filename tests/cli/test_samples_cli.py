@@ -12,7 +12,7 @@ import yaml
 from handeye_cli.cli import main
 from handeye_cli.geometry import se3
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TRUTH = yaml.safe_load((ROOT / "sample_data" / "truth.yaml").read_text(encoding="utf-8"))
 COMMANDS = [c for f in TRUTH["files"].values() for c in f["command"]]
 

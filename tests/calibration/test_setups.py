@@ -13,7 +13,7 @@ from handeye_cli.config import load_options
 from handeye_cli.geometry import se3
 from handeye_cli.simulation import perturb
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _stations(rng: np.random.Generator, n: int = 30) -> np.ndarray:

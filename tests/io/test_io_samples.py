@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from handeye_cli.geometry import se3
 from handeye_cli.io import read_stream
 
-SAMPLES = Path(__file__).resolve().parent.parent / "sample_data"
+SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"
 sys.path.insert(0, str(SAMPLES))
 import make_samples  # noqa: E402
 

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from _fleet import NOMINAL, TOPICS, crashed, make_fleet, moved, write_rig
+from _html import _images, _run_chromium
 from _util import run
-from test_report import _images, _run_chromium
 
 from handeye_cli.fleet import engine
 from handeye_cli.geometry import se3

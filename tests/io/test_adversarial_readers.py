@@ -108,7 +108,7 @@ def hostile_mcap(path: Path, chunks: list[tuple[str, bytes, int, bytes]], *, sum
                 for i, t in ((1, "/a"), (2, "/b"))]
     b = RecordBuilder()
     b.write(_MAGIC)
-    Header(profile=profile, library="tests/test_adversarial_readers.py").write(b)
+    Header(profile=profile, library="tests/io/test_adversarial_readers.py").write(b)
     schema.write(b)
     for ch in channels:
         ch.write(b)

@@ -4,15 +4,13 @@ elsewhere (a fresh machine running the README's test command) the browser test i
 from __future__ import annotations
 
 import base64
-import os
 import re
-import shutil
-import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 import pytest
+from _html import _images, _run_chromium
 from scipy.spatial.transform import Rotation
 
 from handeye_cli import document
@@ -74,10 +72,6 @@ def report(full, deviations, tmp_path_factory) -> Path:
     return path
 
 
-def _images(text: str) -> list[str]:
-    return re.findall(r"<img\b[^>]*\bsrc=['\"]([^'\"]*)['\"]", text)
-
-
 def test_report_is_self_contained_and_states_the_result(report, full_doc, rig):
     text = report.read_text(encoding="utf-8")
     assert text.startswith("<!DOCTYPE html>")
@@ -135,31 +129,6 @@ def test_world_alignment_recovers_the_world_to_world_transform(rig):
 
 
 # ---------------------------------------------------------------------------------------------
-# a real browser
-
-def _chromium() -> str:
-    exe = shutil.which("chromium") or shutil.which("chromium-browser")
-    if exe is None:
-        message = ("chromium is not installed: the report test opens the report in a real headless browser; "
-                   "install it with `apt-get install -y chromium` (.ci/run does)")
-        if os.environ.get("CI"):
-            pytest.fail(message)
-        pytest.skip(message)
-    return exe
-
-
-def _run_chromium(tmp_path: Path, *args: str) -> subprocess.CompletedProcess:
-    cmd = [_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-           "--no-first-run", "--hide-scrollbars", f"--user-data-dir={tmp_path / 'profile'}",
-           "--virtual-time-budget=5000", *args]
-    try:
-        return subprocess.run(cmd, capture_output=True, text=True, timeout=60, check=True)
-    except subprocess.TimeoutExpired:
-        pytest.fail(f"chromium did not finish within 60 s: {' '.join(cmd)}")
-    except subprocess.CalledProcessError as e:
-        pytest.fail(f"chromium failed with exit code {e.returncode}: {e.stderr[-2000:]}")
-
-
 def test_report_renders_in_headless_chromium(report, tmp_path):
     url = report.resolve().as_uri()
     dom = _run_chromium(tmp_path, "--dump-dom", url).stdout

@@ -23,7 +23,7 @@ from handeye_cli.cli import main
 from handeye_cli.io import detect_format, read_stream, valid_frame_id
 from handeye_cli.simulation import Rig, simulate_rig
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -118,7 +118,7 @@ def test_wxyz_quaternions(tmp_path):
     a = type(a)(a.stamps_ns, a.xyz, a.quat_xyzw * np.sign(a.quat_xyzw[:, 3:]))      # w >= 0, as writers emit
     path = write_wxyz(tmp_path / "wxyz.tum", a)
     s = read_stream(path)                          # the format's order, left open for the fit to overturn
-    assert s.warnings == () and s.quaternion_order == "xyzw"     # (tests/test_readings.py: the fit's choice)
+    assert s.warnings == () and s.quaternion_order == "xyzw"     # (tests/analysis/test_readings.py: the fit's choice)
     right = read_stream(path, quaternion_order="wxyz")
     assert right.warnings == () and right.quaternion_order is None
     np.testing.assert_allclose(np.abs(np.sum(right.quat_xyzw * a.quat_xyzw, axis=1)), 1.0, atol=1e-9)

@@ -15,7 +15,7 @@ from handeye_cli.errors import KEYWORD_FLAGS, ConfigError, as_flags, as_keywords
 from handeye_cli.options import FIELDS
 from handeye_cli.rig import RigOptions
 
-PACKAGE = Path(__file__).resolve().parents[1] / "handeye_cli"
+PACKAGE = Path(__file__).resolve().parents[2] / "handeye_cli"
 CLI_LAYERS = ("cli", "fleet")          # the command line's own words: they name flags
 FLAG = re.compile(r"(?<![\w-])--(?:no-)?[a-z][a-z0-9*{}_-]*")
 MARK = re.compile(r"⟦([A-Za-z_*{}][A-Za-z0-9_*{}]*)(?:=[^⟦⟧]*)?⟧")

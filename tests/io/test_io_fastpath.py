@@ -27,7 +27,7 @@ from handeye_cli.io.mcap_reader import McapSource
 from handeye_cli.io.table import fast_table, slow_table
 from handeye_cli.simulation import Rig, simulate_rig
 
-SAMPLES = Path(__file__).resolve().parent.parent / "sample_data"
+SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"
 
 
 def both_paths(path: Path, requests, time_source: str = "header"):

@@ -91,7 +91,7 @@ def test_truncated_logs(tmp_path, recs, kind, keep):
     """Cut at half (inside the only chunk), minus the last 8 bytes (the closing magic; SQLite does
     not need those) or down to 20 bytes: nothing intact to recover, so an error. (Recovery of the
     intact part of crashed recordings — rosbag2's uncompressed MCAP or a ROS 1 bag cut at half, a ROS 1 bag
-    that lost the end of its index: tests/test_io_crashed.py.)"""
+    that lost the end of its index: tests/io/test_io_crashed.py.)"""
     path = cut(write_log(kind, tmp_path, [pose_channel("/p", POSE, recs), pose_channel("/q", POSE, recs)]), keep)
     fails(lambda: read_stream(path, topic="/p"), "cannot read file", str(path))
 

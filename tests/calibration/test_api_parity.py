@@ -45,7 +45,8 @@ def _value(name: str):
         return next(c for c in info.choices if c != default)
     if info.parse in (flag, optional_flag):
         return not default
-    raise AssertionError(f"option {name!r} is new: give it a test value in VALUES (tests/test_api_parity.py)")
+    raise AssertionError(f"option {name!r} is new: give it a test value in VALUES "
+                         "(tests/calibration/test_api_parity.py)")
 
 
 @pytest.fixture(scope="module")
@@ -154,7 +155,7 @@ def test_solve_has_the_command_lines_defaults_and_values(tmp_path, capsys):
     from handeye_cli.cli import main
     from handeye_cli.io.pairfile import read_pairs
 
-    pairs = Path(__file__).parents[1] / "sample_data" / "pairs.csv"
+    pairs = Path(__file__).parents[2] / "sample_data" / "pairs.csv"
     params = inspect.signature(handeye_cli.solve).parameters
     assert params["alpha"].default == FIELDS["alpha"][2] == "auto"
     assert params["method"].default == FIELDS["method"][2]
