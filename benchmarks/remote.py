@@ -28,6 +28,7 @@ import tempfile
 import threading
 import time
 import urllib.request
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -236,17 +237,25 @@ class RangeHandler(http.server.BaseHTTPRequestHandler):
         pass
 
 
-def http_server(root: Path, latency: float = 0.0,
-                handler: type[RangeHandler] = RangeHandler) -> http.server.ThreadingHTTPServer:
+@contextlib.contextmanager
+def http_server(root: Path, latency: float = 0.0, handler: type[RangeHandler] = RangeHandler
+                ) -> Iterator[http.server.ThreadingHTTPServer]:
     """The files in ``root`` served on 127.0.0.1 (by ``handler``: :class:`RangeHandler`), each answer
-    ``latency`` [s] late (tests/io/test_remote.py serves with it too)."""
+    ``latency`` [s] late (tests/io/test_remote.py serves with it too); shut down and its socket closed on exit
+    (a socket left open is a ResourceWarning wherever its last reference goes, in another test)."""
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
     server.daemon_threads = True
     server.root = str(root)                 # type: ignore[attr-defined]
     server.latency = latency                # type: ignore[attr-defined]
     server.lock, server.active, server.log = threading.Lock(), 0, []     # type: ignore[attr-defined]
-    threading.Thread(target=server.serve_forever, daemon=True).start()
-    return server
+    serving = threading.Thread(target=server.serve_forever, daemon=True)
+    serving.start()
+    try:
+        yield server
+    finally:
+        server.shutdown()
+        serving.join()
+        server.server_close()
 
 
 def _run(args: list[str], env: dict[str, str]) -> tuple[float, dict[str, Any], int, int]:
@@ -327,7 +336,8 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="handeye-bench-remote-"))
     served = tmp / "served"
     served.mkdir()
-    web = http_server(served, args.latency_ms / 1e3)
+    closing = contextlib.ExitStack()             # the plain HTTP server, shut down and closed at the end
+    web = closing.enter_context(http_server(served, args.latency_ms / 1e3))
     base = f"http://127.0.0.1:{web.server_address[1]}"
 
     def one_get(url: str, to: Path) -> None:
@@ -388,7 +398,7 @@ def main() -> None:
               f"{os.getloadavg()[0]:.2f}")
     finally:
         shutil.rmtree(tmp, True)
-        web.shutdown()
+        closing.close()
         server.stop()
 
 

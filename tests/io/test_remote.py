@@ -2,6 +2,7 @@
 retries and timeouts, credentials never shown, batch over prefixes and globs, Dask workers that open URLs."""
 from __future__ import annotations
 
+import contextlib
 import gc
 import json
 import os
@@ -10,6 +11,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -185,27 +187,28 @@ def test_an_object_cut_short_is_salvaged_like_a_local_file(s3, capsys, tmp_path)
     assert any("recovered" in w for w in b["warnings"]) and any("cache" in w for w in b["warnings"])
 
 
-def _silent_server() -> tuple[socket.socket, int, list[socket.socket]]:
-    """A server that accepts connections and never answers: (its socket, its port, the connections it holds)."""
-    srv = socket.socket()
-    srv.bind(("127.0.0.1", 0))
-    srv.listen(16)
+@contextlib.contextmanager
+def _silent_server() -> Iterator[int]:
+    """A server on 127.0.0.1 that accepts connections and never answers: its port; its socket and the
+    connections it holds are closed on exit."""
     held: list[socket.socket] = []
-    threading.Thread(target=lambda: [held.append(srv.accept()[0]) for _ in range(16)], daemon=True).start()
-    return srv, srv.getsockname()[1], held
+    with socket.socket() as srv:
+        srv.bind(("127.0.0.1", 0))
+        srv.listen(16)
+        threading.Thread(target=lambda: [held.append(srv.accept()[0]) for _ in range(16)], daemon=True).start()
+        try:
+            yield srv.getsockname()[1]
+        finally:
+            for connection in held:
+                connection.close()
 
 
 def test_a_stalled_server_is_a_timeout_not_a_hang(s3, capsys):
-    srv, port, held = _silent_server()
     start = time.monotonic()
-    try:
+    with _silent_server() as port:
         code, out, err = run(capsys, "calibrate", f"s3://{BUCKET}/logs/rig.mcap", *TOPICS, "-q",
                              "--storage-option", f"endpoint_url=http://127.0.0.1:{port}",
                              "--remote-timeout", "0.5", "--remote-retries", "2")
-    finally:
-        srv.close()
-        for conn in held:                               # else each a ResourceWarning
-            conn.close()
     assert time.monotonic() - start < 8
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
     assert "failed 2 times (no answer in time" in err
@@ -421,13 +424,14 @@ def test_planned_ranges_near_ones_joined_far_ones_apart_and_asked_ahead():
         assert bytes(obj.ranges([]).view(5, 3)) == data[5:8] and s.requests == 4     # outside a plan: alone
 
 
+@contextlib.contextmanager
 def _served(tmp_path, mode: str = "", after: int = 1 << 62):
     """A plain HTTP range server on 127.0.0.1 (benchmarks/remote.py's) serving ``tmp_path``: its
     ``log`` holds (method, range, requests under way when it came) of every request. ``mode``
     "overlap": each range request waits (at most 0.5 s) until another request is under way, so that
     requests sent one after another are seen one at a time, and requests sent together together;
     "fail": ranges from byte ``after`` on are answered 500; "stall": they are never answered;
-    "ignore": Range is ignored (200, the whole object)."""
+    "ignore": Range is ignored (200, the whole object). A context manager: shut down and closed on exit."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from remote import RangeHandler, http_server
 
@@ -449,8 +453,8 @@ def _served(tmp_path, mode: str = "", after: int = 1 << 62):
                 return None
             return super()._answer(path)
 
-    server = http_server(tmp_path, handler=Handler)
-    return server, f"http://127.0.0.1:{server.server_address[1]}"
+    with http_server(tmp_path, handler=Handler) as server:
+        yield server, f"http://127.0.0.1:{server.server_address[1]}"
 
 
 def test_planned_ranges_go_in_several_requests_at_once_with_the_serial_bytes(tmp_path):
@@ -461,18 +465,16 @@ def test_planned_ranges_go_in_several_requests_at_once_with_the_serial_bytes(tmp
 
     data = np.random.default_rng(1).bytes(3 << 20)
     (tmp_path / "obj.bin").write_bytes(data)
-    server, base = _served(tmp_path, "overlap")
-    planned = [(k * (200 << 10), 5000 + k) for k in range(12)]
-    with remote.session((), 10.0, 2) as s:
-        obj = s.open(f"{base}/obj.bin")
-        with obj.ranges(planned) as ranges:
-            views = [bytes(ranges.view(a, n)) for a, n in planned]
-    assert views == [data[a:a + n] for a, n in planned]
-    gets = [log for log in server.log if log[0] == "GET"]
-    assert len(gets) == len(planned) and max(active for *_, active in gets) >= 2
-    assert s.bytes_fetched == sum(n for _, n in planned)
-    server.shutdown()
-    server.server_close()                       # its listening socket (else a ResourceWarning)
+    with _served(tmp_path, "overlap") as (server, base):
+        planned = [(k * (200 << 10), 5000 + k) for k in range(12)]
+        with remote.session((), 10.0, 2) as s:
+            obj = s.open(f"{base}/obj.bin")
+            with obj.ranges(planned) as ranges:
+                views = [bytes(ranges.view(a, n)) for a, n in planned]
+        assert views == [data[a:a + n] for a, n in planned]
+        gets = [log for log in server.log if log[0] == "GET"]
+        assert len(gets) == len(planned) and max(active for *_, active in gets) >= 2
+        assert s.bytes_fetched == sum(n for _, n in planned)
 
 
 def test_ranges_ahead_are_bounded_by_bytes(tmp_path, monkeypatch):
@@ -482,15 +484,13 @@ def test_ranges_ahead_are_bounded_by_bytes(tmp_path, monkeypatch):
 
     data = np.random.default_rng(2).bytes(1 << 20)
     (tmp_path / "obj.bin").write_bytes(data)
-    server, base = _served(tmp_path, "overlap")
-    planned = [(k * (100 << 10), 30_000) for k in range(8)]
-    monkeypatch.setattr(ranges_module, "_AHEAD", 2 * 30_000)
-    with remote.session((), 10.0, 2) as s, s.open(f"{base}/obj.bin").ranges(planned) as ranges:
-        views = [bytes(ranges.view(a, n)) for a, n in planned]
-    assert views == [data[a:a + n] for a, n in planned]
-    assert max(active for method, _, active in server.log if method == "GET") == 2
-    server.shutdown()
-    server.server_close()                       # its listening socket (else a ResourceWarning)
+    with _served(tmp_path, "overlap") as (server, base):
+        planned = [(k * (100 << 10), 30_000) for k in range(8)]
+        monkeypatch.setattr(ranges_module, "_AHEAD", 2 * 30_000)
+        with remote.session((), 10.0, 2) as s, s.open(f"{base}/obj.bin").ranges(planned) as ranges:
+            views = [bytes(ranges.view(a, n)) for a, n in planned]
+        assert views == [data[a:a + n] for a, n in planned]
+        assert max(active for method, _, active in server.log if method == "GET") == 2
 
 
 def test_an_mcap_over_http_asks_size_head_and_tail_at_once_then_the_chunks_together(tmp_path):
@@ -504,21 +504,19 @@ def test_an_mcap_over_http_asks_size_head_and_tail_at_once_then_the_chunks_toget
     from remote import write_image_log
 
     path = write_image_log(tmp_path / "img.mcap", seconds=8, image_bytes=20_000, own_chunks=True)
-    server, base = _served(tmp_path, "overlap")
-    requests = [("/cam0/pose", None), ("/cam1/pose", None)]
-    with session((), 10.0, 2) as s:
-        remote = read_log_streams(f"{base}/img.mcap", requests)
-    local = read_log_streams(path, requests)
-    for x, y in zip(local, remote, strict=True):
-        assert np.array_equal(x.stamps_ns, y.stamps_ns) and np.array_equal(x.xyz, y.xyz)
-        assert np.array_equal(x.quat_xyzw, y.quat_xyzw)
-    first = server.log[:3]
-    assert sorted(r or "" for _, r, _ in first) == ["", "bytes=-16384", "bytes=0-4095"]
-    assert max(active for *_, active in first) >= 2 and "HEAD" in [m for m, *_ in first]
-    chunks = server.log[3:]
-    assert len(chunks) == 8 and max(active for *_, active in chunks) >= 2 and s.requests == 2 + 8
-    server.shutdown()
-    server.server_close()                       # its listening socket (else a ResourceWarning)
+    with _served(tmp_path, "overlap") as (server, base):
+        requests = [("/cam0/pose", None), ("/cam1/pose", None)]
+        with session((), 10.0, 2) as s:
+            remote = read_log_streams(f"{base}/img.mcap", requests)
+        local = read_log_streams(path, requests)
+        for x, y in zip(local, remote, strict=True):
+            assert np.array_equal(x.stamps_ns, y.stamps_ns) and np.array_equal(x.xyz, y.xyz)
+            assert np.array_equal(x.quat_xyzw, y.quat_xyzw)
+        first = server.log[:3]
+        assert sorted(r or "" for _, r, _ in first) == ["", "bytes=-16384", "bytes=0-4095"]
+        assert max(active for *_, active in first) >= 2 and "HEAD" in [m for m, *_ in first]
+        chunks = server.log[3:]
+        assert len(chunks) == 8 and max(active for *_, active in chunks) >= 2 and s.requests == 2 + 8
 
 
 @pytest.mark.parametrize("mode", ["fail", "stall"])
@@ -529,31 +527,25 @@ def test_a_chunk_request_that_fails_or_stalls_is_one_line(tmp_path, capsys, mode
     from remote import write_image_log
 
     write_image_log(tmp_path / "img.mcap", seconds=4, image_bytes=20_000, own_chunks=True)
-    server, base = _served(tmp_path, mode, after=4096)
-    code, out, err = run(capsys, "calibrate", f"{base}/img.mcap", *TOPICS, "-q", "--remote-timeout", "0.5",
-                         "--remote-retries", "2")
-    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
-    assert f"{base}/img.mcap" in err and "failed 2 times" in err
-    assert ("no answer in time" in err) == (mode == "stall")
-    server.shutdown()
-    server.server_close()                       # its listening socket (else a ResourceWarning)
+    with _served(tmp_path, mode, after=4096) as (server, base):
+        code, out, err = run(capsys, "calibrate", f"{base}/img.mcap", *TOPICS, "-q", "--remote-timeout", "0.5",
+                             "--remote-retries", "2")
+        assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+        assert f"{base}/img.mcap" in err and "failed 2 times" in err
+        assert ("no answer in time" in err) == (mode == "stall")
 
 
 def test_over_plain_http_a_missing_object_and_a_server_ignoring_ranges_are_one_line(tmp_path, capsys):
     """404: "no such object" at once; a server answering a Range request with the whole object: a
     clear line, never those bytes taken for the range."""
     (tmp_path / "rig.mcap").write_bytes((SAMPLES / "rig.mcap").read_bytes())
-    server, base = _served(tmp_path)
-    code, out, err = run(capsys, "calibrate", f"{base}/missing.mcap", *TOPICS, "-q")
-    assert code == 2 and out == "" and err.startswith("error: no such object") and len(err.splitlines()) == 1
-    server.shutdown()
-    server.server_close()                       # its listening socket (else a ResourceWarning)
-    server, base = _served(tmp_path, "ignore")
-    code, out, err = run(capsys, "calibrate", f"{base}/rig.mcap", *TOPICS, "-q")
-    assert code == 2 and out == "" and "ignores byte ranges (answered 200" in err and len(err.splitlines()) == 1
-    assert len(server.log) <= 4                 # no retries of a wrong answer
-    server.shutdown()
-    server.server_close()                       # its listening socket (else a ResourceWarning)
+    with _served(tmp_path) as (server, base):
+        code, out, err = run(capsys, "calibrate", f"{base}/missing.mcap", *TOPICS, "-q")
+        assert code == 2 and out == "" and err.startswith("error: no such object") and len(err.splitlines()) == 1
+    with _served(tmp_path, "ignore") as (server, base):
+        code, out, err = run(capsys, "calibrate", f"{base}/rig.mcap", *TOPICS, "-q")
+        assert code == 2 and out == "" and "ignores byte ranges (answered 200" in err and len(err.splitlines()) == 1
+        assert len(server.log) <= 4                 # no retries of a wrong answer
 
 
 class _Store:
@@ -596,16 +588,12 @@ def test_a_stalled_object_fails_at_its_deadline_whatever_the_retries(capsys):
     """Issue 36: every request of an object stalling, 0.5 s × 5 tries would take > 2.5 s (30 s × 4 by default:
     > 120 s); the object's deadline of 1.5 s without an answer ends it: exit 2, one line naming the URL, the
     deadline and the requests tried."""
-    srv, port, held = _silent_server()
-    url = f"http://127.0.0.1:{port}/stalled.mcap"
     start = time.monotonic()
-    try:
+    with _silent_server() as port:
+        url = f"http://127.0.0.1:{port}/stalled.mcap"
         code, out, err = run(capsys, "calibrate", url, *TOPICS, "-q", "--remote-timeout", "0.5", "--remote-retries",
                              "5", "--remote-deadline", "1.5")
         took = time.monotonic() - start
-    finally:
-        for s in (srv, *held):
-            s.close()
     assert 1.4 < took < 4, took
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
     assert url in err and "no progress for 1.5 s (" in err and "requests tried)" in err, err
@@ -616,19 +604,12 @@ def test_a_batch_gives_the_stalled_object_its_error_record_and_reads_the_others(
     """A batch of a stalled URL and a good one: the stalled one's record is an error naming its deadline, the
     good one's is ok; exit 2."""
     (tmp_path / "rig.mcap").write_bytes((SAMPLES / "rig.mcap").read_bytes())
-    server, base = _served(tmp_path)
-    srv, port, held = _silent_server()
-    stalled = f"http://127.0.0.1:{port}/stalled.mcap"
     start = time.monotonic()
-    try:
+    with _served(tmp_path) as (_, base), _silent_server() as port:
+        stalled = f"http://127.0.0.1:{port}/stalled.mcap"
         code, out, err = run(capsys, "batch", stalled, f"{base}/rig.mcap", *TOPICS, "-q", "--jobs", "1",
                              "--remote-timeout", "0.5", "--remote-retries", "5", "--remote-deadline", "1")
         took = time.monotonic() - start
-    finally:
-        for s in (srv, *held):
-            s.close()
-        server.shutdown()
-        server.server_close()
     records = {r["input"]: r for r in map(json.loads, out.splitlines())}
     assert code == 2 and set(records) == {stalled, f"{base}/rig.mcap"}, (out, err)
     assert records[f"{base}/rig.mcap"]["status"] == "ok"
@@ -649,10 +630,9 @@ def test_a_slow_object_that_keeps_answering_is_never_cut(tmp_path):
 
     data = np.random.default_rng(3).bytes(1 << 20)
     (tmp_path / "obj.bin").write_bytes(data)
-    server = http_server(tmp_path, latency=0.2)
-    url = f"http://127.0.0.1:{server.server_address[1]}/obj.bin"
-    start = time.monotonic()
-    try:
+    with http_server(tmp_path, latency=0.2) as server:
+        url = f"http://127.0.0.1:{server.server_address[1]}/obj.bin"
+        start = time.monotonic()
         with remote.session((), 5.0, 1, 0.4) as s:
             obj = s.open(url)
             got = [obj.fetch(k << 17, (k << 17) + 1000) for k in range(8)]
@@ -664,6 +644,3 @@ def test_a_slow_object_that_keeps_answering_is_never_cut(tmp_path):
         late = pytest.raises(ReadError, match=r"no progress for 0.4 s \(1 request tri")
         with remote.session((), 5.0, 3, 0.4) as s, late:
             s.open(url)
-    finally:
-        server.shutdown()
-        server.server_close()                       # its listening socket (else a ResourceWarning, later, elsewhere)
