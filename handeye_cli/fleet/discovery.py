@@ -32,12 +32,11 @@ from pathlib import Path
 from typing import TextIO
 
 from ..errors import HandEyeError, as_flags
-from ..io.detect import LOG_FORMATS, detect_format
+from ..io.detect import LOG_FORMATS, LOG_SUFFIXES, detect_format
 from ..io.remote import current, is_url
 
 __all__ = ["BatchInput", "discover"]
 
-_LOG_SUFFIXES = (".mcap", ".bag", ".db3")
 _TEXT_FORMATS = ("tum", "euroc")
 _SPECIAL = ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a character device"),
             (stat.S_ISBLK, "a block device"))
@@ -63,7 +62,7 @@ def _kind(path: Path) -> str | None:
     try:
         fmt = detect_format(path)
     except HandEyeError:
-        return "log" if path.suffix.lower() in _LOG_SUFFIXES else None
+        return "log" if path.suffix.lower() in LOG_SUFFIXES else None
     return "log" if fmt in LOG_FORMATS else fmt if fmt in _TEXT_FORMATS else None
 
 
@@ -153,7 +152,7 @@ def _remote(url: str) -> list[BatchInput]:
     except HandEyeError as e:
         return [BatchInput((url,), e.line(as_flags))]
     bags = sorted({name.rsplit("/", 1)[0] for name, _ in found if name.endswith("/metadata.yaml")})
-    logs = {name for name, folder in found if not folder and name.lower().endswith(_LOG_SUFFIXES)
+    logs = {name for name, folder in found if not folder and name.lower().endswith(LOG_SUFFIXES)
             and not any(name.startswith(bag + "/") for bag in bags)}
     inputs = [BatchInput((name,)) for name in sorted(logs | set(bags))]
     return inputs or [BatchInput((url,), f"no logs found under {url}")]

@@ -5,11 +5,11 @@ import re
 from pathlib import Path
 
 from ..errors import ReadError
-from .formats import LOG_FORMATS, MAGIC_BYTES, by_magic, by_suffix
+from .formats import LOG_FORMATS, LOG_SUFFIXES, MAGIC_BYTES, by_magic, by_suffix
 from .inputs import existing, is_stream, read_head
 from .remote import current, is_url
 
-__all__ = ["LOG_FORMATS", "detect_format", "existing"]
+__all__ = ["LOG_FORMATS", "LOG_SUFFIXES", "detect_format", "existing"]
 
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^[+-]?(nan|inf)$", re.IGNORECASE)
 _EUROC_HEADER = re.compile(r"p_RS_R_x|q_RS_w", re.IGNORECASE)

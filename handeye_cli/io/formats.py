@@ -15,7 +15,7 @@ from .opening import open_bag1, open_bag2, open_mcap
 from .remote import RemoteObject, current
 from .source import LogSource
 
-__all__ = ["Format", "FORMATS", "LOG_FORMATS", "BY_NAME", "MAGIC_BYTES", "by_magic", "by_suffix", "open_log",
+__all__ = ["Format", "FORMATS", "LOG_FORMATS", "LOG_SUFFIXES", "BY_NAME", "MAGIC_BYTES", "by_magic", "by_suffix", "open_log",
            "opened"]
 
 Opener = Callable[[list[Path | RemoteObject]], contextlib.AbstractContextManager[LogSource]]
@@ -69,6 +69,8 @@ FORMATS = (
 )
 BY_NAME = {f.name: f for f in FORMATS}
 LOG_FORMATS = tuple(f.name for f in FORMATS if f.log)
+LOG_SUFFIXES = tuple(suffix for f in FORMATS if f.log for suffix in f.suffixes)
+"""The suffixes that promise a log (lower case), as a batch's search of a folder or a bucket matches them."""
 MAGIC_BYTES = max(len(f.magic) for f in FORMATS)
 """The most bytes [B] a format's magic needs."""
 
