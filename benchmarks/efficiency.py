@@ -58,7 +58,7 @@ def park_lm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 
 def trial(seed: int, regime: tuple[float, float, float, float], stations: int = 20, pairs: str = "all"
           ) -> tuple[dict[str, tuple[float, float]], dict[str, float]]:
-    """One capture: each method's (rotation error [rad], translation error [m]) and the times [s] of dqopt and refine."""
+    """One capture: each method's (rotation error [rad], translation error [m]); the times [s] of dqopt and refine."""
     rng = np.random.default_rng(seed)
     Ta, Tb, X = look_at_stations(stations, rng)
     ra, ta, rb, tb = regime

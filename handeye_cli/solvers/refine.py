@@ -2,8 +2,8 @@
 
 Cost (8) weighs every pair's rotation and translation by one α. When the noise of the two streams
 differs in kind — a camera whose rotation noise, carried to the motion's translation by the lever,
-dwarfs its translation noise — that single weight cannot be right for every pair, and a rotation-first
-method (Park) plus a local fit beats it in rotation. :func:`refine` minimises instead the first-order
+dwarfs its translation noise — that single weight cannot be right for every pair (issue 35: on real
+data Park + LM beat dqopt in rotation). :func:`refine` minimises instead the first-order
 errors-in-variables negative log-likelihood::
 
     J(X, s) = Σ_i r_iᵀ Σ_i(X, s)⁻¹ r_i,      Σ_i = J_a,i cov_a,i J_a,iᵀ + J_b,i cov_b,i J_b,iᵀ
@@ -18,7 +18,9 @@ and ``J_a``, ``J_b`` the exact derivatives of ``r`` by the motions' noise at the
 Σ is evaluated afresh at each iterate (iteratively re-weighted generalised least squares); the
 fixed point minimises ``Σ rᵀ Σ(X̂)⁻¹ r`` with Σ frozen at the answer (the log-determinant of Σ is
 not part of the cost). The pairs are treated as independent: pairs that share a pose (all-with-all
-or consecutive pairs of stations) are correlated, which the weights do not see.
+or consecutive pairs of stations) are correlated, which neither the weights nor :attr:`Refined.covariance`
+see. On look-at stations (``benchmarks/efficiency.py``'s camera) the 95 % ellipsoid held the truth in
+97 % of 60 captures of disjoint pairs, 80 % with consecutive pairs and 7 % with all-with-all pairs.
 
 Noise of a motion (:func:`motion_covariances`), ordered ``(ε_rot, ε_tra)``: the motion ``M = (R_M, t_M)``
 is measured as ``(R_M Exp(ε_rot), t_M + ε_tra)``: ``ε_rot`` a rotation vector [rad] in the sensor's
@@ -60,7 +62,8 @@ class Refined:
     iterations: Levenberg–Marquardt steps taken; converged: the last Gauss–Newton step was below
         ``tolerance`` standard deviations.
     covariance: (6, 6), or (7, 7) with a scale: ``(Jᵀ Σ⁻¹ J)⁻¹`` at the end (inverse Fisher information)
-        of the perturbation ``(ω [rad], v [m] (, log s))``, ``ω`` and ``v`` in frame b (module docstring).
+        of the perturbation ``(ω [rad], v [m] (, log s))``, ``ω`` and ``v`` in frame b (module docstring);
+        optimistic where pairs share poses (module docstring).
     """
 
     matrix: FloatArray
@@ -267,19 +270,17 @@ def refine(motions_a: FloatArray, motions_b: FloatArray, X0: FloatArray, cov_a: 
     r, P, H, g, cost = state(X, s)
     cost_start, damping, converged, iterations = cost, _DAMPING[0], False, 0
     while iterations < max_iterations:
-        gn = _solve(H, -g)
-        if float(np.sqrt(max(-gn @ g, 0.0))) < tolerance:
+        length = float(np.sqrt(max(-float(_solve(H, -g) @ g), 0.0)))     # √(δᵀHδ) of the Gauss–Newton step
+        if length < tolerance:
             converged = True
             break
-        diag = np.diag(H).copy()
         while damping <= _DAMPING[1]:
-            step = gn if damping == 0 else _solve(H + damping * np.diag(diag), -g)
-            X_new, s_new = _moved(X, s, step)
+            X_new, s_new = _moved(X, s, _solve(H + damping * np.diag(np.diag(H)), -g))
             if frozen(X_new, s_new, P) <= cost:
                 break
             damping *= 10.0
         else:                                     # no step lowers the cost: rounding level
-            converged = bool(np.sqrt(max(-gn @ g, 0.0)) < 1e3 * tolerance)
+            converged = length < 1e3 * tolerance
             break
         X, s, iterations = X_new, s_new, iterations + 1
         damping = max(damping / 10.0, _DAMPING[0])
