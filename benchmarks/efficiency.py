@@ -2,8 +2,8 @@
 
 An eye-in-hand camera looks at a target from 0.1–0.3 m (``simulation.arm.look_at_stations``); both
 streams' poses get ``simulation.perturb`` noise (σ_r the angle about a random axis, σ_t per axis), and
-the motions are the pairs of stations (all with all, or consecutive). Per noise regime it prints the
-median rotation [mrad] and translation [mm] error over the seeds of:
+the motions are the pairs of stations (all with all, consecutive, or disjoint: the only independent
+ones). Per noise regime it prints the median rotation [mrad] and translation [mm] error over the seeds of:
 
 * ``dqopt a=1``: cost (8) with α = 1 /m; ``dqopt auto``: with the noise model's ML α
   (``analysis.alpha.noise_model_alpha``, the default ``auto`` rule without its time-block cap);
@@ -12,7 +12,7 @@ median rotation [mrad] and translation [mm] error over the seeds of:
 * ``refine``: :func:`handeye_cli.solvers.refine.refine` from dqopt's (α = 1) optimum, with the true
   noise levels, and its time per call against dqopt's in the same run.
 
-    python benchmarks/efficiency.py [--seeds 30] [--stations 20] [--pairs all|consecutive]
+    python benchmarks/efficiency.py [--seeds 30] [--stations 20] [--pairs all|consecutive|disjoint]
 """
 from __future__ import annotations
 
@@ -56,6 +56,16 @@ def park_lm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     return X
 
 
+def _pairs(stations: int, pairs: str) -> tuple[np.ndarray, np.ndarray]:
+    """Station indices (i, j) of the motions: all with all, consecutive, or disjoint (0-1, 2-3, …: independent)."""
+    if pairs == "all":
+        i, j = np.triu_indices(stations, 1)
+        return i, j
+    if pairs == "disjoint":
+        return np.arange(0, stations - 1, 2), np.arange(1, stations, 2)
+    return np.arange(stations - 1), np.arange(1, stations)
+
+
 def trial(seed: int, regime: tuple[float, float, float, float], stations: int = 20, pairs: str = "all"
           ) -> tuple[dict[str, tuple[float, float]], dict[str, float]]:
     """One capture: each method's (rotation error [rad], translation error [m]); the times [s] of dqopt and refine."""
@@ -63,7 +73,7 @@ def trial(seed: int, regime: tuple[float, float, float, float], stations: int = 
     Ta, Tb, X = look_at_stations(stations, rng)
     ra, ta, rb, tb = regime
     Ta, Tb = perturb(Ta, rng, ra, ta), perturb(Tb, rng, rb, tb)
-    i, j = np.triu_indices(stations, 1) if pairs == "all" else (np.arange(stations - 1), np.arange(1, stations))
+    i, j = _pairs(stations, pairs)
     A, B = se3.relative(Ta[i], Ta[j]), se3.relative(Tb[i], Tb[j])
     cov_a = motion_covariances(Ta[i], Ta[j], ra / np.sqrt(3), ta)     # perturb's angle σ is σ/√3 per axis
     cov_b = motion_covariances(Tb[i], Tb[j], rb / np.sqrt(3), tb)
@@ -110,7 +120,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=30)
     parser.add_argument("--stations", type=int, default=20)
-    parser.add_argument("--pairs", choices=("all", "consecutive"), default="all")
+    parser.add_argument("--pairs", choices=("all", "consecutive", "disjoint"), default="all")
     args = parser.parse_args()
     print(f"{args.seeds} seeds, {args.stations} stations, {args.pairs} pairs; σ_r [rad] angle, σ_t [m] per axis")
     for name, regime in REGIMES.items():
