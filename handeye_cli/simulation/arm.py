@@ -40,7 +40,7 @@ from ..geometry import se3
 from ..streams import PoseStream
 from . import perturb
 
-__all__ = ["ArmCapture", "DH_UR5", "forward_kinematics", "monocular", "simulate_arm"]
+__all__ = ["ArmCapture", "DH_UR5", "forward_kinematics", "look_at_stations", "monocular", "simulate_arm"]
 
 # Standard DH rows (d [m], a [m], alpha [rad]) of a UR5; joint i: Rz(θ_i) Tz(d_i) Tx(a_i) Rx(alpha_i).
 DH_UR5: NDArray[np.float64] = np.array([
@@ -54,6 +54,7 @@ DH_UR5: NDArray[np.float64] = np.array([
 _HOME = np.array([0.0, -1.9, 1.9, -1.571, -1.571, 0.0])     # flange pointing down, ~0.4 m above the table
 _SPREAD = np.array([0.5, 0.25, 0.3, 0.45, 0.45, 1.2])        # joint range around home [rad] for stations
 _START_NS = 1_700_000_000_000_000_000
+_MOUNTED = se3.from_xyz_quat(np.array([0.04, -0.03, 0.06]), Rotation.from_rotvec([0.05, -0.1, 0.3]).as_quat())
 
 
 def forward_kinematics(dh: NDArray[np.float64], q: NDArray[np.float64],
@@ -103,7 +104,7 @@ def _mount(setup: str, T_home: NDArray[np.float64], distance: float) -> tuple[ND
     look = np.eye(4)
     look[:3, :3] = Rotation.from_rotvec([np.pi, 0.0, 0.0]).as_matrix()     # facing back along z
     look[2, 3] = distance
-    mounted = se3.from_xyz_quat(np.array([0.04, -0.03, 0.06]), Rotation.from_rotvec([0.05, -0.1, 0.3]).as_quat())
+    mounted = _MOUNTED.copy()
     if setup == "eye-in-hand":
         return mounted, T_home @ mounted @ look            # T_flange_camera, T_base_target
     if setup == "eye-to-hand":
@@ -198,6 +199,33 @@ def simulate_arm(n_stations: int = 15, *, setup: str = "eye-in-hand", sparse: bo
                                         source="simulated"),
         truth=mounted if setup == "eye-in-hand" else fixed, invert_a=setup == "eye-to-hand", invert_b=True,
         station_times_ns=mid.astype(np.int64), joints=joints)
+
+
+def look_at_stations(n: int, rng: np.random.Generator, *, distance: tuple[float, float] = (0.1, 0.3),
+                     cone_deg: float = 50.0) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Noise-free stations of an eye-in-hand camera looking at a target: no kinematics, exact truth.
+
+    The camera stands ``distance`` [m] (uniform) from the target, in a direction drawn uniformly within
+    ``cone_deg`` of the target's normal (its z axis), its optical axis (z) through the target's origin
+    and a uniform roll about it. Returns ``(T_base_flange, T_target_camera, T_flange_camera)``: the two
+    streams (n, 4, 4) — a: the flange in the base frame, b: the camera in the target frame — and their
+    ``T_a_b`` (4, 4), the mount of :func:`simulate_arm`. The base holds the target 0.5 m ahead, turned.
+    """
+    cos_max = np.cos(np.deg2rad(cone_deg))
+    z = rng.uniform(cos_max, 1.0, n)
+    azimuth = rng.uniform(-np.pi, np.pi, n)
+    u = np.c_[np.sqrt(1.0 - z * z) * np.cos(azimuth), np.sqrt(1.0 - z * z) * np.sin(azimuth), z]
+    axis = -u                                                    # the optical axis, towards the target
+    helper = np.where(np.abs(axis[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    x = np.cross(helper, axis)
+    x /= np.linalg.norm(x, axis=1, keepdims=True)
+    look = np.stack([x, np.cross(axis, x), axis], axis=2)        # columns: camera x, y, z in the target frame
+    T_target_camera = np.tile(np.eye(4), (n, 1, 1))
+    T_target_camera[:, :3, :3] = look @ Rotation.from_rotvec(np.c_[np.zeros((n, 2)), rng.uniform(-np.pi, np.pi, n)]
+                                                               ).as_matrix()
+    T_target_camera[:, :3, 3] = u * rng.uniform(*distance, n)[:, None]
+    T_base_target = se3.from_xyz_quat(np.array([0.5, 0.0, 0.0]), Rotation.from_rotvec([0.0, 0.0, 0.7]).as_quat())
+    return T_base_target @ T_target_camera @ se3.inverse(_MOUNTED), T_target_camera, _MOUNTED.copy()
 
 
 def monocular(stream: PoseStream, scale: float, drift_per_s: float = 0.0) -> PoseStream:
