@@ -1,8 +1,9 @@
 """The white noise of one pose stream, from the stream alone: its high-frequency jitter.
 
 Conventions: a stream holds ``T_world_sensor(t)`` (stamps int64 ns, positions [m], quaternions
-x-y-z-w); rotation noise is a rotation vector in the sensor frame (right perturbation, as
-:func:`handeye_cli.simulation.perturb` draws it); σ is per axis, per pose.
+x-y-z-w); rotation noise is a rotation vector in the sensor frame (right perturbation, the form
+:func:`handeye_cli.simulation.perturb` draws; its ``sigma_r`` is the angle's, ``sigma_r / √3`` per axis); σ is per
+axis, per pose.
 
 Each sample i is predicted from its four neighbours i-2, i-1, i+1, i+2 by the cubic through them,
 evaluated at ``t_i`` (Lagrange weights ``w`` from the actual stamps, so uneven sampling is exact):

@@ -15,8 +15,8 @@ from .opening import open_bag1, open_bag2, open_mcap
 from .remote import RemoteObject, current
 from .source import LogSource
 
-__all__ = ["Format", "FORMATS", "LOG_FORMATS", "LOG_SUFFIXES", "BY_NAME", "MAGIC_BYTES", "by_magic", "by_suffix", "open_log",
-           "opened"]
+__all__ = ["Format", "FORMATS", "LOG_FORMATS", "LOG_SUFFIXES", "BY_NAME", "MAGIC_BYTES", "by_magic", "by_suffix",
+           "open_log", "opened"]
 
 Opener = Callable[[list[Path | RemoteObject]], contextlib.AbstractContextManager[LogSource]]
 

@@ -17,10 +17,21 @@ with, for motions ``A_i = (R_A, t_A)``, ``B_i = (R_B, t_B)`` and ``X = (R, t)``,
 and ``J_a``, ``J_b`` the exact derivatives of ``r`` by the motions' noise at the measured motions.
 Σ is evaluated afresh at each iterate (iteratively re-weighted generalised least squares); the
 fixed point minimises ``Σ rᵀ Σ(X̂)⁻¹ r`` with Σ frozen at the answer (the log-determinant of Σ is
-not part of the cost). The pairs are treated as independent: pairs that share a pose (all-with-all
-or consecutive pairs of stations) are correlated, which neither the weights nor :attr:`Refined.covariance`
-see. On look-at stations (``benchmarks/efficiency.py``'s camera) the 95 % ellipsoid held the truth in
-97 % of 60 captures of disjoint pairs, 80 % with consecutive pairs and 7 % with all-with-all pairs.
+not part of the cost).
+
+Two ways to weigh the pairs:
+
+* :func:`refine` treats them as independent (block-diagonal Σ): right for motions that share no
+  pose (a motion-pairs file). Pairs that share a pose (all-with-all, consecutive) are correlated,
+  which neither its weights nor its covariance see: on look-at stations its 95 % ellipsoid held the
+  truth in 97 % of 60 captures of disjoint pairs, 80 % with consecutive pairs, 7 % all with all.
+* :func:`refine_poses` takes the poses themselves: the consecutive motions of the samples, whose
+  residuals share one pose with each neighbour, so that Σ is block-tridiagonal, with the exact
+  first-order covariance of neighbours (:func:`_chain_maps`), factored as a band (LAPACK ``pbtrf``,
+  O(N)). With white pose noise, the consecutive motions carry all that every pair of the samples
+  carries (any motion is a product of consecutive ones), so this is the maximum-likelihood estimate
+  from the samples, whatever pairs a solver was given. A drift (noise that grows with the span, a
+  random walk's independent increments) adds to each consecutive motion's own covariance.
 
 Noise of a motion (:func:`motion_covariances`), ordered ``(ε_rot, ε_tra)``: the motion ``M = (R_M, t_M)``
 is measured as ``(R_M Exp(ε_rot), t_M + ε_tra)``: ``ε_rot`` a rotation vector [rad] in the sensor's
@@ -32,9 +43,11 @@ Levenberg–Marquardt with the analytic Jacobian. Quaternions anywhere are x-y-z
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import cho_solve_banded, cholesky_banded
 
 from .._typing import FloatArray
 from ..errors import ConfigError, DataError, UnderdeterminedError
@@ -43,7 +56,7 @@ from ..geometry import se3
 from .classical import _skew
 from .problem import validate_motions
 
-__all__ = ["Refined", "motion_covariances", "residual_covariances", "refine"]
+__all__ = ["Refined", "motion_covariances", "residual_covariances", "refine", "refine_poses"]
 
 _SMALL_ANGLE = 1e-4          # below it, the series of the inverse Jacobian's coefficient
 _TOLERANCE = 1e-10           # converged: the Gauss–Newton step is this many standard deviations long
@@ -198,14 +211,7 @@ def _checked(motions_a: FloatArray, motions_b: FloatArray, X0: FloatArray, cov_a
     X = np.asarray(X0, dtype=np.float64)
     if X.shape != (4, 4) or not np.isfinite(X).all() or not se3.is_rotation(X[:3, :3]):
         raise DataError("the start X0 is not a finite rigid transform (4, 4)", "X0", "pass dqopt's T_a_b")
-    covs = []
-    for name, c in (("cov_a", cov_a), ("cov_b", cov_b)):
-        c = np.asarray(c, dtype=np.float64)
-        if c.shape not in ((6, 6), (len(A), 6, 6)):
-            raise DataError(f"{name} has shape {c.shape}", name, f"pass (6, 6) or ({len(A)}, 6, 6) covariances")
-        if not np.isfinite(c).all():
-            raise DataError(f"{name} contains NaN or inf", name, "pass finite covariances")
-        covs.append(np.broadcast_to(c, (len(A), 6, 6)))
+    covs = [_covariances(c, len(A), name) for name, c in (("cov_a", cov_a), ("cov_b", cov_b))]
     s = 1.0 if scale is None else float(scale)
     if not (np.isfinite(s) and s > 0):
         raise ConfigError(f"scale {scale!r}", "scale", "start the scale at a finite number > 0, or pass None")
@@ -249,25 +255,40 @@ def refine(motions_a: FloatArray, motions_b: FloatArray, X0: FloatArray, cov_a: 
         A bad scale start, ``max_iterations`` or ``tolerance``.
     """
     A, B, X, ca, cb, s = _checked(motions_a, motions_b, X0, cov_a, cov_b, scale)
+
+    def weigh(Ja: FloatArray, Jb: FloatArray) -> _Precision:
+        P = _precisions(Ja, Jb, ca, cb)
+        return lambda M: np.asarray(P @ M.reshape(len(P), 6, -1), dtype=np.float64).reshape(M.shape)
+
+    return _minimise(A, B, X, s, scale is not None, weigh, max_iterations, tolerance)
+
+
+_Precision = Callable[[FloatArray], FloatArray]
+"""``Σ⁻¹ M`` for a (6N, m) array M whose rows are the residuals' (pair by pair, rotation then translation)."""
+
+
+def _minimise(A: FloatArray, B: FloatArray, X: FloatArray, s: float, scaled: bool,
+              weigh: Callable[[FloatArray, FloatArray], _Precision], max_iterations: int, tolerance: float) -> Refined:
+    """Levenberg–Marquardt on ``Σ rᵀ Σ(X)⁻¹ r`` from ``X`` (and the scale ``s`` when ``scaled``), ``weigh``
+    giving Σ⁻¹ from the residuals' Jacobians by the noise of A and of B (each (N, 6, 6))."""
     if not (isinstance(max_iterations, (int, np.integer)) and max_iterations >= 0):
         raise ConfigError(f"max_iterations {max_iterations!r}", "max_iterations", "give a whole number ≥ 0")
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise ConfigError(f"tolerance {tolerance!r}", "tolerance", "give a number > 0")
-    k = 6 if scale is None else 7
+    k = 7 if scaled else 6
 
-    def state(X: FloatArray, s: float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float]:
+    def state(X: FloatArray, s: float) -> tuple[_Precision, FloatArray, FloatArray, float]:
         r, J, Ja, Jb = _model(A, B, X, s)
-        P = _precisions(Ja, Jb, ca, cb)
-        Pr = np.einsum("nij,nj->ni", P, r)
-        H = np.einsum("nki,nkl,nlj->ij", J[:, :, :k], P, J[:, :, :k])
-        g = np.einsum("nki,nk->i", J[:, :, :k], Pr)
-        return r, P, H, g, float(np.einsum("ni,ni->", r, Pr))
+        precision = weigh(Ja, Jb)
+        rJ = np.concatenate((r.reshape(-1, 1), J[:, :, :k].reshape(-1, k)), axis=1)
+        P = precision(rJ)
+        return precision, rJ[:, 1:].T @ P[:, 1:], rJ[:, 1:].T @ P[:, 0], float(rJ[:, 0] @ P[:, 0])
 
-    def frozen(X: FloatArray, s: float, P: FloatArray) -> float:
-        r = _model(A, B, X, s)[0]
-        return float(np.einsum("ni,nij,nj->", r, P, r))
+    def frozen(X: FloatArray, s: float, precision: _Precision) -> float:
+        r = _model(A, B, X, s)[0].reshape(-1, 1)
+        return float((r.T @ precision(r))[0, 0])
 
-    r, P, H, g, cost = state(X, s)
+    precision, H, g, cost = state(X, s)
     cost_start, damping, converged, iterations = cost, _DAMPING[0], False, 0
     while iterations < max_iterations:
         length = float(np.sqrt(max(-float(_solve(H, -g) @ g), 0.0)))     # √(δᵀHδ) of the Gauss–Newton step
@@ -276,7 +297,7 @@ def refine(motions_a: FloatArray, motions_b: FloatArray, X0: FloatArray, cov_a: 
             break
         while damping <= _DAMPING[1]:
             X_new, s_new = _moved(X, s, _solve(H + damping * np.diag(np.diag(H)), -g))
-            if frozen(X_new, s_new, P) <= cost:
+            if frozen(X_new, s_new, precision) <= cost:
                 break
             damping *= 10.0
         else:                                     # no step lowers the cost: rounding level
@@ -284,9 +305,96 @@ def refine(motions_a: FloatArray, motions_b: FloatArray, X0: FloatArray, cov_a: 
             break
         X, s, iterations = X_new, s_new, iterations + 1
         damping = max(damping / 10.0, _DAMPING[0])
-        r, P, H, g, cost = state(X, s)
-    return Refined(X, None if scale is None else s, cost_start, cost, iterations, converged,
+        precision, H, g, cost = state(X, s)
+    return Refined(X, s if scaled else None, cost_start, cost, iterations, converged,
                    np.asarray(np.linalg.inv(H), dtype=np.float64))
+
+
+def _chain_maps(M: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """For consecutive motions ``M_p = T_p⁻¹ T_(p+1)`` (P, 4, 4): the maps (P, 6, 6 each) of the start pose's
+    and of the end pose's noise ``n = (φ, δ)`` (:func:`motion_covariances`' form) to the motion's noise
+    ``ε_p = S_p n_p + E_p n_(p+1)``, ``ε = (ε_rot, ε_tra)``: ``S = [[−R_Mᵀ, 0], [[t_M]×, −I]]``,
+    ``E = [[I, 0], [0, R_M]]``."""
+    R = M[:, :3, :3]
+    S, E = np.zeros((len(M), 6, 6)), np.zeros((len(M), 6, 6))
+    S[:, :3, :3] = -np.swapaxes(R, 1, 2)
+    S[:, 3:, :3] = _skew(M[:, :3, 3])
+    S[:, 3:, 3:] = -np.eye(3)
+    E[:, :3, :3] = np.eye(3)
+    E[:, 3:, 3:] = R
+    return S, E
+
+
+def _band(D: FloatArray, U: FloatArray) -> FloatArray:
+    """The lower band (12, 6P) (``scipy.linalg.cholesky_banded``'s layout) of the symmetric block-tridiagonal
+    matrix with diagonal blocks ``D`` (P, 6, 6) and upper blocks ``U`` (P − 1, 6, 6): ``U_p = Σ_(p, p+1)``."""
+    P = len(D)
+    band = np.zeros((12, 6 * P))
+    r, c = np.tril_indices(6)
+    band[(r - c)[:, None], 6 * np.arange(P) + c[:, None]] = D[:, r, c].T
+    r, c = np.indices((6, 6)).reshape(2, -1)
+    band[(6 + r - c)[:, None], 6 * np.arange(P - 1) + c[:, None]] = U[:, c, r].T      # Σ_(p+1, p) = U_pᵀ
+    return band
+
+
+def refine_poses(poses_a: FloatArray, poses_b: FloatArray, X0: FloatArray, noise_a: FloatArray,
+                 noise_b: FloatArray, *, drift_a: FloatArray | None = None, drift_b: FloatArray | None = None,
+                 scale: float | None = None, max_iterations: int = 50, tolerance: float = _TOLERANCE) -> Refined:
+    """Refine ``X = T_a_b`` from ``X0`` by the maximum likelihood of the samples' poses (module docstring).
+
+    Parameters
+    ----------
+    poses_a, poses_b:
+        (S, 4, 4) ``T_wa_a``, ``T_wb_b`` at the same S ≥ 3 instants, in time order (synced samples, or the
+        averaged stations of a capture).
+    X0:
+        (4, 4) start, dqopt's optimum.
+    noise_a, noise_b:
+        (S, 6, 6) or (6, 6) covariance of each pose's white noise ``(φ [rad], δ [m])``, the pose measured as
+        ``T ∘ [Exp(φ) | δ]`` (:func:`motion_covariances`' form; b's units when a scale is refined).
+    drift_a, drift_b:
+        Optional noise of each consecutive motion of its own, independent from motion to motion (a random walk's
+        increments): (S − 1, 6, 6), or (S − 1, 2) per-axis variances [rad², m²] (:func:`motion_covariances`).
+    scale, max_iterations, tolerance:
+        As :func:`refine`.
+    """
+    Ta, Tb = (np.asarray(T, dtype=np.float64) for T in (poses_a, poses_b))
+    if Ta.ndim != 3 or Ta.shape[1:] != (4, 4) or Tb.shape != Ta.shape or len(Ta) < 3:
+        raise DataError(f"poses of shapes {Ta.shape} and {Tb.shape}", "poses_a, poses_b",
+                        "pass two (S, 4, 4) arrays of the same S ≥ 3 instants")
+    A, B = se3.relative(Ta[:-1], Ta[1:]), se3.relative(Tb[:-1], Tb[1:])
+    n = len(A)
+    pose_noise = [_covariances(c, len(Ta), name) for name, c in (("noise_a", noise_a), ("noise_b", noise_b))]
+    extras = [None if d is None else _extra(np.asarray(d, dtype=np.float64), n) for d in (drift_a, drift_b)]
+    A, B, X, _, _, s = _checked(A, B, X0, np.eye(6), np.eye(6), scale)
+    maps = (_chain_maps(A), _chain_maps(B))
+
+    def weigh(Ja: FloatArray, Jb: FloatArray) -> _Precision:
+        D, U = np.zeros((n, 6, 6)), np.zeros((n - 1, 6, 6))
+        for J, (S, E), C, extra in zip((Ja, Jb), maps, pose_noise, extras, strict=True):
+            start, end = J @ S, J @ E                      # the residual's maps of its start and end pose's noise
+            D += start @ C[:-1] @ np.swapaxes(start, 1, 2) + end @ C[1:] @ np.swapaxes(end, 1, 2)
+            if extra is not None:
+                D += J @ extra @ np.swapaxes(J, 1, 2)
+            U += end[:-1] @ C[1:-1] @ np.swapaxes(start[1:], 1, 2)     # pose p+1 ends motion p, starts p+1
+        try:
+            factor = cholesky_banded(_band(0.5 * (D + np.swapaxes(D, 1, 2)), U), lower=True)
+        except np.linalg.LinAlgError:
+            raise DataError("the residuals' covariance is singular", "noise_a, noise_b",
+                            "give both streams rotation and translation noise > 0") from None
+        return lambda M: np.asarray(cho_solve_banded((factor, True), M), dtype=np.float64)
+
+    return _minimise(A, B, X, s, scale is not None, weigh, max_iterations, tolerance)
+
+
+def _covariances(c: FloatArray, n: int, name: str) -> FloatArray:
+    """A (6, 6) or (n, 6, 6) covariance argument as (n, 6, 6), checked."""
+    c = np.asarray(c, dtype=np.float64)
+    if c.shape not in ((6, 6), (n, 6, 6)):
+        raise DataError(f"{name} has shape {c.shape}", name, f"pass (6, 6) or ({n}, 6, 6) covariances")
+    if not np.isfinite(c).all():
+        raise DataError(f"{name} contains NaN or inf", name, "pass finite covariances")
+    return np.broadcast_to(c, (n, 6, 6))
 
 
 def _solve(H: FloatArray, y: FloatArray) -> FloatArray:
