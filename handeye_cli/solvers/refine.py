@@ -49,14 +49,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import cho_solve_banded, cholesky_banded
 
-from .._typing import FloatArray
+from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import ConfigError, DataError, UnderdeterminedError
 from ..geometry import dualquat as dq
 from ..geometry import se3
 from .classical import _skew
 from .problem import validate_motions
 
-__all__ = ["Refined", "motion_covariances", "residual_covariances", "refine", "refine_poses"]
+__all__ = ["Chain", "Refined", "band_factor", "gaussian_terms", "motion_covariances", "refine", "refine_poses",
+           "residual_covariances"]
 
 _SMALL_ANGLE = 1e-4          # below it, the series of the inverse Jacobian's coefficient
 _TOLERANCE = 1e-10           # converged: the Gauss–Newton step is this many standard deviations long
@@ -337,16 +338,86 @@ def _band(D: FloatArray, U: FloatArray) -> FloatArray:
     return band
 
 
-def refine_poses(poses_a: FloatArray, poses_b: FloatArray, X0: FloatArray, noise_a: FloatArray,
-                 noise_b: FloatArray, *, drift_a: FloatArray | None = None, drift_b: FloatArray | None = None,
-                 scale: float | None = None, max_iterations: int = 50, tolerance: float = _TOLERANCE) -> Refined:
+@dataclass(frozen=True, eq=False)
+class Chain:
+    """The consecutive motions of S samples in time order, ``A_m = T_a(p_m)⁻¹ T_a(p_m + 1)`` and ``B_m`` likewise,
+    for the samples ``p_m`` whose successor is in the same tracking segment (motions are never formed across a
+    re-localisation); ``adjacent[m]``: motions m and m + 1 share the pose ``p_m + 1``. ``maps``: a's and b's
+    (start, end) maps of the poses' noise to the motions' (:func:`_chain_maps`)."""
+
+    A: FloatArray
+    B: FloatArray
+    start: IntArray
+    adjacent: BoolArray
+    samples: int
+    maps: tuple[tuple[FloatArray, FloatArray], tuple[FloatArray, FloatArray]]
+
+    @classmethod
+    def of(cls, poses_a: FloatArray, poses_b: FloatArray, segment: IntArray | None = None) -> Chain:
+        """The chain of poses (S, 4, 4) each, ``T_wa_a`` and ``T_wb_b`` at the same instants, with their
+        ``segment`` (S,) (None: one segment); at least two motions."""
+        Ta, Tb = (np.asarray(T, dtype=np.float64) for T in (poses_a, poses_b))
+        if Ta.ndim != 3 or Ta.shape[1:] != (4, 4) or Tb.shape != Ta.shape:
+            raise DataError(f"poses of shapes {Ta.shape} and {Tb.shape}", "poses_a, poses_b",
+                            "pass two (S, 4, 4) arrays of the same S instants")
+        seg = np.zeros(len(Ta), dtype=np.int64) if segment is None else np.asarray(segment, dtype=np.int64)
+        if seg.shape != (len(Ta),):
+            raise DataError(f"segment has shape {seg.shape}", "segment", f"pass ({len(Ta)},) segment numbers")
+        start = np.flatnonzero(seg[:-1] == seg[1:]) if len(Ta) > 1 else np.zeros(0, dtype=np.int64)
+        if len(start) < 2:
+            raise DataError(f"{len(start)} consecutive motions within a segment", "poses_a, poses_b",
+                            "pass at least three samples of one tracking segment")
+        A, B, _ = validate_motions(se3.relative(Ta[start], Ta[start + 1]), se3.relative(Tb[start], Tb[start + 1]))
+        return cls(A, B, start, np.diff(start) == 1, len(Ta), (_chain_maps(A), _chain_maps(B)))
+
+    def blocks(self, Ja: FloatArray, Jb: FloatArray, noise_a: FloatArray | None, noise_b: FloatArray | None,
+               drift_a: FloatArray | None = None, drift_b: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
+        """The residuals' covariance as its diagonal blocks (M, 6, 6) and upper blocks (M − 1, 6, 6) (zero between
+        motions that share no pose), from the residuals' Jacobians by a's and b's motion noise ``Ja``, ``Jb``
+        (M, 6, 6), the poses' white noise (S, 6, 6) and each motion's own (M, 6, 6) (None: none)."""
+        D, U = np.zeros((len(self.A), 6, 6)), np.zeros((len(self.A) - 1, 6, 6))
+        p = self.start
+        for J, (S, E), C, extra in zip((Ja, Jb), self.maps, (noise_a, noise_b), (drift_a, drift_b), strict=True):
+            if C is not None:
+                start, end = J @ S, J @ E                  # the residual's maps of its start and end pose's noise
+                D += start @ C[p] @ np.swapaxes(start, 1, 2) + end @ C[p + 1] @ np.swapaxes(end, 1, 2)
+                U += end[:-1] @ C[p[:-1] + 1] @ np.swapaxes(start[1:], 1, 2) * self.adjacent[:, None, None]
+            if extra is not None:
+                D += J @ extra @ np.swapaxes(J, 1, 2)
+        return 0.5 * (D + np.swapaxes(D, 1, 2)), U
+
+    def residuals(self, X: FloatArray, scale: float | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """At ``X`` (and b's ``scale``): the residuals (M, 6) and their Jacobians by a's and b's motion noise."""
+        r, _, Ja, Jb = _model(self.A, self.B, X, 1.0 if scale is None else scale)
+        return r, Ja, Jb
+
+
+def band_factor(D: FloatArray, U: FloatArray) -> FloatArray:
+    """The lower Cholesky factor, as a band (:func:`scipy.linalg.cholesky_banded`), of the block-tridiagonal
+    covariance with diagonal blocks ``D`` and upper blocks ``U`` (:meth:`Chain.blocks`); refuses a singular one."""
+    try:
+        return np.asarray(cholesky_banded(_band(D, U), lower=True), dtype=np.float64)
+    except np.linalg.LinAlgError:
+        raise DataError("the residuals' covariance is singular", "noise_a, noise_b",
+                        "give both streams rotation and translation noise > 0") from None
+
+
+def gaussian_terms(r: FloatArray, factor: FloatArray) -> tuple[float, float]:
+    """``(rᵀ Σ⁻¹ r, log det Σ)`` of residuals r (M, 6) under the covariance whose :func:`band_factor` is given:
+    twice the Gaussian negative log-likelihood is their sum (plus a constant)."""
+    flat = r.reshape(-1)
+    return float(flat @ cho_solve_banded((factor, True), flat)), float(2.0 * np.log(factor[0]).sum())
+
+
+def refine_poses(chain: Chain, X0: FloatArray, noise_a: FloatArray, noise_b: FloatArray, *,
+                 drift_a: FloatArray | None = None, drift_b: FloatArray | None = None, scale: float | None = None,
+                 max_iterations: int = 50, tolerance: float = _TOLERANCE) -> Refined:
     """Refine ``X = T_a_b`` from ``X0`` by the maximum likelihood of the samples' poses (module docstring).
 
     Parameters
     ----------
-    poses_a, poses_b:
-        (S, 4, 4) ``T_wa_a``, ``T_wb_b`` at the same S ≥ 3 instants, in time order (synced samples, or the
-        averaged stations of a capture).
+    chain:
+        The samples' consecutive motions (:meth:`Chain.of`: synced samples, or the averaged stations of a capture).
     X0:
         (4, 4) start, dqopt's optimum.
     noise_a, noise_b:
@@ -354,34 +425,18 @@ def refine_poses(poses_a: FloatArray, poses_b: FloatArray, X0: FloatArray, noise
         ``T ∘ [Exp(φ) | δ]`` (:func:`motion_covariances`' form; b's units when a scale is refined).
     drift_a, drift_b:
         Optional noise of each consecutive motion of its own, independent from motion to motion (a random walk's
-        increments): (S − 1, 6, 6), or (S − 1, 2) per-axis variances [rad², m²] (:func:`motion_covariances`).
+        increments): (M, 6, 6), or (M, 2) per-axis variances [rad², m²] (:func:`motion_covariances`), M the
+        chain's motions.
     scale, max_iterations, tolerance:
         As :func:`refine`.
     """
-    Ta, Tb = (np.asarray(T, dtype=np.float64) for T in (poses_a, poses_b))
-    if Ta.ndim != 3 or Ta.shape[1:] != (4, 4) or Tb.shape != Ta.shape or len(Ta) < 3:
-        raise DataError(f"poses of shapes {Ta.shape} and {Tb.shape}", "poses_a, poses_b",
-                        "pass two (S, 4, 4) arrays of the same S ≥ 3 instants")
-    A, B = se3.relative(Ta[:-1], Ta[1:]), se3.relative(Tb[:-1], Tb[1:])
-    n = len(A)
-    pose_noise = [_covariances(c, len(Ta), name) for name, c in (("noise_a", noise_a), ("noise_b", noise_b))]
-    extras = [None if d is None else _extra(np.asarray(d, dtype=np.float64), n) for d in (drift_a, drift_b)]
-    A, B, X, _, _, s = _checked(A, B, X0, np.eye(6), np.eye(6), scale)
-    maps = (_chain_maps(A), _chain_maps(B))
+    m = len(chain.A)
+    pose_noise = [_covariances(c, chain.samples, name) for name, c in (("noise_a", noise_a), ("noise_b", noise_b))]
+    extras = [None if d is None else _extra(np.asarray(d, dtype=np.float64), m) for d in (drift_a, drift_b)]
+    A, B, X, _, _, s = _checked(chain.A, chain.B, X0, np.eye(6), np.eye(6), scale)
 
     def weigh(Ja: FloatArray, Jb: FloatArray) -> _Precision:
-        D, U = np.zeros((n, 6, 6)), np.zeros((n - 1, 6, 6))
-        for J, (S, E), C, extra in zip((Ja, Jb), maps, pose_noise, extras, strict=True):
-            start, end = J @ S, J @ E                      # the residual's maps of its start and end pose's noise
-            D += start @ C[:-1] @ np.swapaxes(start, 1, 2) + end @ C[1:] @ np.swapaxes(end, 1, 2)
-            if extra is not None:
-                D += J @ extra @ np.swapaxes(J, 1, 2)
-            U += end[:-1] @ C[1:-1] @ np.swapaxes(start[1:], 1, 2)     # pose p+1 ends motion p, starts p+1
-        try:
-            factor = cholesky_banded(_band(0.5 * (D + np.swapaxes(D, 1, 2)), U), lower=True)
-        except np.linalg.LinAlgError:
-            raise DataError("the residuals' covariance is singular", "noise_a, noise_b",
-                            "give both streams rotation and translation noise > 0") from None
+        factor = band_factor(*chain.blocks(Ja, Jb, *pose_noise, *extras))
         return lambda M: np.asarray(cho_solve_banded((factor, True), M), dtype=np.float64)
 
     return _minimise(A, B, X, s, scale is not None, weigh, max_iterations, tolerance)

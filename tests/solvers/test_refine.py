@@ -15,7 +15,16 @@ from handeye_cli.geometry import se3
 from handeye_cli.simulation import perturb
 from handeye_cli.simulation.arm import look_at_stations
 from handeye_cli.solvers import solve
-from handeye_cli.solvers.refine import _model, motion_covariances, refine, refine_poses, residual_covariances
+from handeye_cli.solvers.refine import (
+    Chain,
+    _model,
+    band_factor,
+    gaussian_terms,
+    motion_covariances,
+    refine,
+    refine_poses,
+    residual_covariances,
+)
 
 CHI2_6_95 = 12.591587243743977          # χ²₆ quantile of 0.95
 ROBOT, CAMERA = (1e-4, 1e-4), (5e-3, 2e-4)   # perturb's σ_r [rad] (angle), σ_t [m]: rotation-dominated camera
@@ -227,11 +236,11 @@ def _dense_sigma(Ta: np.ndarray, Tb: np.ndarray, X: np.ndarray) -> np.ndarray:
 def test_refine_poses_is_exact_on_noise_free_poses_and_refines_the_scale() -> None:
     Ta, Tb, X = _poses(0, noise=False)
     X0 = perturb(X, np.random.default_rng(1), 0.05, 0.02)
-    r = refine_poses(Ta, Tb, X0, _pose_noise(ROBOT), _pose_noise(CAMERA))
+    r = refine_poses(Chain.of(Ta, Tb), X0, _pose_noise(ROBOT), _pose_noise(CAMERA))
     assert r.converged and np.abs(r.matrix - X).max() < 1e-9 and r.cost < 1e-12 < r.cost_start
     scaled = Tb.copy()
     scaled[:, :3, 3] /= 1.7
-    s = refine_poses(Ta, scaled, X0, _pose_noise(ROBOT), _pose_noise(CAMERA), scale=1.0)
+    s = refine_poses(Chain.of(Ta, scaled), X0, _pose_noise(ROBOT), _pose_noise(CAMERA), scale=1.0)
     assert s.converged and np.abs(s.matrix - X).max() < 1e-9 and abs(s.scale - 1.7) < 1e-9
 
 
@@ -241,7 +250,7 @@ def test_refine_poses_band_is_the_dense_covariance_and_scipy_agrees() -> None:
     residuals whitened by that dense Σ (frozen) reaches the same X."""
     Ta, Tb, _ = _poses(4, stations=8)
     A, B = se3.relative(Ta[:-1], Ta[1:]), se3.relative(Tb[:-1], Tb[1:])
-    r = refine_poses(Ta, Tb, solve(A, B).matrix, _pose_noise(ROBOT), _pose_noise(CAMERA))
+    r = refine_poses(Chain.of(Ta, Tb), solve(A, B).matrix, _pose_noise(ROBOT), _pose_noise(CAMERA))
     assert r.converged
     sigma = _dense_sigma(Ta, Tb, r.matrix)
     res = _model(A, B, r.matrix, 1.0)[0].ravel()
@@ -268,7 +277,7 @@ def test_refine_poses_drift_weighs_the_motions() -> None:
     drift = np.tile([1e-6, 1e-8], (len(A), 1))
     X0 = solve(A, B).matrix
     floor = np.eye(6) * 1e-30
-    chained = refine_poses(Ta, Tb, X0, floor, floor, drift_a=drift, drift_b=drift)
+    chained = refine_poses(Chain.of(Ta, Tb), X0, floor, floor, drift_a=drift, drift_b=drift)
     alone = refine(A, B, X0, motion_covariances(Ta[:-1], Ta[1:], 0.0, 0.0, extra=drift),
                    motion_covariances(Tb[:-1], Tb[1:], 0.0, 0.0, extra=drift))
     assert np.abs(chained.matrix - alone.matrix).max() < 1e-12
@@ -292,7 +301,7 @@ def test_refine_poses_covers_and_wins_on_all_pairs_of_look_at_stations() -> None
         i, j = np.triu_indices(len(Ta), 1)
         A, B = se3.relative(Ta[i], Ta[j]), se3.relative(Tb[i], Tb[j])
         X0 = solve(A, B).matrix
-        r = refine_poses(Ta, Tb, X0, _pose_noise(ROBOT), _pose_noise(CAMERA))
+        r = refine_poses(Chain.of(Ta, Tb), X0, _pose_noise(ROBOT), _pose_noise(CAMERA))
         ca = motion_covariances(Ta[i], Ta[j], ROBOT[0] / np.sqrt(3), ROBOT[1])
         cb = motion_covariances(Tb[i], Tb[j], CAMERA[0] / np.sqrt(3), CAMERA[1])
         for name, T in (("poses", r.matrix), ("dqopt", X0), ("park+LM", bench.park_lm(A, B)),
@@ -307,3 +316,22 @@ def test_refine_poses_covers_and_wins_on_all_pairs_of_look_at_stations() -> None
     for other in ("dqopt", "park+LM"):
         assert (median["poses"] < median[other]).all(), median
     assert median["poses"][1] < median["refine all"][1], median
+
+
+def test_a_chain_never_crosses_a_segment_and_its_parts_add() -> None:
+    """Two tracking segments: no motion across the break, no correlation between the parts — the Gaussian terms
+    of the whole are the sums of each part's on its own (rᵀ Σ⁻¹ r and log det Σ)."""
+    Ta, Tb, X = _poses(8, stations=12)
+    segment = np.r_[np.zeros(6, dtype=np.int64), np.ones(6, dtype=np.int64)]
+    whole = Chain.of(Ta, Tb, segment)
+    assert len(whole.A) == 10 and list(whole.adjacent).count(False) == 1
+
+    def terms(chain: Chain, noise: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        r, Ja, Jb = chain.residuals(X)
+        return np.array(gaussian_terms(r, band_factor(*chain.blocks(Ja, Jb, *noise))))
+
+    noise = (np.broadcast_to(_pose_noise(ROBOT), (12, 6, 6)), np.broadcast_to(_pose_noise(CAMERA), (12, 6, 6)))
+    parts = [terms(Chain.of(Ta[k], Tb[k]), (noise[0][k], noise[1][k])) for k in (slice(0, 6), slice(6, 12))]
+    assert terms(whole, noise) == pytest.approx(parts[0] + parts[1], rel=1e-10)
+    with pytest.raises(DataError, match="consecutive motions within a segment"):
+        Chain.of(Ta[:4], Tb[:4], np.array([0, 1, 2, 3]))
