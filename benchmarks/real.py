@@ -237,10 +237,16 @@ def park_lm(A: FloatArray, B: FloatArray) -> FloatArray:
     return X0 @ _exp_se3(least_squares(residuals, np.zeros(6), method="lm").x)
 
 
+def _used(cal: handeye_cli.Calibration) -> np.ndarray:
+    """Which of the defaults' pairs they solved with: weight > 0 (a robust run's inliers), else all."""
+    return np.ones(len(cal.pairs), dtype=bool) if cal.weights is None else np.asarray(cal.weights) > 0
+
+
 def pair_samples(cal: handeye_cli.Calibration, limit: int = OPENCV_MAX_SAMPLES) -> tuple[FloatArray, FloatArray]:
-    """The absolute poses (T_wa_a, T_wb_b) of the synced samples the defaults' pairs join (inverted, offset and
-    scaled as the pairs are), at most ``limit`` of them spread evenly in time."""
-    rows = np.unique(np.r_[cal.pairs.i, cal.pairs.j])
+    """The absolute poses (T_wa_a, T_wb_b) of the synced samples the defaults' used pairs join (inverted, offset
+    and scaled as the pairs are), at most ``limit`` of them spread evenly in time."""
+    used = _used(cal)
+    rows = np.unique(np.r_[cal.pairs.i[used], cal.pairs.j[used]])
     rows = rows[np.unique(np.linspace(0, len(rows) - 1, min(limit, len(rows))).round().astype(int))]
     used = cal.synced.select(rows)
     return used.T_a, used.T_b
@@ -271,13 +277,15 @@ def _attempt(make: Any, truth: FloatArray, pairs: int, ours: bool = True) -> Fit
 
 
 def same_pairs(cal: handeye_cli.Calibration | None, truth: FloatArray) -> tuple[Fit, Fit, dict[str, Fit]]:
-    """On the defaults' pairs: dqopt unrefined (the defaults' α and weights), Park + LM, OpenCV's five methods."""
+    """On the defaults' pairs: dqopt unrefined (the defaults' α and weights); Park + LM on the pairs they used
+    (weight > 0: a robust run's inliers), each alike; OpenCV's five methods on those pairs' samples."""
     if cal is None:
         failed = Fit(failure="defaults failed")
         return failed, failed, {m: failed for m in OPENCV_METHODS}
     A, B, n = cal.pairs.A, cal.pairs.B, len(cal.pairs)
     dq = _attempt(lambda: solve(A, B, "dqopt", cal.solution.alpha, weights=cal.weights).matrix, truth, n)
-    plm = _attempt(lambda: park_lm(A, B), truth, n, ours=False)
+    used = _used(cal)
+    plm = _attempt(lambda: park_lm(A[used], B[used]), truth, int(used.sum()), ours=False)
     T_a, T_b = pair_samples(cal)
     cv = {m: _attempt(lambda m=m: opencv(T_a, T_b, m), truth, len(T_a), ours=False) for m in OPENCV_METHODS}
     return dq, plm, cv
