@@ -666,7 +666,8 @@ def _grid_error(r: Result, key: tuple[str, str]) -> Error:
 def _best_fixed(group: Sequence[Result]) -> str:
     """The grid setting with the smallest median error over the group (rotation; translation), in hindsight,
     among the settings with the fewest failures."""
-    keys = [k for k in dict.fromkeys(k for r in group for k in r.grid) if k[0] != STATIONS]
+    every = list(dict.fromkeys(k for r in group for k in r.grid))
+    keys = [k for k in every if k[0] != STATIONS] or every              # station captures only: their rows
     med = {k: _median([_grid_error(r, k) for r in group]) for k in keys}
     fewest = min((missing for m, missing in med.values() if m is not None), default=None)
     scored = [(m, k) for k, (m, missing) in med.items() if m is not None and missing == fewest]
