@@ -17,6 +17,10 @@ Per recording, in one run, through the Python API in-process (each file read onc
 * **defaults**: ``handeye_cli.calibrate_files(a, b, **conventions)`` — the conventions are only the
   flags a user must give today (table :data:`CONVENTIONS`); ``--bare`` gives none of them;
 * **park, same pairs**: the rotation-first solver (``method="park"``) on the defaults' pairs and weights;
+* **dqopt unrefined**: dqopt on the defaults' pairs, α and weights (the paper's estimate, whatever refinement the
+  defaults add); **park + LM**: Park–Martin then Levenberg–Marquardt as kinhec's ``refine_lm`` (:func:`park_lm`)
+  on the pairs the defaults used; **OpenCV**: ``cv2.calibrateHandEye``'s five methods on those pairs' samples
+  (:func:`opencv`; the conventions checked on noise-free captures at start, :func:`check_same_pairs`);
 * **the grid**: per pair strategy one ``calibrate_files(..., pairs=S)`` (α auto, dqopt; a time offset
   the conventions estimate is fixed at the defaults' estimate, so ``pairs=auto`` is the defaults'
   own call), then on its pairs and weights dqopt at each fixed α and park
@@ -25,7 +29,7 @@ Per recording, in one run, through the Python API in-process (each file read onc
 * the defaults with ``time_offset="auto"`` where the conventions do not already estimate it
   (not with ``--quick``, whose grid is smaller too).
 
-Then the summary of the issue's goals with PASS/FAIL, and the wall time.
+Then the summary of issue 19's goals with PASS/FAIL, issue 35's per kinhec track (:func:`issue35`), and the wall time.
 
     python benchmarks/real.py [--bare] [--quick] [--data DIR] [--kinhec-dir DIR] [--only TEXT]
                               [--set NAME=VALUE ...]      (an option for every call: a candidate default)
