@@ -17,6 +17,10 @@ Per recording, in one run, through the Python API in-process (each file read onc
 * **defaults**: ``handeye_cli.calibrate_files(a, b, **conventions)`` — the conventions are only the
   flags a user must give today (table :data:`CONVENTIONS`); ``--bare`` gives none of them;
 * **park, same pairs**: the rotation-first solver (``method="park"``) on the defaults' pairs and weights;
+* **dqopt unrefined**: dqopt on the defaults' pairs, α and weights (the paper's estimate, whatever refinement the
+  defaults add); **park + LM**: Park–Martin then Levenberg–Marquardt as kinhec's ``refine_lm`` (:func:`park_lm`)
+  on the pairs the defaults used; **OpenCV**: ``cv2.calibrateHandEye``'s five methods on those pairs' samples
+  (:func:`opencv`; the conventions checked on noise-free captures at start, :func:`check_same_pairs`);
 * **the grid**: per pair strategy one ``calibrate_files(..., pairs=S)`` (α auto, dqopt; a time offset
   the conventions estimate is fixed at the defaults' estimate, so ``pairs=auto`` is the defaults'
   own call), then on its pairs and weights dqopt at each fixed α and park
@@ -25,7 +29,7 @@ Per recording, in one run, through the Python API in-process (each file read onc
 * the defaults with ``time_offset="auto"`` where the conventions do not already estimate it
   (not with ``--quick``, whose grid is smaller too).
 
-Then the summary of the issue's goals with PASS/FAIL, and the wall time.
+Then the summary of issue 19's goals with PASS/FAIL, issue 35's per kinhec track (:func:`issue35`), and the wall time.
 
     python benchmarks/real.py [--bare] [--quick] [--data DIR] [--kinhec-dir DIR] [--only TEXT]
                               [--set NAME=VALUE ...]      (an option for every call: a candidate default)
@@ -46,6 +50,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
 
 import handeye_cli
 from handeye_cli.analysis import extrinsic_error
@@ -122,6 +128,7 @@ class Recording:
     arm: bool = True                                   # kinhec: a robot arm (not the free-flying 'free6d')
     degenerate: bool = False                           # kinhec: parallel rotation axes (a direction unobservable)
     note: str = ""
+    track: str = ""                                     # kinhec: the ground truth's track (noise, motion, …)
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,6 +153,9 @@ class Result:
     offset_auto: Fit | None = None
     seconds: float = 0.0
     given: Mapping[str, Any] = field(default_factory=dict)          # the keywords every call got
+    dqopt: Fit = field(default_factory=Fit)              # dqopt on the defaults' pairs, α and weights: no refinement
+    park_lm: Fit = field(default_factory=Fit)            # Park + LM (kinhec's refine_lm) on the defaults' pairs
+    opencv: dict[str, Fit] = field(default_factory=dict)  # cv2.calibrateHandEye on the defaults' pairs' samples
 
 
 def _error(T: FloatArray, truth: FloatArray) -> tuple[float, float]:
@@ -153,9 +163,12 @@ def _error(T: FloatArray, truth: FloatArray) -> tuple[float, float]:
     return rot, 1e3 * trans
 
 
-def _failure(e: Exception) -> Fit:
-    kind = type(e).__name__ if isinstance(e, handeye_cli.HandEyeError) else f"BUG {type(e).__name__}"
-    return Fit(failure=f"{kind}: {str(e).splitlines()[0]}")
+def _failure(e: Exception, ours: bool = True) -> Fit:
+    """A failure as an outcome; an exception of ours that is not a HandEyeError is a bug (``ours``: raised by
+    handeye_cli, not by scipy or OpenCV)."""
+    ok = isinstance(e, handeye_cli.HandEyeError) or not ours
+    kind = type(e).__name__ if ok else f"BUG {type(e).__name__}"
+    return Fit(failure=f"{kind}: {(str(e).splitlines() or [''])[0]}")
 
 
 def _fit(cal: handeye_cli.Calibration, truth: FloatArray) -> Fit:
@@ -179,6 +192,128 @@ def _calibrate(a: PoseStream, b: PoseStream, truth: FloatArray, **keywords: Any)
     return _fit(cal, truth), cal
 
 
+# --- the same pairs, other estimators (issue 35) ------------------------------------------------------------
+OPENCV_METHODS = ("TSAI", "PARK", "HORAUD", "ANDREFF", "DANIILIDIS")
+OPENCV_MAX_SAMPLES = 150     # OpenCV pairs every sample with every later one: at most this many, spread in time
+
+
+def _hat(w: FloatArray) -> FloatArray:
+    """(N, 3, 3) skew matrices of (N, 3) vectors."""
+    W = np.zeros((len(w), 3, 3))
+    W[:, 0, 1], W[:, 0, 2], W[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    return W - np.swapaxes(W, 1, 2)
+
+
+def _log_se3(E: FloatArray) -> FloatArray:
+    """(N, 6) ``[ω, J_l(ω)⁻¹ t]`` of transforms E (N, 4, 4): SE(3)'s logarithm as kinhec.se3.log_se3 forms it."""
+    w = Rotation.from_matrix(E[:, :3, :3]).as_rotvec()
+    th = np.linalg.norm(w, axis=1)
+    safe = np.where(th < 1e-8, 1.0, th)
+    c = np.where(th < 1e-8, 1.0 / 12.0, (1.0 - 0.5 * safe / np.tan(0.5 * safe)) / safe**2)
+    W = _hat(w)
+    J_inv = np.eye(3) - 0.5 * W + c[:, None, None] * (W @ W)
+    return np.concatenate((w, np.einsum("nij,nj->ni", J_inv, E[:, :3, 3])), axis=1)
+
+
+def _exp_se3(xi: FloatArray) -> FloatArray:
+    """The 4x4 ``exp([ω, v])``: rotation exp(ω), translation J_l(ω) v (kinhec.se3.exp_se3)."""
+    w, v = xi[:3], xi[3:]
+    th, W = float(np.linalg.norm(w)), _hat(w[None])[0]
+    a, b = (0.5, 1.0 / 6.0) if th < 1e-8 else ((1 - math.cos(th)) / th**2, (th - math.sin(th)) / th**3)
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec(w).as_matrix()
+    T[:3, 3] = (np.eye(3) + a * W + b * (W @ W)) @ v
+    return T
+
+
+def park_lm(A: FloatArray, B: FloatArray) -> FloatArray:
+    """Park–Martin then Levenberg–Marquardt, as kinhec 1.1.0's ``solvers.park_martin`` + ``solvers.refine_lm``
+    (kinhec/solvers/axxb.py). Matched: park unweighted (every pair alike); the residual ``log_se3(inv(X B_k) A_k X)``
+    per pair, its six components weighted 1 (rotation vector [rad], ``J_l(ω)⁻¹ t`` [m]: rot_weight = trans_weight
+    = 1, linear loss); X = X0 exp(ξ) from ξ = 0. Not matched: kinhec runs least_squares' "trf" with max_nfev=200,
+    this its "lm" (the issue's wording; the same unconstrained sum of squares, so the same minimum)."""
+    X0 = solve(A, B, method=PARK).matrix
+
+    def residuals(xi: FloatArray) -> FloatArray:
+        X = X0 @ _exp_se3(xi)
+        return _log_se3(se3.inverse(X @ B) @ (A @ X)).ravel()
+
+    return X0 @ _exp_se3(least_squares(residuals, np.zeros(6), method="lm").x)
+
+
+def _used(cal: handeye_cli.Calibration) -> np.ndarray:
+    """Which of the defaults' pairs they solved with: weight > 0 (a robust run's inliers), else all."""
+    return np.ones(len(cal.pairs), dtype=bool) if cal.weights is None else np.asarray(cal.weights) > 0
+
+
+def pair_samples(cal: handeye_cli.Calibration, limit: int = OPENCV_MAX_SAMPLES) -> tuple[FloatArray, FloatArray]:
+    """The absolute poses (T_wa_a, T_wb_b) of the synced samples the defaults' used pairs join (inverted, offset
+    and scaled as the pairs are), at most ``limit`` of them spread evenly in time."""
+    used = _used(cal)
+    rows = np.unique(np.r_[cal.pairs.i[used], cal.pairs.j[used]])
+    rows = rows[np.unique(np.linspace(0, len(rows) - 1, min(limit, len(rows))).round().astype(int))]
+    used = cal.synced.select(rows)
+    return used.T_a, used.T_b
+
+
+def opencv(T_a: FloatArray, T_b: FloatArray, method: str) -> FloatArray:
+    """``cv2.calibrateHandEye``'s X = T_a_b from absolute poses: a as gripper→base (``T_wa_a``), b as target→cam
+    (``T_wb_b⁻¹``); its cam→gripper is then T_a_b."""
+    import cv2
+
+    T_tc = se3.inverse(T_b)
+    R, t = cv2.calibrateHandEye(list(T_a[:, :3, :3]), list(T_a[:, :3, 3]), list(T_tc[:, :3, :3]),
+                                list(T_tc[:, :3, 3]), method=getattr(cv2, f"CALIB_HAND_EYE_{method}"))
+    X = np.eye(4)
+    X[:3, :3], X[:3, 3] = R, np.ravel(t)
+    if not np.all(np.isfinite(X)):
+        raise ValueError("non-finite result")
+    return X
+
+
+def _attempt(make: Any, truth: FloatArray, pairs: int, ours: bool = True) -> Fit:
+    """``make()``'s T_a_b as a fit, or its failure (an outcome, printed)."""
+    try:
+        T = make()
+    except Exception as e:
+        return _failure(e, ours)
+    return Fit(T, _error(T, truth), pairs=pairs)
+
+
+def same_pairs(cal: handeye_cli.Calibration | None, truth: FloatArray) -> tuple[Fit, Fit, dict[str, Fit]]:
+    """On the defaults' pairs: dqopt unrefined (the defaults' α and weights); Park + LM on the pairs they used
+    (weight > 0: a robust run's inliers), each alike; OpenCV's five methods on those pairs' samples."""
+    if cal is None:
+        failed = Fit(failure="defaults failed")
+        return failed, failed, {m: failed for m in OPENCV_METHODS}
+    A, B, n = cal.pairs.A, cal.pairs.B, len(cal.pairs)
+    dq = _attempt(lambda: solve(A, B, "dqopt", cal.solution.alpha, weights=cal.weights).matrix, truth, n)
+    used = _used(cal)
+    plm = _attempt(lambda: park_lm(A[used], B[used]), truth, int(used.sum()), ours=False)
+    T_a, T_b = pair_samples(cal)
+    cv = {m: _attempt(lambda m=m: opencv(T_a, T_b, m), truth, len(T_a), ours=False) for m in OPENCV_METHODS}
+    return dq, plm, cv
+
+
+def check_same_pairs(seed: int = 0) -> float:
+    """The largest error [deg or mm] of :func:`same_pairs`' estimators (dqopt, Park + LM, OpenCV's five) on
+    noise-free simulated captures, eye-in-hand and eye-to-hand, through the defaults and :func:`pair_samples`:
+    ≈ 0 (1e-12) when the conventions are right. Raises AssertionError when one fails or exceeds 1e-6."""
+    from handeye_cli.simulation.arm import simulate_arm
+
+    worst = 0.0
+    for setup in ("eye-in-hand", "eye-to-hand"):
+        cap = simulate_arm(12, setup=setup, sparse=True, camera_sigma_r=0.0, camera_sigma_t=0.0, joint_noise=0.0,
+                           dh_error=0.0, seed=seed)
+        cal = handeye_cli.calibrate_files(cap.robot, cap.camera, invert_a=cap.invert_a, invert_b=cap.invert_b)
+        dq, plm, cv = same_pairs(cal, cap.truth)
+        for name, f in [("dqopt", dq), ("park + LM", plm), *cv.items()]:
+            if f.error is None or max(f.error) > 1e-6:
+                raise AssertionError(f"{name} on a noise-free {setup} capture: {f.failure or fmt(f.error)}")
+            worst = max(worst, *f.error)
+    return worst
+
+
 def run(rec: Recording, *, bare: bool = False, quick: bool = False,
         overrides: Mapping[str, Any] | None = None) -> Result:
     """Defaults, park on the same pairs, the grid and the offset diagnostic of one recording;
@@ -189,6 +324,7 @@ def run(rec: Recording, *, bare: bool = False, quick: bool = False,
     a, b = (read_stream(p, time_unit=unit) for p in (rec.a, rec.b))     # raw; the inversion is a convention
     defaults, cal = _calibrate(a, b, rec.truth, **conv)
     park = _solve(cal, rec.truth, PARK, 1.0) if cal is not None else Fit(failure="defaults failed")
+    dqopt, plm, cv = same_pairs(cal, rec.truth)
     fixed = dict(conv)
     if conv.get("time_offset") == "auto" and defaults.offset_s is not None:
         fixed.update(time_offset=defaults.offset_s, max_time_offset="off")
@@ -206,7 +342,7 @@ def run(rec: Recording, *, bare: bool = False, quick: bool = False,
     offset_auto = None if quick or conv.get("time_offset") == "auto" else _calibrate(
         a, b, rec.truth, **{**conv, "time_offset": "auto"})[0]
     given = {**({"time_unit": unit} if unit != "auto" else {}), **conv}
-    return Result(rec, defaults, park, grid, offset_auto, time.perf_counter() - t0, given)
+    return Result(rec, defaults, park, grid, offset_auto, time.perf_counter() - t0, given, dqopt, plm, cv)
 
 
 # --- which recordings exist ---------------------------------------------------------------------------------
@@ -265,7 +401,7 @@ def kinhec_recordings(folder: Path, label: str,
         out.append(Recording(f"{label}/{sid}", "kinhec", a, b, truth, True, kinhec_conventions(g),
                              (float(pub[0]), float(pub[1])) if isinstance(pub, list | tuple) else None,
                              arm=g["robot"] != "free6d", degenerate=float(g["axis_scatter_lambda2"]) < 1e-6,
-                             note=note))
+                             note=note, track=str(g.get("track", ""))))
     return out, absent
 
 
@@ -333,6 +469,10 @@ def _cell(f: Fit) -> str:
     return fmt(f.error) if f.error else "fail"
 
 
+def _outcome(f: Fit, width: int = 100) -> str:
+    return _cell(f) if f.error else f.failure[:width]
+
+
 def _best(grid: Mapping[tuple[str, str], Fit], m: int) -> tuple[float, tuple[str, str]] | None:
     scored = [(f.error[m], k) for k, f in grid.items() if f.error is not None]
     return min(scored) if scored else None
@@ -370,7 +510,10 @@ def report(res: Result) -> None:
         print(f"   defaults        {fmt(d.error):<18} α {d.alpha:.3g}, {d.pairs} pairs{off}")
         for w in d.warnings[:2]:
             print(f"     warning: {w[:150]}")
-    print(f"   park same pairs {_cell(res.park) if res.park.error else res.park.failure[:100]}")
+    print(f"   park same pairs {_outcome(res.park)}")
+    print(f"   dqopt unrefined {_outcome(res.dqopt)}")
+    print(f"   park + LM       {_outcome(res.park_lm)}")
+    print("   OpenCV          " + "  ".join(f"{m.lower()} {_outcome(f, 40)}" for m, f in res.opencv.items()))
     if res.offset_auto is not None:
         o = res.offset_auto
         tail = f"(offset {o.offset_s:.4f} s)" if o.error else o.failure[:100]
@@ -497,6 +640,124 @@ def summary(results: Sequence[Result], mode: str = "") -> list[tuple[str, bool |
     return verdicts
 
 
+# --- issue 35: statistically efficient by default --------------------------------------------------------------
+ISSUE35_WORSE = 1.5          # no sequence's defaults worse than this × the better of Park + LM and dqopt unrefined
+Error = tuple[float, float] | None
+
+
+def _columns(results: Sequence[Result]) -> dict[str, Any]:
+    """The medians block's columns: name → (result → its error or None)."""
+    cols: dict[str, Any] = {"default": lambda r: r.defaults.error, "dqopt unref.": lambda r: r.dqopt.error,
+                            "park+LM": lambda r: r.park_lm.error, "published": lambda r: r.recording.published}
+    for m in OPENCV_METHODS:
+        cols[f"cv {m.lower()}"] = lambda r, m=m: r.opencv[m].error if m in r.opencv else None
+    return cols
+
+
+def _median(errors: Sequence[Error]) -> tuple[tuple[float, float] | None, int]:
+    """(median rotation, median translation) of the errors that exist, and how many do not."""
+    ok = [e for e in errors if e is not None]
+    medians = (float(np.median([e[0] for e in ok])), float(np.median([e[1] for e in ok]))) if ok else None
+    return medians, len(errors) - len(ok)
+
+
+def _grid_error(r: Result, key: tuple[str, str]) -> Error:
+    """A grid setting's error; a station capture's one row stands for every pair strategy (all with all)."""
+    f = r.grid.get(key) or r.grid.get((STATIONS, key[1]))
+    return None if f is None else f.error
+
+
+def _best_fixed(group: Sequence[Result]) -> str:
+    """The grid setting with the smallest median error over the group (rotation; translation), in hindsight,
+    among the settings with the fewest failures."""
+    every = list(dict.fromkeys(k for r in group for k in r.grid))
+    keys = [k for k in every if k[0] != STATIONS] or every              # station captures only: their rows
+    med = {k: _median([_grid_error(r, k) for r in group]) for k in keys}
+    fewest = min((missing for m, missing in med.values() if m is not None), default=None)
+    scored = [(m, k) for k, (m, missing) in med.items() if m is not None and missing == fewest]
+    if not scored:
+        return "-"
+    (rot, kr), (trans, kt) = min((m[0], k) for m, k in scored), min((m[1], k) for m, k in scored)
+    failed = f" ({fewest} failed)" if fewest else ""
+    return f"rot {rot:.3g}° ({_setting(kr)}); trans {trans:.3g} mm ({_setting(kt)}){failed}"
+
+
+def _medians_row(label: str, group: Sequence[Result], cols: Mapping[str, Any]) -> None:
+    cells = []
+    for pick in cols.values():
+        m, missing = _median([pick(r) for r in group])
+        cells.append(f"{fmt(m)}{f' ({missing}✗)' if missing else ''}")
+    seeds = len({r.recording.name.split('/')[0] for r in group})
+    print(f"  {label:<22} {len(group):>3} {seeds:>2}" + "".join(f" {c:>17}" for c in cells))
+
+
+def _better(r: Result) -> Error:
+    """Per component, the smaller error of Park + LM and dqopt unrefined (None: both failed)."""
+    errs = [e for e in (r.park_lm.error, r.dqopt.error) if e is not None]
+    return (min(e[0] for e in errs), min(e[1] for e in errs)) if errs else None
+
+
+def _track_goals(group: Sequence[Result]) -> None:
+    """The issue's goals on one track: the median ratios over the sequences where the defaults, Park + LM and
+    dqopt unrefined all have an estimate, and every sequence worse than ISSUE35_WORSE× (refusals apart)."""
+    both = [r for r in group if r.defaults.error and r.park_lm.error and r.dqopt.error]
+    if both:
+        d, _ = _median([r.defaults.error for r in both])
+        p, _ = _median([r.park_lm.error for r in both])
+        q, _ = _median([r.dqopt.error for r in both])
+        assert d and p and q
+        rot, trans = _ratio(d[0], p[0]), _ratio(d[1], min(p[1], q[1]))
+        print(f"    {_verdict(rot <= 1.0)} median rotation ≤ 1.0× park+LM's: {d[0]:.3g}° vs {p[0]:.3g}° (×{rot:.2f})"
+              f"   over {len(both)}/{len(group)}")
+        print(f"    {_verdict(trans <= 1.0)} median translation ≤ 1.0× the better of park+LM, dqopt: {d[1]:.3g} mm "
+              f"vs {p[1]:.3g}, {q[1]:.3g} (×{trans:.2f})")
+    else:
+        print("    - medians: no sequence where the defaults, park+LM and dqopt all have an estimate")
+    refused = [r for r in group if r.defaults.error is None]
+    worse = []
+    for r in group:
+        d, b = r.defaults.error, _better(r)
+        if d is not None and b is not None:
+            ratios = (_ratio(d[0], b[0]), _ratio(d[1], b[1]))
+            if max(ratios) > ISSUE35_WORSE:
+                worse.append((r, ratios))
+    print(f"    {_verdict(not worse)} no sequence > {ISSUE35_WORSE}× the better of park+LM, dqopt (rotation or "
+          f"translation): {len(worse)} worse, {len(refused)} refused")
+    for r, (kr, kt) in worse:
+        print(f"      worse {r.recording.name:<30} rot ×{kr:.2f}  trans ×{kt:.2f}   defaults {fmt(r.defaults.error)}"
+              f" better {fmt(_better(r))}{'  [degenerate]' if r.recording.degenerate else ''}")
+    for r in refused:
+        print(f"      refused {r.recording.name:<28} {r.defaults.failure[:110]}")
+
+
+def issue35(results: Sequence[Result]) -> None:
+    """The issue-35 block: per generated kinhec track (every seed present) the medians of every column and the
+    best fixed setting in hindsight, the goals' PASS/FAIL, the sequences worse than ISSUE35_WORSE×; then the
+    same medians on the smoke corpus and on the ETH corpus (against its reference)."""
+    cols = _columns(results)
+    generated = [r for r in results if r.recording.kind == "kinhec" and r.recording.name.startswith("kinhec-")]
+    tracks = sorted({r.recording.track for r in generated})
+    print("\n" + "=" * 100)
+    print("ISSUE 35 GOALS: the defaults against dqopt unrefined and Park + LM on the defaults' pairs")
+    print("  medians °/mm (n✗: failures, not in the median); n sequences, s seeds")
+    print(f"  {'group':<22} {'n':>3} {'s':>2}" + "".join(f" {c:>17}" for c in cols))
+    groups = {f"kinhec {t}": [r for r in generated if r.recording.track == t] for t in tracks}
+    groups |= {"kinhec all generated": generated,
+               "smoke corpus": [r for r in results if r.recording.name.startswith("smoke/")],
+               "ETH (vs reference)": [r for r in results if r.recording.kind != "kinhec"]}
+    for label, group in groups.items():
+        if group:
+            _medians_row(label, group, cols)
+    for label, group in groups.items():
+        if group:
+            print(f"  {label}: best fixed in hindsight (median over the group): {_best_fixed(group)}")
+    for t in tracks:
+        group = groups[f"kinhec {t}"]
+        seeds = len({r.recording.name.split("/")[0] for r in group})
+        print(f"  track {t} ({len(group)} sequences, {seeds} seeds{'' if seeds >= 3 else '; the goal asks ≥ 3'})")
+        _track_goals(group)
+
+
 def _default_data() -> Path:
     """The corpus: ``data`` in the folder ``shared`` beside the repository (or beside the worktrees' folder)."""
     for base in (ROOT.parent, ROOT.parent.parent):
@@ -530,6 +791,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"  {name:<24} {', '.join(f'{k}={v}' for k, v in kw.items()) or '-':<42} {why}")
     for s in sources:
         print(f"kinhec: {s}")
+    print(f"same-pairs estimators (dqopt, park + LM, OpenCV's five) on noise-free simulated captures: largest error "
+          f"{check_same_pairs():.1e} (°, mm)")
     for a in absent:
         print(f"absent, skipped: {a}")
     results = []
@@ -539,6 +802,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         results.append(res)
         sys.stdout.flush()
     summary(results, "--bare (no convention flags)" if args.bare else "with the convention flags")
+    issue35(results)
     print(f"\nwall time {time.perf_counter() - t0:.1f} s for {len(results)} recordings")
     return 0
 
