@@ -32,7 +32,7 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 from .errors import ConfigError
-from .solvers import METHODS
+from .solvers import METHODS, OPTIMAL
 from .untrusted import REMOTE_DEADLINE_S, REMOTE_RETRIES, REMOTE_TIMEOUT_S, frame_id_problem
 
 __all__ = ["Options", "ReadOptions", "SyncOptions", "GateOptions", "PairOptions", "SolverOptions",
@@ -369,6 +369,9 @@ class SolverOptions:
                                                 "Weights a,b of the prior's rotation and translation terms.", "A,B",
                                                 commands=SOLVER)
     min_pairs: int = option(3, integer(low=2), "Fewer motion pairs than this is an error.", "N")
+    refine: bool = option(False, flag, "Refine dqopt's (or dqitr's) certified optimum of cost (8) to the maximum "
+                          "likelihood of the samples, under a noise model fitted to them (solver.refined; "
+                          "solver.optimum keeps the optimum and its certificate).", commands=EVERY_PAIR)
 
 
 @dataclass(frozen=True)
@@ -428,7 +431,9 @@ class Options:
             section, info, _ = FIELDS[name]
             grouped.setdefault(section, {})[name] = info.parse(value, f"{where}: {name}" if where else name)
         out = replace(out, **{s: replace(getattr(out, s), **v) for s, v in grouped.items()})
-        return replace(out, gates=_gate_limits(out.gates, grouped.get("gates", {}), where))
+        out = replace(out, gates=_gate_limits(out.gates, grouped.get("gates", {}), where))
+        _check_refine(out.solver, where)
+        return out
 
     def flat(self) -> dict[str, Any]:
         """Every option by its flat name (tuples as lists, mappings as dicts: ready for YAML/JSON)."""
@@ -461,6 +466,20 @@ def _gate_limits(gates: GateOptions, given: Mapping[str, Any], where: str) -> Ga
                           f"{where}: {limits[0]}" if where else limits[0],
                           "add ⟦gate='paper'⟧ to use the per-step limits, or ⟦gate='off'⟧ for no gate")
     return gates
+
+
+def _check_refine(solver: SolverOptions, where: str) -> None:
+    """The refinement starts at a certified optimum of cost (8) and its likelihood has no prior term: with another
+    method or with a prior it would not do what it says, so it is refused naming the option."""
+    if not solver.refine:
+        return
+    name = f"{where}: refine" if where else "refine"
+    if solver.method not in OPTIMAL:
+        raise ConfigError(f"the refinement starts at the certified optimum of cost (8), which {solver.method} does "
+                          "not claim", name, "pass ⟦method='dqopt'⟧ with ⟦refine=True⟧, or leave the refinement off")
+    if solver.prior is not None:
+        raise ConfigError("the refinement's likelihood has no prior term, and a prior fixes what the motion leaves "
+                          "open", name, "leave the refinement off with ⟦prior=FILE⟧")
 
 
 # Names of the grouped configuration layout before 0.2, with the one name each has now.

@@ -77,11 +77,16 @@ class SampleNoise:
     source: str
     streams: dict[str, Any]
 
+    @property
+    def measured(self) -> bool:
+        """Both streams' noise is measured (False: assumed for sparse poses, :data:`SPARSE_SIGMA_M` — no
+        measurement, and not in b's units)."""
+        return not any(self.streams[k].get("assumed") for k in "ab")
+
     def translation_variances(self, i: IntArray, j: IntArray) -> tuple[FloatArray, FloatArray] | None:
         """Per pair of samples ``(i, j)``, the per-axis variance of a's and of b's relative translation
-        [m², or b's units² for b], ``σ_i² + σ_j²``; None when either stream's noise is only assumed
-        (sparse poses: :data:`SPARSE_SIGMA_M` is no measurement, and not in b's units)."""
-        if any(self.streams[k].get("assumed") for k in "ab"):
+        [m², or b's units² for b], ``σ_i² + σ_j²``; None when either stream's noise is not :attr:`measured`."""
+        if not self.measured:
             return None
         return self.trans_a[i] ** 2 + self.trans_a[j] ** 2, self.trans_b[i] ** 2 + self.trans_b[j] ** 2
 

@@ -11,7 +11,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -29,6 +29,9 @@ from ..stages.counts import SampleCounts
 from ..stages.pairs import Pairs
 from ..stages.sync import Synced
 from ..streams import PoseStream
+
+if TYPE_CHECKING:
+    from ..analysis.refinement import Refinement
 
 __all__ = ["Calibration", "Checks", "Diagnostics", "Uncertainty", "frame_names"]
 
@@ -100,7 +103,9 @@ class Calibration:
     writes flags); diagnostics: what the analyses found (:class:`Diagnostics`: typed,
     and the result's diagnostic keys: time offset, residuals…);
     inputs: what was read; residuals: per-pair residuals at the solution; weights: per-pair
-    weights used (inlier mask with ``robust``, else None); robust, bootstrap: those analyses.
+    weights used (inlier mask with ``robust``, else None); robust, bootstrap: those analyses; refinement: the
+    maximum-likelihood refinement whose matrix ``solution`` holds (``solution.optimum``: the optimum it started
+    from), or None.
     """
 
     solution: Solution
@@ -117,6 +122,7 @@ class Calibration:
     weights: np.ndarray | None = None
     robust: RobustResult | None = None
     bootstrap: BootstrapResult | None = None
+    refinement: Refinement | None = None
     config_file: str | None = None
     preset: str | None = None
 

@@ -21,14 +21,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..analysis import RobustResult, assess_observability, bootstrap, pair_residuals, robust_solve
 from ..analysis.alpha import TIME_BLOCKS, noise_model_alpha, time_blocks
 from ..analysis.covariance import drift_check
-from ..analysis.fit_test import fit_test, sample_noise
+from ..analysis.fit_test import SampleNoise, fit_test, sample_noise
 from ..analysis.readings import scale_reading
 from ..analysis.robust import consensus_share, longest_disagreement
 from ..analysis.selection import Selection
@@ -36,6 +36,7 @@ from ..analysis.stream_noise import stream_noise
 from ..analysis.subspace import observable_subspace
 from ..config import load_options
 from ..errors import HandEyeError
+from ..geometry import dualquat
 from ..io.spec import StreamSpec
 from ..options import Options
 from ..solvers import Prior, Solution, solve
@@ -49,6 +50,9 @@ from .inputs import Source, check_samples, describe, inversion_inputs, read_stre
 from .pairing import Paired
 from .result import Calibration, Checks, Diagnostics
 from .scaling import NoiseOf, scaled
+
+if TYPE_CHECKING:
+    from ..analysis.refinement import Refinement
 
 __all__ = ["calibrate", "calibrate_files", "calibrate_read"]
 
@@ -131,10 +135,18 @@ def _calibrated(reading: Reading, opts: Options, inputs: dict[str, Any] | None, 
                                    nominal=None if prior is None else prior.T_a_b)
     if subspace.axis_a is not None:                           # planar: the reduced in-plane solve
         solution = replace(solution, matrix=subspace.matrix, problem=None, dual_quaternion=None,
-                           full_solve=solution)              # its certificate: of the full solve (cost 8)
+                           optimum=solution)                 # its certificate: of the full solve (cost 8)
         findings += [Finding.warning("subspace", w) for w in
                      [f"not estimated: {k} ({v})" for k, v in subspace.skipped.items()] + list(subspace.advice)]
     diagnostics["degrees_of_freedom"] = subspace.as_dict()
+    scale = diagnostics.get("scale", {}).get("value")        # b's jitter in metres, as its samples now are
+    noise = sample_noise(a, b if scale is None else b.scaled(scale), paired.synced, paired.stations,
+                         opts.sync.sync, noise_of)
+    refinement = None
+    if opts.solver.refine:
+        solution, refinement, skipped = _refined(solution, paired, pairs, weights, noise, reduced=subspace.axis_a
+                                                 is not None)
+        findings += [Finding.warning("refinement", skipped)] if skipped else []
     if checks.uncertainty and len(A) > 2 * TIME_BLOCKS:      # σ from independent samples beside σ from blocks (drift)
         check = drift_check(A, B, solution.matrix, time_blocks(pairs.t_i_ns, pairs.t_j_ns), alpha=alpha,
                             prior=prior, weights=weights, samples=ij)
@@ -143,9 +155,6 @@ def _calibrated(reading: Reading, opts: Options, inputs: dict[str, Any] | None, 
             findings.append(Finding.warning("uncertainty", check.warning()))
     res = pair_residuals(A, B, solution.matrix)
     diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    scale = diagnostics.get("scale", {}).get("value")        # b's jitter in metres, as its samples now are
-    noise = sample_noise(a, b if scale is None else b.scaled(scale), paired.synced, paired.stations,
-                         opts.sync.sync, noise_of)
     fit = fit_test(pairs, res, solution.matrix, noise, mask=None if weights is None else weights > 0)   # refuses
     diagnostics["fit_test"] = fit.as_dict()                                         # what no rigid rig gives
     misfit = fit_refusal(fit, opts, paired, inverted=verdict is not None)
@@ -171,7 +180,28 @@ def _calibrated(reading: Reading, opts: Options, inputs: dict[str, Any] | None, 
                         selection=paired.selection, poor_fit_accepted=bool(outcome.accepted))
     return Calibration(solution, a, b, paired.synced, pairs, paired.samples, opts, res,
                        warnings=list(outcome.warnings), diagnostics=found, inputs=dict(inputs or {}),
-                       weights=weights, robust=solved.robust, bootstrap=boot)
+                       weights=weights, robust=solved.robust, bootstrap=boot, refinement=refinement)
+
+
+def _refined(solution: Solution, paired: Paired, pairs: Pairs, weights: np.ndarray | None, noise: SampleNoise, *,
+             reduced: bool) -> tuple[Solution, Refinement | None, str]:
+    """The optimum ``solution`` refined by maximum likelihood (:func:`~handeye_cli.analysis.refinement.
+    refine_calibration`): the refined solution (``optimum``: the one it started from, cost (8) at the refined
+    pose), its account, and "" — or the solution as it was, None and why it was not refined (planar motion's
+    reduced solve; samples too few or a noise model that says nothing)."""
+    if reduced:
+        return solution, None, ("not refined: planar motion leaves directions the likelihood cannot see (the "
+                                "reduced in-plane solve is the result)")
+    from ..analysis.refinement import refine_calibration  # scipy's optimiser and banded Cholesky: on request
+
+    try:
+        refinement = refine_calibration(paired.synced, pairs, weights, noise, solution.matrix)
+    except HandEyeError as e:
+        return solution, None, f"not refined: {e.what}; the optimum of cost (8) is the result"
+    q, qd = dualquat.from_transforms(refinement.matrix)
+    assert solution.problem is not None, "an optimum of cost (8) keeps its problem"
+    return replace(solution, matrix=refinement.matrix, cost=solution.problem.cost(q, qd), problem=None,
+                   dual_quaternion=None, optimum=solution), refinement, ""
 
 
 def _decided(findings: list[Finding], opts: Options) -> None:

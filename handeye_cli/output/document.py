@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 import shlex
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
@@ -54,19 +55,25 @@ def static_transform_command(t: FloatArray, q: FloatArray, frames: dict[str, str
             f"--child-frame-id {shlex.quote(str(frames.get('b', 'b')))}")
 
 
-def solver_section(solution: Solution) -> dict[str, Any]:
+def solver_section(solution: Solution, refinement: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The result's ``solver`` block: the multipliers, iterations and convergence the solver reports, its own
-    details, and the optimality certificate: the solution's own, or, for an estimate that minimises no cost (8)
-    (the reduced in-plane solve of planar motion), the certificate of the full solve it replaced, marked
-    ``of: full_solve`` — the global optimum that is certified is that solve's, not the ``matrix`` written."""
-    solver: dict[str, Any] = {k: v for k, v in (("lambda", solution.lam), ("mu", solution.mu),
-                                ("iterations", solution.iterations), ("converged", solution.converged))
+    details, and the optimality certificate. For an estimate that minimises no cost (8) (the reduced in-plane
+    solve of planar motion, the maximum-likelihood refinement) these are of the optimum it was made from, the
+    certificate marked ``of: optimum`` — the global optimum that is certified is that solve's, not the ``matrix``
+    written — and ``optimum`` holds that solve's pose and cost (8); ``refined``: the refinement's account
+    (:meth:`~handeye_cli.analysis.refinement.Refinement.as_dict`)."""
+    source = solution.optimum or solution
+    solver: dict[str, Any] = {k: v for k, v in (("lambda", source.lam), ("mu", source.mu),
+                                ("iterations", source.iterations), ("converged", source.converged))
                               if v is not None}
-    solver.update(solution.details)
-    if solution.certificate is not None:
-        solver["certificate"] = solution.certificate.as_dict()
-    elif solution.full_solve is not None and solution.full_solve.certificate is not None:
-        solver["certificate"] = {**solution.full_solve.certificate.as_dict(), "of": "full_solve"}
+    solver.update(source.details)
+    if source.certificate is not None:
+        solver["certificate"] = {**source.certificate.as_dict(), **({"of": "optimum"} if solution.optimum else {})}
+    if solution.optimum is not None:
+        solver["optimum"] = {"quaternion_xyzw": plain(source.quaternion_xyzw), "translation": plain(source.translation),
+                             "cost": float(source.cost)}
+    if refinement is not None:
+        solver["refined"] = dict(refinement)
     return solver
 
 
@@ -94,9 +101,11 @@ class ResultDocument(TypedDict):
 
 def result_document(solution: Solution, *, frames: dict[str, str] | None = None,
                     inputs: dict[str, Any] | None = None, samples: dict[str, Any] | None = None,
-                    warnings: list[str] | None = None, diagnostics: dict[str, Any] | None = None) -> dict[str, Any]:
+                    warnings: list[str] | None = None, diagnostics: dict[str, Any] | None = None,
+                    refinement: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The result as a plain dict in schema order (see the module docstring): the :class:`ResultDocument`
-    keys, built here from the typed solution, with ``diagnostics`` after ``solver``.
+    keys, built here from the typed solution, with ``diagnostics`` after ``solver`` (``refinement``: its
+    ``solver.refined``).
 
     ``frames`` names frames a and b (default ``{"a": "a", "b": "b"}``); ``samples`` holds the
     per-stage counts; ``diagnostics`` are appended after the required keys.
@@ -107,7 +116,7 @@ def result_document(solution: Solution, *, frames: dict[str, str] | None = None,
         matrix=plain(solution.matrix), translation=plain(t), quaternion_xyzw=plain(q), frames=frames,
         method=solution.method, alpha=float(solution.alpha), cost=float(solution.cost), pairs_used=int(solution.pairs),
         samples=plain(samples or {"pairs": solution.pairs}), inputs=plain(inputs or {}), version=__version__,
-        warnings=list(warnings or []), solver=plain(solver_section(solution)),
+        warnings=list(warnings or []), solver=plain(solver_section(solution, refinement)),
         ros2_static_transform=static_transform_command(t, q, frames))
     doc: dict[str, Any] = {k: v for k, v in core.items() if k != "ros2_static_transform"}
     doc.update(plain(diagnostics or {}))
@@ -120,7 +129,8 @@ def calibration_document(calibration: Calibration) -> dict[str, Any]:
     the solution, frames, inputs, sample counts, warnings, diagnostics and the settings used."""
     return result_document(calibration.solution, frames=calibration.frames, inputs=calibration.inputs,
                            samples=calibration.samples.as_dict(), warnings=calibration.warnings,
-                           diagnostics={**calibration.diagnostics, "settings": calibration.settings()})
+                           diagnostics={**calibration.diagnostics, "settings": calibration.settings()},
+                           refinement=None if calibration.refinement is None else calibration.refinement.as_dict())
 
 
 class _Dumper(yaml.SafeDumper):

@@ -64,10 +64,11 @@ class Solution:
     problem, dual_quaternion:
         The cost the solution was measured on and, where the method computed it, the solution's unit dual
         quaternion ``(q, q')`` (x-y-z-w parts; else taken from ``matrix``), for :attr:`certificate`.
-    full_solve:
-        For an estimate that is not the minimum of a cost (8) (the reduced in-plane solve of planar motion,
-        ``problem`` None): the full solve it replaced, whose certificate the result document keeps, marked
-        ``of: full_solve`` (:func:`~handeye_cli.output.document.solver_section`).
+    optimum:
+        For an estimate that is not the minimum of a cost (8) (``problem`` None: the reduced in-plane solve of
+        planar motion, or the maximum-likelihood refinement): the optimum of cost (8) it was made from, whose
+        certificate the result document keeps, marked ``of: optimum``, beside its cost and pose
+        (:func:`~handeye_cli.output.document.solver_section`).
     """
 
     matrix: FloatArray
@@ -82,7 +83,7 @@ class Solution:
     details: Mapping[str, float | bool] = field(default_factory=dict)
     problem: Problem | None = field(default=None, repr=False)
     dual_quaternion: tuple[FloatArray, FloatArray] | None = field(default=None, repr=False)
-    full_solve: Solution | None = field(default=None, repr=False)
+    optimum: Solution | None = field(default=None, repr=False)
 
     @cached_property
     def certificate(self) -> Certificate | None:

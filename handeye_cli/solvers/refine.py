@@ -60,7 +60,8 @@ __all__ = ["Chain", "Refined", "band_factor", "gaussian_terms", "motion_covarian
            "residual_covariances"]
 
 _SMALL_ANGLE = 1e-4          # below it, the series of the inverse Jacobian's coefficient
-_TOLERANCE = 1e-10           # converged: the Gauss–Newton step is this many standard deviations long
+_TOLERANCE = 1e-6            # converged: the Gauss–Newton step is this many standard deviations long (below it,
+#                              the re-weighted iterations creep at rounding level)
 _DAMPING = (1e-6, 1e12)      # Levenberg–Marquardt's first and largest damping (relative to diag H)
 
 
@@ -374,7 +375,8 @@ class Chain:
                drift_a: FloatArray | None = None, drift_b: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
         """The residuals' covariance as its diagonal blocks (M, 6, 6) and upper blocks (M − 1, 6, 6) (zero between
         motions that share no pose), from the residuals' Jacobians by a's and b's motion noise ``Ja``, ``Jb``
-        (M, 6, 6), the poses' white noise (S, 6, 6) and each motion's own (M, 6, 6) (None: none)."""
+        (M, 6, 6), the poses' white noise (S, 6, 6) and each motion's own (M, 6, 6) or (M, 2) per-axis variances
+        [rad², m²] (None: none)."""
         D, U = np.zeros((len(self.A), 6, 6)), np.zeros((len(self.A) - 1, 6, 6))
         p = self.start
         for J, (S, E), C, extra in zip((Ja, Jb), self.maps, (noise_a, noise_b), (drift_a, drift_b), strict=True):
@@ -383,7 +385,7 @@ class Chain:
                 D += start @ C[p] @ np.swapaxes(start, 1, 2) + end @ C[p + 1] @ np.swapaxes(end, 1, 2)
                 U += end[:-1] @ C[p[:-1] + 1] @ np.swapaxes(start[1:], 1, 2) * self.adjacent[:, None, None]
             if extra is not None:
-                D += J @ extra @ np.swapaxes(J, 1, 2)
+                D += J @ _extra(np.asarray(extra, dtype=np.float64), len(J)) @ np.swapaxes(J, 1, 2)
         return 0.5 * (D + np.swapaxes(D, 1, 2)), U
 
     def residuals(self, X: FloatArray, scale: float | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -430,9 +432,8 @@ def refine_poses(chain: Chain, X0: FloatArray, noise_a: FloatArray, noise_b: Flo
     scale, max_iterations, tolerance:
         As :func:`refine`.
     """
-    m = len(chain.A)
     pose_noise = [_covariances(c, chain.samples, name) for name, c in (("noise_a", noise_a), ("noise_b", noise_b))]
-    extras = [None if d is None else _extra(np.asarray(d, dtype=np.float64), m) for d in (drift_a, drift_b)]
+    extras = [None if d is None else _extra(np.asarray(d, dtype=np.float64), len(chain.A)) for d in (drift_a, drift_b)]
     A, B, X, _, _, s = _checked(chain.A, chain.B, X0, np.eye(6), np.eye(6), scale)
 
     def weigh(Ja: FloatArray, Jb: FloatArray) -> _Precision:

@@ -90,6 +90,7 @@ WARNING_ORDER = (
     "observability",  # degenerate motion: what is poorly determined
     "certificate",    # the solver's optimality certificate failed
     "subspace",       # planar motion: the degrees of freedom not estimated, and how to see them
+    "refinement",     # --refine asked, but the optimum is the result (planar motion, too few samples)
     "uncertainty",    # σ over blocks of time far beyond σ of independent samples (drift)
 )
 """The order warnings come out in, by kind; within a kind, in the order they were found. A refused fit that the

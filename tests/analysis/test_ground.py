@@ -226,12 +226,12 @@ def test_a_planar_result_keeps_the_certificate_of_the_full_solve_and_says_so(dif
     """Issue 37: the reduced in-plane solve replaced the solution with ``problem=None``, so a planar result's
     document had no ``solver.certificate``. The certificate is of cost (8)'s global optimum on the full problem,
     which the reduced estimate written in ``matrix`` is not: the document keeps the full solve's certificate,
-    marked as that solve's (``of: full_solve``), and it is the certificate of a fresh full solve of the same pairs."""
+    marked as that solve's (``of: optimum``), and it is the certificate of a fresh full solve of the same pairs."""
     from handeye_cli import document
 
     assert free.diagnostics.subspace.axis_a is not None                  # planar: the reduced solve ran
     cert = document(free)["solver"].get("certificate")
-    assert cert is not None and cert["of"] == "full_solve" and cert["certified"] is True
+    assert cert is not None and cert["of"] == "optimum" and cert["certified"] is True
     full = solve(free.pairs.A, free.pairs.B, alpha=free.solution.alpha, weights=free.weights)
     assert full.certificate is not None and cert["certified"] == full.certificate.certified
     assert not np.allclose(full.matrix, free.matrix)                      # the estimate written is another one
