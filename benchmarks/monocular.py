@@ -75,10 +75,10 @@ def run(kind: str, seed: int, duration: float, noise: float) -> tuple[float, ...
     a, b, X, stretch = KINDS[kind](seed, duration, noise)
     auto = calibrate(a, monocular(b, SCALE), scale="auto", time_offset=0.0)
     known = calibrate(a, replace(b), time_offset=0.0)
-    block = auto.diagnostics["scale"]
-    s, std = block["value"], block["std"]
+    est = auto.diagnostics.scale
+    s, std = est.scale, est.scale_std
     return ((s - SCALE) / std, (s - SCALE / stretch) / std, s / SCALE - 1, std / SCALE,
-            float(drift_warning(block) is not None),
+            float(drift_warning(est) is not None),
             extrinsic_error(auto.matrix, X)[1], extrinsic_error(known.matrix, X)[1])
 
 

@@ -25,6 +25,7 @@ from ..errors import as_keywords
 from ..geometry import se3
 from ..options import Options
 from ..solvers import Solution
+from ..solvers.scale import ScaleSolution
 from ..stages.counts import SampleCounts
 from ..stages.pairs import Pairs
 from ..stages.sync import Synced
@@ -65,7 +66,8 @@ class Diagnostics(Mapping[str, Any]):
 
     The typed results that code reads back: ``fit`` (the fit test), ``observability`` (degenerate motion, the
     predicted covariance), ``subspace`` (each degree of freedom: estimated, from the prior or unobservable) and
-    ``selection`` (the ``auto`` pairs' noise model; None for another strategy); ``poor_fit_accepted``: a refusal —
+    ``selection`` (the ``auto`` pairs' noise model; None for another strategy), ``scale`` (b's scale estimated with
+    ``T_a_b``, in b's units as given; None when none was); ``poor_fit_accepted``: a refusal —
     the fit test's (the residuals, or a mount that moved between stations: the document's ``fit_test.passed``
     false), the inversion check's or a given quaternion order's contradiction — that ``accept_poor_fit``
     overrode, keeping the result (``handeye calibrate`` exits 3). As a read-only mapping it is the
@@ -78,6 +80,7 @@ class Diagnostics(Mapping[str, Any]):
     observability: Observability | None = None
     subspace: Subspace | None = None
     selection: Selection | None = None
+    scale: ScaleSolution | None = None
     poor_fit_accepted: bool = False
 
     def __getitem__(self, key: str) -> Any:
@@ -160,7 +163,7 @@ class Calibration:
     def _line(self) -> str:
         f, t = self.frames, self.translation
         fit = self.diagnostics.fit
-        cert = self.solution.certificate
+        cert = (self.solution.optimum or self.solution).certificate     # a refined or reduced estimate: its optimum's
         return (f"T_{f['a']}_{f['b']}: t=[{t[0]:.4f}, {t[1]:.4f}, {t[2]:.4f}] m, "
                 f"rotation {np.rad2deg(float(se3.rotation_angle(self.matrix))):.3f}°, {self.solution.method} on "
                 f"{self.solution.pairs} pairs, fit ratio {float('nan') if fit is None else fit.ratio:.3g}"

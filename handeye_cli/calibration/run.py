@@ -40,7 +40,7 @@ from ..geometry import dualquat
 from ..io.spec import StreamSpec
 from ..options import Options
 from ..solvers import Prior, Solution, solve
-from ..solvers.scale import drift_warning
+from ..solvers.scale import ScaleSolution, drift_warning
 from ..stages.pairs import Pairs
 from ..streams import PoseStream
 from ..verify.findings import fit_refusal, inversion, moved_mount, order_contradiction, suspect_data
@@ -96,8 +96,10 @@ def _calibrated(reading: Reading, opts: Options, inputs: dict[str, Any] | None, 
     with outliers rejected runs it again on the same reading, which does not depend on ``robust``."""
     a, b, prior, paired = reading.stream_a, reading.stream_b, reading.prior, reading.paired
     findings, diagnostics = list(reading.findings), _reading_sections(reading)
+    scale = None
     if opts.solver.scale == "auto":
-        paired, diagnostics["scale"] = scaled(a, b, paired, opts, reading.offset_ns, prior, noise_of)
+        paired, scale = scaled(a, b, paired, opts, reading.offset_ns, prior, noise_of)
+        diagnostics["scale"] = scale.as_dict()
     solved = _solve_and_analyse(paired.pairs, opts, prior, paired.selection, diagnostics)
     verdict, contradiction = None, None
     if checks.inversion:                                      # its thresholds are set at α 1
@@ -113,8 +115,8 @@ def _calibrated(reading: Reading, opts: Options, inputs: dict[str, Any] | None, 
     if verdict is not None:
         diagnostics["inversion"] = verdict.as_dict()
     elif scale_by_fit and opts.solver.scale == 1.0 and prior is None:   # inverted streams also fit "better scaled"
-        paired, solved = _scale_by_fit(a, b, reading, paired, solved, opts, diagnostics, findings, noise_of)
-    drifting = drift_warning(diagnostics.get("scale", {}))
+        paired, solved, scale = _scale_by_fit(a, b, reading, paired, solved, opts, diagnostics, findings, noise_of)
+    drifting = drift_warning(scale)
     if drifting:
         findings.append(Finding.warning("scale_drift", drifting))
     pairs = paired.pairs
@@ -139,8 +141,7 @@ def _calibrated(reading: Reading, opts: Options, inputs: dict[str, Any] | None, 
         findings += [Finding.warning("subspace", w) for w in
                      [f"not estimated: {k} ({v})" for k, v in subspace.skipped.items()] + list(subspace.advice)]
     diagnostics["degrees_of_freedom"] = subspace.as_dict()
-    scale = diagnostics.get("scale", {}).get("value")        # b's jitter in metres, as its samples now are
-    noise = sample_noise(a, b if scale is None else b.scaled(scale), paired.synced, paired.stations,
+    noise = sample_noise(a, b if scale is None else b.scaled(scale.scale), paired.synced, paired.stations,
                          opts.sync.sync, noise_of)
     refinement = None
     if opts.solver.refine:
@@ -177,7 +178,7 @@ def _calibrated(reading: Reading, opts: Options, inputs: dict[str, Any] | None, 
                          estimate=solution.matrix if opts.solver.method == "dqopt" else None)   # the same solve
         diagnostics["uncertainty"] = {"method": "bootstrap over pose samples", **boot.as_dict()}
     found = Diagnostics(MappingProxyType(diagnostics), fit=fit, observability=obs, subspace=subspace,
-                        selection=paired.selection, poor_fit_accepted=bool(outcome.accepted))
+                        selection=paired.selection, scale=scale, poor_fit_accepted=bool(outcome.accepted))
     return Calibration(solution, a, b, paired.synced, pairs, paired.samples, opts, res,
                        warnings=list(outcome.warnings), diagnostics=found, inputs=dict(inputs or {}),
                        weights=weights, robust=solved.robust, bootstrap=boot, refinement=refinement)
@@ -215,7 +216,7 @@ def _decided(findings: list[Finding], opts: Options) -> None:
 def _reading_sections(reading: Reading) -> dict[str, Any]:
     """The result's sections of the reading, in document order: ``time_offset``, ``interpretation`` (the
     quaternion order's choice), ``stations`` or ``sync``."""
-    sections: dict[str, Any] = {"time_offset": dict(reading.time_offset)}
+    sections: dict[str, Any] = {"time_offset": reading.time_offset.as_dict()}
     if reading.order is not None:
         sections["interpretation"] = reading.order.as_dict()
     paired = reading.paired
@@ -227,31 +228,32 @@ def _reading_sections(reading: Reading) -> dict[str, Any]:
 
 
 def _scale_by_fit(a: PoseStream, b: PoseStream, reading: Reading, paired: Paired, solved: _Solved, opts: Options,
-                  diagnostics: dict[str, Any], findings: list[Finding], noise_of: NoiseOf) -> tuple[Paired, _Solved]:
+                  diagnostics: dict[str, Any], findings: list[Finding], noise_of: NoiseOf
+                  ) -> tuple[Paired, _Solved, ScaleSolution | None]:
     """b's translations in other units, found by the fit (:func:`~handeye_cli.analysis.readings.scale_reading` at
     the solution of the pairs): decisively better scaled (monocular units), the scale is estimated with ``T_a_b``
-    as ``--scale auto`` does and the pairs re-solved — returned; noticeably better (a SLAM scale off by percents),
-    a warning naming ``--scale auto``; else the pairs and solve as they were. ``diagnostics`` and ``findings``
-    are filled in."""
+    as ``--scale auto`` does and the pairs re-solved — returned, with the estimate; noticeably better (a SLAM scale
+    off by percents), a warning naming ``--scale auto``; else the pairs and solve as they were (and no estimate).
+    ``diagnostics`` and ``findings`` are filled in."""
     pairs = paired.pairs
     found = scale_reading(pairs.A, pairs.B, solved.solution.matrix)
     if found is None or not (found.decisive or found.noticeable):
-        return paired, solved
+        return paired, solved, None
     diagnostics.setdefault("interpretation", {})["scale"] = {**found.as_dict(), "applied": found.decisive}
     if not found.decisive:
         findings.append(Finding.warning("scale", f"stream b's translations fit {found.gain:.3g}× better scaled by "
                                         f"{found.scale:.4g} (median residual {found.medians_m[0]:.3g} → "
                                         f"{found.medians_m[1]:.3g} m): if its scale is off (SLAM), pass "
                                         "⟦scale='auto'⟧"))
-        return paired, solved
-    paired, section = scaled(a, b, paired, opts, reading.offset_ns, reading.prior, noise_of)
-    diagnostics["scale"] = section
+        return paired, solved, None
+    paired, scale = scaled(a, b, paired, opts, reading.offset_ns, reading.prior, noise_of)
+    diagnostics["scale"] = scale.as_dict()
     solved = _solve_and_analyse(paired.pairs, opts, reading.prior, paired.selection, diagnostics)
     findings.append(Finding.warning("scale", f"stream b's translations fit a rigid rig {found.gain:.3g}× better "
                                     f"scaled (median residual {found.medians_m[0]:.3g} m as given): its scale was "
-                                    f"estimated with T_a_b, {section['value']:.6g} ± {section['std']:.2g} m per unit "
+                                    f"estimated with T_a_b, {scale.scale:.6g} ± {scale.scale_std:.2g} m per unit "
                                     "(⟦scale='auto'⟧); give it with ⟦scale=NUMBER⟧ to fix it"))
-    return paired, solved
+    return paired, solved, scale
 
 
 def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None, selection: Selection | None,

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Any
 
 from ..analysis.fit_test import sample_noise
 from ..analysis.stream_noise import StreamNoise
@@ -41,14 +40,14 @@ def _with_scale(stream_a: PoseStream, stream_b: PoseStream, paired: Paired, opti
 
 
 def scaled(stream_a: PoseStream, stream_b: PoseStream, paired: Paired, options: Options, offset_ns: int,
-           prior: Prior | None, noise_of: NoiseOf) -> tuple[Paired, dict[str, Any]]:
+           prior: Prior | None, noise_of: NoiseOf) -> tuple[Paired, ScaleSolution]:
     """b's scale estimated with ``T_a_b`` on ``paired`` (:func:`~.pairing.pairs_of`'s); with the ``auto`` pair
     strategy the pairs, weights and α are then chosen again on b scaled by that estimate, and the scale refined on
-    them. Returns the pairing in metres and the result's ``scale`` section (``value``: the scale)."""
+    them. Returns the pairing in metres and the estimate, its scales in b's units as given."""
     metric, est = _with_scale(stream_a, stream_b, paired, options, noise_of)
     if paired.selection is None:
-        return metric, est.as_dict(1.0)
+        return metric, est
     scaled_b = stream_b.scaled(est.scale)
     again = pairs_of(stream_a, scaled_b, options, offset_ns, prior)
     metric, refined = _with_scale(stream_a, scaled_b, again, options, noise_of)
-    return metric, refined.as_dict(est.scale)
+    return metric, refined.times(est.scale)

@@ -149,9 +149,10 @@ def _scaled(streams: list[PoseStream], names: list[str], ref: int, scales: Mappi
             j = ref if k != ref else next(i for i in range(len(streams)) if i != k)
             pair = Options.from_flat(cfg, scale="auto", bootstrap=0, prior=None,
                                      time_offset=(offsets[k].offset_ns - offsets[j].offset_ns) / 1e9)
-            est = calibrate_read(streams[j], streams[k], pair, scale_by_fit=False).diagnostics["scale"]
-            value = float(est["value"])
-            report[name] = {"value": value, "std": float(est["std"]), "estimated_against": names[j]}
+            est = calibrate_read(streams[j], streams[k], pair, scale_by_fit=False).diagnostics.scale
+            assert est is not None, "scale='auto' estimates the scale"
+            value = est.scale
+            report[name] = {"value": value, "std": est.scale_std, "estimated_against": names[j]}
         else:
             report[name] = {"value": float(value)}
         out[k] = out[k].scaled(float(value))

@@ -72,8 +72,8 @@ several times the whole's σ).
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -103,22 +103,26 @@ class ScaleDrift:
     stds: tuple[float, float]
     drift_std: float
 
-    def as_dict(self, factor: float = 1.0) -> dict[str, Any]:
-        """The result's ``scale.drift`` block, every scale times ``factor``."""
-        return {"halves": [factor * v for v in self.halves], "halves_std": [factor * v for v in self.stds],
-                "drift_std": factor * self.drift_std}
+    def times(self, factor: float) -> ScaleDrift:
+        """The same in units ``factor`` times larger."""
+        return ScaleDrift((factor * self.halves[0], factor * self.halves[1]),
+                          (factor * self.stds[0], factor * self.stds[1]), factor * self.drift_std)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The result's ``scale.drift`` block."""
+        return {"halves": list(self.halves), "halves_std": list(self.stds), "drift_std": self.drift_std}
 
 
-def drift_warning(block: Mapping[str, Any]) -> str | None:
-    """The warning that b's scale drifts, from the result's ``scale`` block (:meth:`ScaleSolution.as_dict`);
-    None when it holds (or was not checked)."""
-    drift = block.get("drift")
-    if not drift or not drift["drift_std"] > 0:
+def drift_warning(estimate: ScaleSolution | None) -> str | None:
+    """The warning that b's scale drifts (:attr:`ScaleSolution.drift`); None when it holds, was not checked, or no
+    scale was estimated."""
+    drift = None if estimate is None else estimate.drift
+    if drift is None or not drift.drift_std > 0:
         return None
-    (a, b), (sa, sb) = drift["halves"], drift["halves_std"]
+    (a, b), (sa, sb) = drift.halves, drift.stds
     return (f"the scale of stream b drifts: {a:.6g} ± {sa:.2g} m per unit on the first half of the recording, "
             f"{b:.6g} ± {sb:.2g} on the second ({abs(b - a) / np.hypot(sa, sb):.3g} σ apart; b's scale or its "
-            f"translations drift); scale.std includes the difference (drift_std {drift['drift_std']:.2g}), and one "
+            f"translations drift); scale.std includes the difference (drift_std {drift.drift_std:.2g}), and one "
             "scale fits the whole recording only that well: calibrate on a shorter stretch, or with an odometry "
             "that holds its scale")
 
@@ -138,12 +142,18 @@ class ScaleSolution:
     std_of_data: float
     drift: ScaleDrift | None = None
 
-    def as_dict(self, factor: float = 1.0) -> dict[str, Any]:
-        """The result's ``scale`` block, every scale times ``factor`` (b's translations were given in
-        ``1/factor`` of the units solved for)."""
-        return {"value": factor * self.scale, "std": factor * self.scale_std, "std_of_data": factor * self.std_of_data,
-                "linear": factor * self.linear_scale, "meaning": "metres per unit of stream b",
-                **({} if self.drift is None else {"drift": self.drift.as_dict(factor)})}
+    def times(self, factor: float) -> ScaleSolution:
+        """The same for b's translations given in ``1/factor`` of the units solved for: every scale times
+        ``factor`` (the matrix, in metres, as it is)."""
+        return replace(self, scale=factor * self.scale, scale_std=factor * self.scale_std,
+                       linear_scale=factor * self.linear_scale, std_of_data=factor * self.std_of_data,
+                       drift=None if self.drift is None else self.drift.times(factor))
+
+    def as_dict(self) -> dict[str, Any]:
+        """The result's ``scale`` block."""
+        return {"value": self.scale, "std": self.scale_std, "std_of_data": self.std_of_data,
+                "linear": self.linear_scale, "meaning": "metres per unit of stream b",
+                **({} if self.drift is None else {"drift": self.drift.as_dict()})}
 
 
 @dataclass(frozen=True)

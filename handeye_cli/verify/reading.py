@@ -7,14 +7,13 @@ far b's clock is ahead of a's [ns]. The thresholds that decide it are in :mod:`.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..analysis.fit_test import fit_test, sample_noise
-from ..analysis.readings import OrderChoice, choose_quaternion_order, median_fit
+from ..analysis.readings import MedianFit, OrderChoice, choose_quaternion_order, median_fit
 from ..analysis.residuals import pair_residuals
 from ..calibration.inputs import inverted_as_read, read_prior
 from ..calibration.pairing import Paired, pairs_of
@@ -26,7 +25,55 @@ from ..stages.sync import median_step_ns
 from ..streams import PoseStream
 from .policy import CONFIRMING_COVERAGE, CONFIRMING_GAIN, CONFIRMING_MIN_GAIN, LARGE_OFFSET_PERIODS, Finding
 
-__all__ = ["Reading", "decide_reading"]
+if TYPE_CHECKING:
+    from ..stages.timeoffset import TimeOffset
+
+__all__ = ["OffsetReading", "Reading", "decide_reading"]
+
+_NOT_ASKED = "not asked"     # OffsetReading.confirmed_by of an estimate the fit was not asked about (not applied)
+
+
+@dataclass(frozen=True, eq=False)
+class OffsetReading:
+    """b's clock offset as the reading decided it (the result's ``time_offset``, :meth:`as_dict`).
+
+    seconds: how far b's clock is ahead of a's [s], as applied (0 unless applied); method: ``fixed``, ``not
+    estimated`` or the estimator's; applied: whether an estimate is applied (None for a fixed value); reason: why
+    none could be estimated; estimate: the estimator's figures (:class:`~handeye_cli.stages.timeoffset.TimeOffset`)
+    and ``significant_sigma``, the σ it must be from 0; fits: the median fits (and samples) of the pairs with the
+    estimate and without an offset, where the fit was asked; confirmed_by: ``fit``, ``no pairs without it`` or None
+    (the fit did not confirm it)."""
+
+    seconds: float
+    method: str
+    applied: bool | None = None
+    reason: str = ""
+    estimate: TimeOffset | None = None
+    significant_sigma: float = 0.0
+    fits: tuple[tuple[MedianFit, int], tuple[MedianFit, int]] | None = None
+    confirmed_by: str | None = _NOT_ASKED
+
+    @property
+    def offset_ns(self) -> int:
+        return int(round(self.seconds * 1e9))
+
+    def as_dict(self) -> dict[str, Any]:
+        if self.applied is None:
+            return {"seconds": self.seconds, "method": self.method}
+        if self.estimate is None:
+            return {"seconds": self.seconds, "method": self.method, "applied": self.applied, "reason": self.reason}
+        est = self.estimate
+        out: dict[str, Any] = {"seconds": self.seconds, "applied": self.applied,
+                               "estimated_seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,
+                               "coarse_seconds": est.coarse_ns / 1e9, "correlation": est.correlation,
+                               "method": est.method, "significant_sigma": self.significant_sigma}
+        if self.fits is not None:
+            out["fit_median"] = {name: {"rotation_deg": f.rotation_deg, "translation_m": f.translation_m,
+                                        "samples": n} for name, (f, n) in zip(("applied", "none"), self.fits,
+                                                                             strict=True)}
+        if self.confirmed_by != _NOT_ASKED:
+            out["confirmed_by"] = self.confirmed_by
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,15 +82,16 @@ class Reading:
 
     stream_a, stream_b: the streams as used — quaternion order chosen, inverted where the options say so, b scaled
     by a fixed ``scale`` — before the clock offset; order: the quaternion order's choice or check (None when
-    nothing was open); offset_ns: b's clock offset applied [ns]; time_offset: the result's ``time_offset``
-    section; prior: the options' prior (eq 26), read once; paired: sync, gates and pairs at ``offset_ns``;
+    nothing was open); offset_ns: b's clock offset applied [ns]; time_offset: how it was decided
+    (:class:`OffsetReading`); prior: the options' prior (eq 26), read once; paired: sync, gates and pairs at
+    ``offset_ns``;
     findings: the warnings of the readers and of the reading."""
 
     stream_a: PoseStream
     stream_b: PoseStream
     order: OrderChoice | None
     offset_ns: int
-    time_offset: Mapping[str, Any]
+    time_offset: OffsetReading
     prior: Prior | None
     paired: Paired
     findings: tuple[Finding, ...]
@@ -64,9 +112,9 @@ def decide_reading(stream_a: PoseStream, stream_b: PoseStream, opts: Options) ->
         findings.append(Finding.warning("reading", order.message(stream_a, stream_b)))
     prior = read_prior(opts, frame_names(opts, stream_a, stream_b))       # the prior file is read once
     paired = pairs_of(stream_a, stream_b, opts, offset_ns, prior)
-    if report.get("applied"):
-        paired = _confirmed_offset(stream_a, stream_b, opts, prior, report, paired)
-        offset_ns = int(round(report["seconds"] * 1e9))
+    if report.applied:
+        paired, report = _confirmed_offset(stream_a, stream_b, opts, prior, report, paired)
+        offset_ns = report.offset_ns
         large = _large_offset_warning(stream_a, stream_b, report)
         if large:
             findings.append(Finding.warning("large_offset", large))
@@ -82,8 +130,8 @@ def _quaternion_order(a: PoseStream, b: PoseStream, options: Options) -> tuple[P
                                    max_dt_ns=options.sync.max_dt_ns, seed=options.pairs.seed)
 
 
-def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, dict[str, Any], list[str]]:
-    """The offset [ns] b's clock is ahead of a's, its report, and warnings about it.
+def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, OffsetReading, list[str]]:
+    """The offset [ns] b's clock is ahead of a's, how it was decided, and warnings about it.
 
     ``auto`` (the default) estimates it wherever the data allow, among the offsets within ``max_time_offset``
     (``auto``: the shorter stream's span, :func:`~handeye_cli.stages.timeoffset.search_bound_ns`), and applies the
@@ -98,7 +146,7 @@ def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, d
     could be synchronised."""
     value = options.sync.time_offset
     if value != "auto":
-        return int(round(float(value) * 1e9)), {"seconds": float(value), "method": "fixed"}, []
+        return int(round(float(value) * 1e9)), OffsetReading(float(value), "fixed"), []
     from ..stages.timeoffset import SIGNIFICANT_SIGMA, estimate_time_offset, overlap_offsets_ns
 
     lo, hi = overlap_offsets_ns(a, b) if len(a) and len(b) else (0, 0)
@@ -111,39 +159,37 @@ def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, d
             raise DataError(f"the two streams' stamps do not overlap and no clock offset could be estimated "
                             f"({e.what})", "time offset", "give the offset with ⟦time_offset=SECONDS⟧, or widen "
                             "⟦max_time_offset⟧") from None
-        return 0, {"seconds": 0.0, "method": "not estimated", "applied": False, "reason": e.line()}, []
+        return 0, OffsetReading(0.0, "not estimated", applied=False, reason=e.line()), []
     applied = est.applicable
-    report = {"seconds": est.offset_ns / 1e9 if applied else 0.0, "applied": applied,
-              "estimated_seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,
-              "coarse_seconds": est.coarse_ns / 1e9, "correlation": est.correlation, "method": est.method,
-              "significant_sigma": SIGNIFICANT_SIGMA}
+    report = OffsetReading(est.offset_ns / 1e9 if applied else 0.0, est.method, applied=applied, estimate=est,
+                           significant_sigma=SIGNIFICANT_SIGMA)
     warnings = [f"a clock offset of {est.offset_ns / 1e9:.6g} ± {est.std_ns / 1e9:.2g} s was estimated but not "
                 f"applied ({'; '.join(est.warnings)}): if it is right, pass ⟦time_offset={est.offset_ns / 1e9:.6g}⟧"
                 ] if est.significant and est.warnings else []
     return (est.offset_ns if applied else 0), report, warnings
 
 
-def _large_offset_warning(a: PoseStream, b: PoseStream, report: dict[str, Any]) -> str | None:
+def _large_offset_warning(a: PoseStream, b: PoseStream, report: OffsetReading) -> str | None:
     """The warning an applied clock offset earns (after the fit confirmed it): one that makes streams overlap whose
     stamps did not, or one larger than ``LARGE_OFFSET_PERIODS`` median sample periods of the slower stream; it
     names the offset and its σ [s] and how to refuse it. None for an offset not applied, or a small one."""
     from ..stages.timeoffset import overlap_offsets_ns
 
-    if not report.get("applied") or "std_seconds" not in report:
+    if not report.applied or report.estimate is None:
         return None
-    offset_s = float(report["seconds"])
+    offset_s = report.seconds
     lo, hi = overlap_offsets_ns(a, b)
     period_s = max(median_step_ns(a), median_step_ns(b)) / 1e9
     if lo <= 0 <= hi and abs(offset_s) <= LARGE_OFFSET_PERIODS * period_s:
         return None
     why = ("the streams' stamps did not overlap without it" if not lo <= 0 <= hi else
            f"more than {LARGE_OFFSET_PERIODS:g} sample periods of the slower stream ({period_s:.3g} s)")
-    return (f"a clock offset of {offset_s:.6g} ± {float(report['std_seconds']):.2g} s was applied: {why}; pass "
+    return (f"a clock offset of {offset_s:.6g} ± {report.estimate.std_ns / 1e9:.2g} s was applied: {why}; pass "
             "⟦time_offset=0⟧ if the clocks are known to agree")
 
 
-def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Prior | None, report: dict[str, Any],
-                      paired: Paired) -> Paired:
+def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Prior | None, report: OffsetReading,
+                      paired: Paired) -> tuple[Paired, OffsetReading]:
     """A significant clock-offset estimate is kept only when the fit confirms it: the pairs it gives must fit a
     rigid rig better (a median residual lower by ``CONFIRMING_MIN_GAIN``, neither higher by ``CONFIRMING_GAIN``)
     than the pairs without an offset; and where it leaves fewer than ``CONFIRMING_COVERAGE`` of the samples
@@ -151,9 +197,9 @@ def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Pri
     only where the pairs without it misfit beyond their noise (:func:`_misfits`).
     It stands without a comparison when the streams do not pair without it (spans that do not overlap). An
     estimate the fit does not confirm (an alias of periodic motion on a short recording, an estimator's bias
-    of a millisecond) is not applied: the report says so, with both fits, and the pairs without an offset
-    are returned. ``paired`` is :func:`pairs_of` at the estimate;
-    ``report`` is updated in place. The pairs without an offset are compared as the strides of the estimate's
+    of a millisecond) is not applied: the reading returned says so, with both fits, and the pairs without an
+    offset are returned. ``paired`` is :func:`pairs_of` at the estimate. The pairs without an offset are compared
+    as the strides of the estimate's
     ``auto`` selection make them (like with like, and one selection, not two, where the offset is confirmed);
     a selection of their own is made only where they are returned."""
 
@@ -163,27 +209,21 @@ def _confirmed_offset(a: PoseStream, b: PoseStream, options: Options, prior: Pri
     try:
         at_zero = pairs_of(a, b, options, 0, prior, like=paired.selection)
     except HandEyeError:
-        report["confirmed_by"] = "no pairs without it"
-        return paired
+        return paired, replace(report, confirmed_by="no pairs without it")
     est, zero = (median_fit(p.pairs.A, p.pairs.B) for p in (paired, at_zero))
     if est is None or zero is None:               # one of them does not determine X: the other stands
-        report["confirmed_by"] = "fit" if zero is None else None
         if est is None:
-            report.update(seconds=0.0, applied=False)
-        return paired if zero is None else without_offset()
+            return without_offset(), replace(report, seconds=0.0, applied=False, confirmed_by=None)
+        return paired, replace(report, confirmed_by="fit")
     gains = est.gains_over(zero)
     coverage = len(paired.synced) / max(len(at_zero.synced), 1)
-    report["fit_median"] = {name: {"rotation_deg": f.rotation_deg, "translation_m": f.translation_m, "samples": n}
-                            for name, f, n in (("applied", est, len(paired.synced)),
-                                               ("none", zero, len(at_zero.synced)))}
+    report = replace(report, fits=((est, len(paired.synced)), (zero, len(at_zero.synced))))
     worse = min(gains) < 1 / CONFIRMING_GAIN
     needed = CONFIRMING_MIN_GAIN if coverage >= CONFIRMING_COVERAGE else CONFIRMING_GAIN
     dropping = coverage < CONFIRMING_COVERAGE              # ... must explain a misfit of the samples it drops
     if not worse and max(gains) >= needed and not (dropping and not _misfits(a, b, options, at_zero, zero.matrix)):
-        report["confirmed_by"] = "fit"
-        return paired
-    report.update(seconds=0.0, applied=False, confirmed_by=None)
-    return without_offset()
+        return paired, replace(report, confirmed_by="fit")
+    return without_offset(), replace(report, seconds=0.0, applied=False, confirmed_by=None)
 
 
 def _misfits(a: PoseStream, b: PoseStream, options: Options, paired: Paired, X: np.ndarray) -> bool:

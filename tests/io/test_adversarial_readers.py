@@ -319,13 +319,13 @@ def test_endless_fifo(tmp_path, capsys, monkeypatch):
     stop = threading.Event()
 
     def write() -> None:
-        with open(fifo, "wb") as f:
-            line = b"1.0 0 0 0 0 0 0 1\n" * 1000
-            try:
+        line = b"1.0 0 0 0 0 0 0 1\n" * 1000
+        try:                                  # the reader's close breaks the pipe: in a write, or in the close's flush
+            with open(fifo, "wb") as f:
                 while not stop.is_set():
                     f.write(line)
-            except BrokenPipeError:
-                pass
+        except BrokenPipeError:
+            pass
 
     writer = threading.Thread(target=write, daemon=True)
     writer.start()
@@ -333,6 +333,7 @@ def test_endless_fifo(tmp_path, capsys, monkeypatch):
         code, out, err = run(capsys, "calibrate", fifo, tmp_path / "b.tum", "-o", tmp_path / "out.yaml")
     finally:
         stop.set()
+        writer.join(5)                        # ends here, in its own test (an exception of its would land elsewhere)
     assert code == 2 and out == "" and err.count("\n") == 1 and err.startswith("error: ")
     assert "more than 1 MiB" in err and str(fifo) in err
 
