@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from ..io.spec import StreamSpec
     from .inputs import (
+        Inputs,
         Source,
         check_samples,
         inverted_as_read,
@@ -30,16 +31,16 @@ if TYPE_CHECKING:
 
 _HOMES = {
     "StreamSpec": "..io.spec",
-    **dict.fromkeys(("Source", "check_samples", "inverted_as_read", "read_prior", "read_streams", "refuse_unread",
-                     "stream_specs"), ".inputs"),
+    **dict.fromkeys(("Inputs", "Source", "check_samples", "inverted_as_read", "read_prior", "read_streams",
+                     "refuse_unread", "stream_specs"), ".inputs"),
     **dict.fromkeys(("Paired", "pairs_of"), ".pairing"),
     **dict.fromkeys(("Calibration", "Checks", "Diagnostics", "Uncertainty", "frame_names"), ".result"),
     **dict.fromkeys(("calibrate", "calibrate_files", "calibrate_read", "calibrate_specs"), ".run"),
 }
 
-__all__ = ["Calibration", "Checks", "Diagnostics", "Paired", "Source", "StreamSpec", "Uncertainty", "calibrate",
-           "calibrate_files", "calibrate_read", "calibrate_specs", "check_samples", "frame_names", "inverted_as_read",
-           "pairs_of", "read_prior", "read_streams", "refuse_unread", "stream_specs"]
+__all__ = ["Calibration", "Checks", "Diagnostics", "Inputs", "Paired", "Source", "StreamSpec", "Uncertainty",
+           "calibrate", "calibrate_files", "calibrate_read", "calibrate_specs", "check_samples", "frame_names",
+           "inverted_as_read", "pairs_of", "read_prior", "read_streams", "refuse_unread", "stream_specs"]
 
 
 def __getattr__(name: str) -> Any:

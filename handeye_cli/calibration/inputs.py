@@ -7,7 +7,7 @@ Each stream holds ``T_world_sensor(t)``: int64 ns stamps, positions [m], quatern
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -20,8 +20,8 @@ from ..options import FIELDS, Options, ReadOptions
 from ..solvers import Prior
 from ..streams import PoseStream
 
-__all__ = ["Source", "check_samples", "describe", "inversion_inputs", "inverted_as_read", "read_prior",
-           "read_streams", "refuse_unread", "stream_specs"]
+__all__ = ["Inputs", "Source", "check_samples", "inverted", "inverted_as_read", "read_prior", "read_streams",
+           "refuse_unread", "stream_specs"]
 
 Source = str | Path | StreamSpec | PoseStream
 
@@ -128,9 +128,51 @@ def refuse_unread(read: ReadOptions, in_memory: tuple[bool, bool]) -> None:
 
 
 
-def inversion_inputs(read: ReadOptions) -> dict[str, bool]:
-    """The result's ``inputs`` record of the streams inverted before use."""
-    return {key: True for key in ("invert_a", "invert_b") if getattr(read, key)}
+@dataclass(frozen=True)
+class Inputs:
+    """What one calibration read (the result's ``inputs``, :meth:`as_dict`): each stream's source — a
+    :class:`~handeye_cli.io.spec.StreamSpec` (its file, and topic or TF frames), an in-memory stream's ``source``
+    label, or None (not said) — how the stamps were read (``time_source``), which streams were inverted before use,
+    and the bytes fetched from object storage [B] (URL inputs; None: none)."""
+
+    a: StreamSpec | str | None = None
+    b: StreamSpec | str | None = None
+    time_source: str | None = None
+    inverted: tuple[bool, bool] = (False, False)
+    bytes_fetched: int | None = None
+
+    @classmethod
+    def of(cls, spec_a: StreamSpec | PoseStream, spec_b: StreamSpec | PoseStream, read: ReadOptions,
+           bytes_fetched: int | None = None) -> Inputs:
+        """The inputs of streams named ``spec_a``, ``spec_b`` and read with ``read``."""
+        label = [s if isinstance(s, StreamSpec) else s.source or "in memory" for s in (spec_a, spec_b)]
+        return cls(label[0], label[1], read.time_source, inverted(read), bytes_fetched)
+
+    def frames(self, key: str) -> tuple[str, str] | None:
+        """The TF pair (parent, child) stream ``key`` (``a``, ``b``) was read from, or None."""
+        spec = self.a if key == "a" else self.b
+        return (spec.frames[0], spec.frames[1]) if isinstance(spec, StreamSpec) and spec.frames else None
+
+    def topics(self) -> tuple[str | None, str | None]:
+        """Each stream's topic (None: not read from a topic)."""
+        a, b = (s.topic if isinstance(s, StreamSpec) and s.topic else None for s in (self.a, self.b))
+        return a, b
+
+    def as_dict(self) -> dict[str, Any]:
+        """The result's ``inputs``."""
+        out: dict[str, Any] = {k: s.describe() if isinstance(s, StreamSpec) else {"stream": s}
+                               for k, s in (("a", self.a), ("b", self.b)) if s is not None}
+        if self.time_source is not None:
+            out["time_source"] = self.time_source
+        out.update({key: True for key, on in zip(("invert_a", "invert_b"), self.inverted, strict=True) if on})
+        if self.bytes_fetched is not None:
+            out["bytes_fetched"] = self.bytes_fetched
+        return out
+
+
+def inverted(read: ReadOptions) -> tuple[bool, bool]:
+    """Which streams the read options invert before use (a, b)."""
+    return bool(read.invert_a), bool(read.invert_b)
 
 
 def check_samples(stream: PoseStream, label: str) -> None:
@@ -147,11 +189,6 @@ def check_samples(stream: PoseStream, label: str) -> None:
                         f"{quat[k].tolist()}) has a NaN or infinite value or a zero-norm quaternion; "
                         f"{int(bad.sum())} such sample(s) in all", stream.source or label,
                         "remove or repair those samples (a file's are dropped with a warning)")
-
-
-def describe(spec: StreamSpec | PoseStream) -> dict[str, Any]:
-    """The result's ``inputs`` record of one stream: its file and topic or TF pair, or an in-memory stream's source."""
-    return spec.describe() if isinstance(spec, StreamSpec) else {"stream": spec.source or "in memory"}
 
 
 def read_prior(options: Options, frames: tuple[str, str] | None = None) -> Prior | None:

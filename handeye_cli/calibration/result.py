@@ -30,6 +30,7 @@ from ..stages.counts import SampleCounts
 from ..stages.pairs import Pairs
 from ..stages.sync import Synced
 from ..streams import PoseStream
+from .inputs import Inputs
 
 if TYPE_CHECKING:
     from ..analysis.refinement import Refinement
@@ -105,7 +106,7 @@ class Calibration:
     ``⟦gate='off'⟧``: :func:`~handeye_cli.errors.option`; :func:`handeye_cli.document` drops the marks, the CLI
     writes flags); diagnostics: what the analyses found (:class:`Diagnostics`: typed,
     and the result's diagnostic keys: time offset, residuals…);
-    inputs: what was read; residuals: per-pair residuals at the solution; weights: per-pair
+    inputs: what was read (:class:`~.inputs.Inputs`); residuals: per-pair residuals at the solution; weights: per-pair
     weights used (inlier mask with ``robust``, else None); robust, bootstrap: those analyses; refinement: the
     maximum-likelihood refinement whose matrix ``solution`` holds (``solution.optimum``: the optimum it started
     from), or None.
@@ -121,7 +122,7 @@ class Calibration:
     residuals: Residuals
     warnings: list[str] = field(default_factory=list)
     diagnostics: Diagnostics = field(default_factory=Diagnostics)
-    inputs: dict[str, Any] = field(default_factory=dict)
+    inputs: Inputs = field(default_factory=Inputs)
     weights: np.ndarray | None = None
     robust: RobustResult | None = None
     bootstrap: BootstrapResult | None = None
@@ -194,7 +195,7 @@ class Calibration:
         """What a drift verdict reads of this calibration (``--against``), from its typed parts: ``T_a_b``, the
         frames' names and the streams' topics, the degrees of freedom not estimated and the bootstrap's
         intervals."""
-        topics = tuple(spec.get("topic") if isinstance(spec := self.inputs.get(k), dict) else None for k in "ab")
+        topics = self.inputs.topics()
         sub = self.diagnostics.subspace
         open_dofs = {} if sub is None else {d.name: (d.status, d.reason) for d in sub.dofs if d.status != ESTIMATED}
         boot = self.bootstrap

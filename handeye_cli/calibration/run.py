@@ -46,7 +46,7 @@ from ..streams import PoseStream
 from ..verify.findings import fit_refusal, inversion, moved_mount, order_contradiction, suspect_data
 from ..verify.policy import Finding, policy, retry_kept
 from ..verify.reading import Reading, decide_reading
-from .inputs import Source, check_samples, describe, inversion_inputs, read_streams, refuse_unread, stream_specs
+from .inputs import Inputs, Source, check_samples, inverted, read_streams, refuse_unread, stream_specs
 from .pairing import Paired
 from .result import Calibration, Checks, Diagnostics
 from .scaling import NoiseOf, scaled
@@ -68,7 +68,8 @@ class _Solved:
 
 
 def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
-                   inputs: dict[str, Any] | None = None, scale_by_fit: bool = True, noise_of: NoiseOf = stream_noise,
+                   inputs: Inputs = Inputs(), scale_by_fit: bool = True,  # noqa: B008 (frozen: immutable)
+                   noise_of: NoiseOf = stream_noise,
                    checks: Checks = Checks()) -> Calibration:  # noqa: B008 (frozen: immutable)
     """:func:`calibrate` streams as a reader produced them with ``opts.read`` (parsed, not yet inverted: the
     file-only read options are recorded in the settings, not applied again), e.g. by
@@ -90,7 +91,7 @@ def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
     return _calibrated(decide_reading(stream_a, stream_b, opts), opts, inputs, scale_by_fit, noise_of, checks)
 
 
-def _calibrated(reading: Reading, opts: Options, inputs: dict[str, Any] | None, scale_by_fit: bool,
+def _calibrated(reading: Reading, opts: Options, inputs: Inputs, scale_by_fit: bool,
                 noise_of: NoiseOf, checks: Checks) -> Calibration:
     """The calibration under ``reading`` (:func:`calibrate_read`'s steps after the reading); a refused fit's retry
     with outliers rejected runs it again on the same reading, which does not depend on ``robust``."""
@@ -103,8 +104,7 @@ def _calibrated(reading: Reading, opts: Options, inputs: dict[str, Any] | None, 
     solved = _solve_and_analyse(paired.pairs, opts, prior, paired.selection, diagnostics)
     verdict, contradiction = None, None
     if checks.inversion:                                      # its thresholds are set at α 1
-        verdict, refused = inversion(paired, opts, 1.0 if opts.solver.alpha == "auto" else solved.alpha,
-                                     inputs or {})
+        verdict, refused = inversion(paired, opts, 1.0 if opts.solver.alpha == "auto" else solved.alpha, inputs)
         findings += [refused] if refused else []
     if verdict is None:
         contradiction, refused = order_contradiction(a, b, paired, opts)
@@ -180,7 +180,7 @@ def _calibrated(reading: Reading, opts: Options, inputs: dict[str, Any] | None, 
     found = Diagnostics(MappingProxyType(diagnostics), fit=fit, observability=obs, subspace=subspace,
                         selection=paired.selection, scale=scale, poor_fit_accepted=bool(outcome.accepted))
     return Calibration(solution, a, b, paired.synced, pairs, paired.samples, opts, res,
-                       warnings=list(outcome.warnings), diagnostics=found, inputs=dict(inputs or {}),
+                       warnings=list(outcome.warnings), diagnostics=found, inputs=inputs,
                        weights=weights, robust=solved.robust, bootstrap=boot, refinement=refinement)
 
 
@@ -284,7 +284,7 @@ def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None, sele
                    robust)
 
 
-def _robust_retry(reading: Reading, opts: Options, inputs: dict[str, Any] | None, scale_by_fit: bool,
+def _robust_retry(reading: Reading, opts: Options, inputs: Inputs, scale_by_fit: bool,
                   refused: Finding, noise_of: NoiseOf, checks: Checks) -> Calibration | None:
     """A fit the fit test refused (``refused``: its finding), solved again with outliers rejected, as ``--robust``
     does (RANSAC on minimal sets, then the weighted optimal solve on the inliers): kept, with the settings saying
@@ -311,7 +311,7 @@ def _robust_retry(reading: Reading, opts: Options, inputs: dict[str, Any] | None
 
 
 def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | None = None, *,
-              inputs: dict[str, Any] | None = None, **overrides: Any) -> Calibration:
+              inputs: Inputs | None = None, **overrides: Any) -> Calibration:
     """Calibrate ``T_a_b`` from two pose streams ``T_wa_a(t)``, ``T_wb_b(t)`` (int64 ns stamps,
     positions [m], quaternions x-y-z-w). ``options`` (default: the defaults), updated by
     ``overrides`` given by flat option name (``method="dqopt"``, ``gate="off"``…). Raises a
@@ -324,7 +324,7 @@ def calibrate(stream_a: PoseStream, stream_b: PoseStream, options: Options | Non
     """
     opts = Options.from_flat(options, **overrides) if overrides else (options or Options())
     refuse_unread(opts.read, (True, True))
-    return calibrate_read(stream_a, stream_b, opts, inputs={**(inputs or {}), **inversion_inputs(opts.read)})
+    return calibrate_read(stream_a, stream_b, opts, inputs=replace(inputs or Inputs(), inverted=inverted(opts.read)))
 
 
 def calibrate_files(a: Source | None = None, b: Source | None = None, *, stream_a: str | StreamSpec | None = None,
@@ -357,8 +357,5 @@ def calibrate_specs(spec_a: StreamSpec | PoseStream, spec_b: StreamSpec | PoseSt
 
     with session_of(opts.read) as remote:
         read_a, read_b = read_streams([spec_a, spec_b], opts, quiet=quiet)
-    inputs: dict[str, Any] = {"a": describe(spec_a), "b": describe(spec_b), "time_source": opts.read.time_source,
-                              **inversion_inputs(opts.read)}
-    if remote.urls:
-        inputs["bytes_fetched"] = remote.bytes_fetched      # [B] read from object storage (URL inputs)
+    inputs = Inputs.of(spec_a, spec_b, opts.read, remote.bytes_fetched if remote.urls else None)
     return calibrate_read(read_a, read_b, opts, inputs=inputs)

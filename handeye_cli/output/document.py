@@ -127,7 +127,7 @@ def result_document(solution: Solution, *, frames: dict[str, str] | None = None,
 def calibration_document(calibration: Calibration) -> dict[str, Any]:
     """The result of a calibration as ``handeye calibrate`` prints it (schema in docs/design.md):
     the solution, frames, inputs, sample counts, warnings, diagnostics and the settings used."""
-    return result_document(calibration.solution, frames=calibration.frames, inputs=calibration.inputs,
+    return result_document(calibration.solution, frames=calibration.frames, inputs=calibration.inputs.as_dict(),
                            samples=calibration.samples.as_dict(), warnings=calibration.warnings,
                            diagnostics={**calibration.diagnostics, "settings": calibration.settings()},
                            refinement=None if calibration.refinement is None else calibration.refinement.as_dict())

@@ -347,7 +347,7 @@ def _header(calibration: Calibration, X: FloatArray) -> str:
             ("rotation vector [deg]", ", ".join(f"{v:.4f}" for v in np.rad2deg(rot.as_rotvec()))),
             ("roll, pitch, yaw [deg] (fixed x-y-z)", ", ".join(f"{v:.4f}" for v in rot.as_euler("xyz", degrees=True)))]
     pose_html = "".join(f"<tr><th>{esc(k)}</th><td class='num'>{esc(v)}</td></tr>" for k, v in pose)
-    inputs = plain(calibration.inputs)
+    inputs = plain(calibration.inputs.as_dict())
     inputs_html = table(inputs) if inputs else "<p class='note'>(not recorded)</p>"
     ros = static_transform_command(sol.translation, sol.quaternion_xyzw, frames)
     return (heading("handeye calibration report", f"Extrinsic T_{fa}_{fb}: the pose of frame <b>{fb}</b> in frame "

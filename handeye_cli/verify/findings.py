@@ -7,8 +7,6 @@ decided once, by :func:`~.policy.policy`.
 """
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from ..analysis import Residuals
@@ -16,6 +14,7 @@ from ..analysis.diagnosis import data_warning
 from ..analysis.fit_test import FitTest
 from ..analysis.inversion import InversionVerdict, check_inversion
 from ..analysis.readings import OrderContradiction, contradicted_order
+from ..calibration.inputs import Inputs
 from ..calibration.pairing import Paired, checked_poses
 from ..errors import FitRejectedError
 from ..options import Options
@@ -27,19 +26,14 @@ __all__ = ["fit_refusal", "inversion", "moved_mount", "order_contradiction", "su
 
 
 def inversion(paired: Paired, options: Options, alpha: float,
-              inputs: dict[str, Any]) -> tuple[InversionVerdict | None, Finding | None]:
+              inputs: Inputs) -> tuple[InversionVerdict | None, Finding | None]:
     """The inversion check on the solved pairs (its thresholds are set at ``alpha``) and, when its evidence is
     overwhelming or contradicts an explicit ``--invert-*``, its refusal. ``inputs`` (what was read) names a TF
     stream's frame pair, whose fix is naming the frames the other way round."""
     read = options.read
-
-    def frames(key: str) -> tuple[str, str] | None:
-        pair = inputs.get(key, {}).get("frames")
-        return (str(pair[0]), str(pair[1])) if pair else None
-
     verdict = check_inversion(*checked_poses(paired), alpha=alpha,
                               inverted_now=(bool(read.invert_a), bool(read.invert_b)),
-                              frames=(frames("a"), frames("b")))
+                              frames=(inputs.frames("a"), inputs.frames("b")))
     if verdict is None:
         return None, None
     refusal = verdict.refusal(read.invert_a is not None or read.invert_b is not None)

@@ -109,8 +109,8 @@ def test_defaults_agree_and_invert_b_is_applied(recording):
     # b needs no inversion: the data refute the flag (refused), so the result is asked for anyway to compare
     plain, flipped = calibrate(sa, sb, **FAST), calibrate(sa, sb, **FAST, invert_b=True, accept_poor_fit=True)
     assert np.abs(plain.matrix - flipped.matrix).max() > 0.01             # the inversion changed the problem
-    assert flipped.stream_b.child_frame_id == sb.child_frame_id and flipped.inputs == {"invert_b": True}   # the
-    #                                                         sensor keeps its name (a text file's world is unnamed)
+    assert flipped.stream_b.child_frame_id == sb.child_frame_id and flipped.inputs.as_dict() == {"invert_b": True}
+    # the sensor keeps its name (a text file's world is unnamed)
     with pytest.raises(DataError, match="contradict the data"):
         calibrate(sa, sb, **FAST, invert_b=True)
     by_hand = calibrate(sa, sb.inverted(), **FAST, invert_b=False, accept_poor_fit=True)

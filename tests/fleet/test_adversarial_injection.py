@@ -25,6 +25,7 @@ from _logs import ODOM, TF, Channel, pose_channel, records, write_mcap
 from _util import run
 
 from handeye_cli import document
+from handeye_cli.calibration import Inputs
 from handeye_cli.errors import ConfigError, HandEyeError
 from handeye_cli.geometry import se3
 from handeye_cli.output.document import render, static_transform_command
@@ -278,7 +279,7 @@ def test_reports_escape_hostile_names(tmp_path):
     evil = "cam<script>alert(1)</script><img src=x onerror=alert(2)>'\""
     a, b = simulate_rig(Rig(random_transform(np.random.default_rng(3), 0.3)), duration_s=8.0, seed=4)
     cal = replace(calibrate(a, b), warnings=["a plain warning"])
-    hostile = replace(cal, stream_a=replace(cal.stream_a, child_frame_id=evil), warnings=[evil], inputs={"a": evil})
+    hostile = replace(cal, stream_a=replace(cal.stream_a, child_frame_id=evil), warnings=[evil], inputs=Inputs(a=evil))
     assert hostile.frames["a"] == evil                            # in the header, the inputs and the ROS 2 line
     assert _tags(render_report(hostile)) == _tags(render_report(cal))
     plain_doc = document(cal)
