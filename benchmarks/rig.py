@@ -92,7 +92,7 @@ def _ratio_se(joint: np.ndarray, chain: np.ndarray, draws: int = 2000) -> float:
 
 
 def accuracy(seeds: int, gaps: bool, drift: bool) -> None:
-    from test_rig import signed_rank_p
+    from _util import signed_rank_p
 
     from handeye_cli.rig import RigOptions, calibrate_rig
     from handeye_cli.rig.simulate import simulate_streams

@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from _util import pose_error
+from _util import pose_error, signed_rank_p
 from scipy.special import chdtrc
 
 from handeye_cli.errors import ConfigError, as_flags
@@ -134,19 +134,6 @@ def mixed_rigs():
                             RigOptions(time_offsets=KNOWN_OFFSETS))
         out.append(([s.T_ref_k for s in sensors], res))
     return out
-
-
-def signed_rank_p(d: np.ndarray) -> float:
-    """One-sided exact Wilcoxon signed-rank test of paired differences ``d``: ``P(W⁺ ≥ w⁺)`` under
-    "symmetric about 0" (small: the differences lean positive). Ties of |d| do not occur in continuous errors."""
-    ranks = np.argsort(np.argsort(np.abs(d))) + 1
-    w = int(ranks[d > 0].sum())
-    n = len(d)
-    counts = np.zeros(n * (n + 1) // 2 + 1)
-    counts[0] = 1.0
-    for r in range(1, n + 1):                      # subsets of the ranks 1..r by their sum
-        counts[r:] = counts[r:] + counts[:-r].copy()
-    return float(counts[w:].sum() / 2.0 ** n)
 
 
 def _joint_against_chains(rigs) -> dict[tuple[int, int], tuple[float, float, tuple[int, ...]]]:
