@@ -22,6 +22,10 @@ that also need ``--invert-*`` must not hide the order), and keeps
 The comparison runs on nearest-sample association (no interpolation, so a reading's synced poses are
 the raw ones reordered) at the given clock offset, on at most ``MAX_PAIRS`` sample pairs drawn with a
 fixed seed, solved by dqopt at α 1 — milliseconds.
+
+The other readings decided before the solve are typed here too, for the result to hold: b's clock offset as the
+reading decided it (:class:`OffsetReading`, by :func:`handeye_cli.verify.reading.decide_reading`), a given
+order the data contradict (:class:`OrderContradiction`) and b's units found by the fit (:class:`ScaleReading`).
 """
 from __future__ import annotations
 
@@ -41,8 +45,8 @@ from .residuals import extrinsic_error, pair_residuals
 if TYPE_CHECKING:
     from ..stages.timeoffset import TimeOffset
 
-__all__ = ["MedianFit", "OffsetReading", "OrderChoice", "OrderContradiction", "ScaleReading", "choose_quaternion_order",
-           "contradicted_order", "median_fit", "scale_reading", "spread_pairs",
+__all__ = ["MedianFit", "OffsetReading", "OrderChoice", "OrderContradiction", "ScaleReading",
+           "choose_quaternion_order", "contradicted_order", "median_fit", "scale_reading", "spread_pairs",
            "CHECKED_PAIRS", "BETTER", "NOT_WORSE", "SCALE_GAIN", "SCALE_FLOOR"]
 
 BETTER = 3.0              # a reading whose median residual is this many times lower fits decisively better
