@@ -22,12 +22,16 @@ that also need ``--invert-*`` must not hide the order), and keeps
 The comparison runs on nearest-sample association (no interpolation, so a reading's synced poses are
 the raw ones reordered) at the given clock offset, on at most ``MAX_PAIRS`` sample pairs drawn with a
 fixed seed, solved by dqopt at α 1 — milliseconds.
+
+The other readings decided before the solve are typed here too, for the result to hold: b's clock offset as the
+reading decided it (:class:`OffsetReading`, by :func:`handeye_cli.verify.reading.decide_reading`), a given
+order the data contradict (:class:`OrderContradiction`) and b's units found by the fit (:class:`ScaleReading`).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from itertools import product
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,8 +42,11 @@ from ..solvers import solve
 from ..streams import PoseStream
 from .residuals import extrinsic_error, pair_residuals
 
-__all__ = ["MedianFit", "OrderChoice", "OrderContradiction", "ScaleReading", "choose_quaternion_order",
-           "contradicted_order", "median_fit", "scale_reading", "spread_pairs",
+if TYPE_CHECKING:
+    from ..stages.timeoffset import TimeOffset
+
+__all__ = ["MedianFit", "OffsetReading", "OrderChoice", "OrderContradiction", "ScaleReading",
+           "choose_quaternion_order", "contradicted_order", "median_fit", "scale_reading", "spread_pairs",
            "CHECKED_PAIRS", "BETTER", "NOT_WORSE", "SCALE_GAIN", "SCALE_FLOOR"]
 
 BETTER = 3.0              # a reading whose median residual is this many times lower fits decisively better
@@ -51,6 +58,52 @@ _TINY = (1e-9, 1e-12)     # floors [deg, m] so that noise-free fits compare as f
 SCALE_FLOOR = 0.01        # b's translations scaled by less than 1 % off 1 are metric …
 SCALE_GAIN = 1.25         # … and a scale that lowers the median translation residual less than this is not seen
 _FLAGS = {"xyzw": "⟦wxyz_{}=False⟧", "wxyz": "⟦wxyz_{}=True⟧"}
+
+
+_NOT_ASKED = "not asked"     # OffsetReading.confirmed_by of an estimate the fit was not asked about (not applied)
+
+
+@dataclass(frozen=True, eq=False)
+class OffsetReading:
+    """b's clock offset as the reading decided it (the result's ``time_offset``, :meth:`as_dict`).
+
+    seconds: how far b's clock is ahead of a's [s], as applied (0 unless applied); method: ``fixed``, ``not
+    estimated`` or the estimator's; applied: whether an estimate is applied (None for a fixed value); reason: why
+    none could be estimated; estimate: the estimator's figures (:class:`~handeye_cli.stages.timeoffset.TimeOffset`)
+    and ``significant_sigma``, the σ it must be from 0; fits: the median fits (and samples) of the pairs with the
+    estimate and without an offset, where the fit was asked; confirmed_by: ``fit``, ``no pairs without it`` or None
+    (the fit did not confirm it)."""
+
+    seconds: float
+    method: str
+    applied: bool | None = None
+    reason: str = ""
+    estimate: TimeOffset | None = None
+    significant_sigma: float = 0.0
+    fits: tuple[tuple[MedianFit, int], tuple[MedianFit, int]] | None = None
+    confirmed_by: str | None = _NOT_ASKED
+
+    @property
+    def offset_ns(self) -> int:
+        return int(round(self.seconds * 1e9))
+
+    def as_dict(self) -> dict[str, Any]:
+        if self.applied is None:
+            return {"seconds": self.seconds, "method": self.method}
+        if self.estimate is None:
+            return {"seconds": self.seconds, "method": self.method, "applied": self.applied, "reason": self.reason}
+        est = self.estimate
+        out: dict[str, Any] = {"seconds": self.seconds, "applied": self.applied,
+                               "estimated_seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,
+                               "coarse_seconds": est.coarse_ns / 1e9, "correlation": est.correlation,
+                               "method": est.method, "significant_sigma": self.significant_sigma}
+        if self.fits is not None:
+            out["fit_median"] = {name: {"rotation_deg": f.rotation_deg, "translation_m": f.translation_m,
+                                        "samples": n} for name, (f, n) in zip(("applied", "none"), self.fits,
+                                                                             strict=True)}
+        if self.confirmed_by != _NOT_ASKED:
+            out["confirmed_by"] = self.confirmed_by
+        return out
 
 
 @dataclass(frozen=True, eq=False)

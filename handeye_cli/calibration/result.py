@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
@@ -16,8 +17,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..analysis import BootstrapResult, Residuals, RobustResult
+from ..analysis.alpha import AlphaChoice
+from ..analysis.covariance import DriftCheck
 from ..analysis.fit_test import FitTest
+from ..analysis.inversion import InversionVerdict
 from ..analysis.observability import Observability
+from ..analysis.readings import OffsetReading, OrderChoice, OrderContradiction, ScaleReading
+from ..analysis.residuals import ResidualSummary
 from ..analysis.selection import Selection
 from ..analysis.subspace import ESTIMATED, Subspace
 from ..analysis.verdict import Judged
@@ -28,6 +34,7 @@ from ..solvers import Solution
 from ..solvers.scale import ScaleSolution
 from ..stages.counts import SampleCounts
 from ..stages.pairs import Pairs
+from ..stages.stations import Stations
 from ..stages.sync import Synced
 from ..streams import PoseStream
 from .inputs import Inputs
@@ -63,26 +70,57 @@ class Uncertainty:
 
 @dataclass(frozen=True, eq=False)
 class Diagnostics(Mapping[str, Any]):
-    """What the analyses of one calibration found, built once when it ends and read-only after.
+    """What the reading and the analyses of one calibration found, as the typed results they returned, frozen
+    when it ends.
 
-    The typed results that code reads back: ``fit`` (the fit test), ``observability`` (degenerate motion, the
-    predicted covariance), ``subspace`` (each degree of freedom: estimated, from the prior or unobservable) and
-    ``selection`` (the ``auto`` pairs' noise model; None for another strategy), ``scale`` (b's scale estimated with
-    ``T_a_b``, in b's units as given; None when none was); ``poor_fit_accepted``: a refusal —
-    the fit test's (the residuals, or a mount that moved between stations: the document's ``fit_test.passed``
-    false), the inversion check's or a given quaternion order's contradiction — that ``accept_poor_fit``
-    overrode, keeping the result (``handeye calibrate`` exits 3). As a read-only mapping it is the
-    result document's diagnostic sections in order (``time_offset``, ``interpretation``, ``noise_model``,
-    ``observability``, ``degrees_of_freedom``, ``residuals``, ``fit_test`` …: JSON-ready values, the keys of
-    docs/reference/result-schema.md), so ``calibration.diagnostics["fit_test"]`` reads as the file does."""
+    The reading: ``time_offset`` (b's clock offset as decided), ``order`` (the quaternion order's choice; None when
+    nothing was open), ``contradiction`` (a given quaternion order the data contradict, kept by
+    ``accept_poor_fit``), ``sampling`` (the reading's station capture, or its sync); ``scale``: b's scale estimated
+    with ``T_a_b``, in b's units as given (``--scale auto``, or found by the fit: ``scale_found``, the fit's finding
+    that b's translations fit better in other units, decisive or noticeable; else None). The weighted solve:
+    ``robust`` (``--robust``'s RANSAC) with ``pair_stamps_ns`` (the solved pairs' ``(t_i, t_j)`` [ns], where its
+    rejected pairs lie), ``selection`` (the ``auto`` pairs' noise model; None for another strategy),
+    ``alpha_auto`` (α auto's source: the noise model's :class:`~handeye_cli.analysis.alpha.AlphaChoice`, or the
+    selection whose α it is; None for a given α). ``inversion``: the inversion check's verdict (a stream fits better
+    inverted); ``prior_unused``: the prior was not used, the motion determining every degree of freedom. The
+    analyses: ``observability`` (degenerate motion, the predicted covariance), ``subspace`` (each degree of freedom:
+    estimated, from the prior or unobservable), ``uncertainty_check`` (σ from blocks of time beside σ from
+    independent samples), ``residuals`` (the summary of the pairs solved, robust's outliers left out), ``fit``
+    (the fit test), ``mount_moved`` (a station capture's mount that moved, kept by ``accept_poor_fit``: the fit test
+    failed), ``bootstrap``. ``poor_fit_accepted``: a refusal — the fit test's (the residuals, or a mount that moved
+    between stations), the inversion check's or a given quaternion order's contradiction — that
+    ``accept_poor_fit`` overrode, keeping the result (``handeye calibrate`` exits 3).
 
-    sections: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
-    fit: FitTest | None = None
+    As a read-only mapping it is the result document's diagnostic sections in order (``time_offset``,
+    ``interpretation``, ``noise_model``, ``observability``, ``degrees_of_freedom``, ``residuals``, ``fit_test`` …:
+    JSON-ready values, the keys of docs/reference/result-schema.md), built once, on first reading, from these typed
+    results (:attr:`sections`), so ``calibration.diagnostics["fit_test"]`` reads as the file does."""
+
+    time_offset: OffsetReading | None = None
+    order: OrderChoice | None = None
+    contradiction: OrderContradiction | None = None
+    sampling: Stations | Synced | None = None
+    scale: ScaleSolution | None = None
+    scale_found: ScaleReading | None = None
+    robust: RobustResult | None = None
+    pair_stamps_ns: tuple[np.ndarray, np.ndarray] | None = None
+    selection: Selection | None = None
+    alpha_auto: AlphaChoice | Selection | None = None
+    inversion: InversionVerdict | None = None
+    prior_unused: bool = False
     observability: Observability | None = None
     subspace: Subspace | None = None
-    selection: Selection | None = None
-    scale: ScaleSolution | None = None
+    uncertainty_check: DriftCheck | None = None
+    residuals: ResidualSummary | None = None
+    fit: FitTest | None = None
+    mount_moved: str | None = None
+    bootstrap: BootstrapResult | None = None
     poor_fit_accepted: bool = False
+
+    @cached_property
+    def sections(self) -> Mapping[str, Any]:
+        """The result document's diagnostic sections, in the order a run found them (:func:`_sections`)."""
+        return MappingProxyType(_sections(self))
 
     def __getitem__(self, key: str) -> Any:
         return self.sections[key]
@@ -92,6 +130,60 @@ class Diagnostics(Mapping[str, Any]):
 
     def __len__(self) -> int:
         return len(self.sections)
+
+
+_PRIOR_UNUSED = "not used: the motion determines every degree of freedom"
+
+
+def _sections(d: Diagnostics) -> dict[str, Any]:
+    """``d``'s sections in document order: the reading's (``time_offset``, ``interpretation`` when the quaternion
+    order was chosen, ``stations`` or ``sync``), [``scale`` of ``--scale auto``], the weighted solve's
+    (``robust``, ``noise_model``, ``alpha_auto``), the checks of the reading (``interpretation`` when only they
+    found one, ``inversion``, [``scale`` found by the fit]), ``prior``, then the analyses (``observability``,
+    ``degrees_of_freedom``, ``uncertainty_check``, ``residuals``, ``fit_test``, ``uncertainty``). Absent: left out."""
+    interpretation = {**({} if d.order is None else d.order.as_dict()),
+                      **({} if d.contradiction is None else d.contradiction.as_dict()),
+                      **({} if d.scale_found is None else
+                         {"scale": {**d.scale_found.as_dict(), "applied": d.scale_found.decisive}})} or None
+    by_fit = d.scale_found is not None and d.scale_found.decisive
+    scale = None if d.scale is None else d.scale.as_dict()
+    stations = d.sampling if isinstance(d.sampling, Stations) else None
+    fit = None if d.fit is None else {**d.fit.as_dict(), **({} if d.mount_moved is None else
+                                                           {"passed": False, "extrinsic_changed": d.mount_moved})}
+    sections = [
+        ("time_offset", None if d.time_offset is None else d.time_offset.as_dict()),
+        ("interpretation", interpretation if d.order is not None else None),
+        ("stations", None if stations is None else stations.as_dict()),
+        ("sync", d.sampling.describe() if isinstance(d.sampling, Synced) else None),
+        ("scale", None if by_fit else scale),
+        ("robust", _robust_section(d.robust, d.pair_stamps_ns)),
+        ("noise_model", None if d.selection is None else d.selection.as_dict()),
+        ("alpha_auto", d.alpha_auto.as_dict() if isinstance(d.alpha_auto, AlphaChoice) else
+         None if d.alpha_auto is None else {"alpha": d.alpha_auto.alpha, "method": "noise-model"}),
+        ("interpretation", interpretation if d.order is None else None),
+        ("inversion", None if d.inversion is None else d.inversion.as_dict()),
+        ("scale", scale if by_fit else None),
+        ("prior", _PRIOR_UNUSED if d.prior_unused else None),
+        ("observability", None if d.observability is None else d.observability.as_dict()),
+        ("degrees_of_freedom", None if d.subspace is None else d.subspace.as_dict()),
+        ("uncertainty_check", None if d.uncertainty_check is None else d.uncertainty_check.as_dict()),
+        ("residuals", None if d.residuals is None else d.residuals.as_dict()),
+        ("fit_test", fit),
+        ("uncertainty", None if d.bootstrap is None else
+         {"method": "bootstrap over pose samples", **d.bootstrap.as_dict()})]
+    return {key: value for key, value in sections if value is not None}
+
+
+def _robust_section(robust: RobustResult | None, stamps_ns: tuple[np.ndarray, np.ndarray] | None
+                    ) -> dict[str, Any] | None:
+    """``--robust``'s section: its summary, and each rejected pair's span in seconds since the first paired sample
+    (readable beside a plot of the streams)."""
+    if robust is None or stamps_ns is None:
+        return None
+    t_i, t_j = stamps_ns
+    t0 = min(t_i.min(), t_j.min())
+    return {**robust.as_dict(), "rejected_spans_since_start_s": [
+        [round((t_i[k] - t0) / 1e9, 6), round((t_j[k] - t0) / 1e9, 6)] for k in robust.rejected]}
 
 
 @dataclass(frozen=True, eq=False)

@@ -20,20 +20,21 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..analysis import RobustResult, assess_observability, bootstrap, pair_residuals, robust_solve
-from ..analysis.alpha import TIME_BLOCKS, noise_model_alpha, time_blocks
-from ..analysis.covariance import drift_check
+from ..analysis import BootstrapResult, RobustResult, assess_observability, bootstrap, pair_residuals, robust_solve
+from ..analysis.alpha import TIME_BLOCKS, AlphaChoice, noise_model_alpha, time_blocks
+from ..analysis.covariance import DriftCheck, drift_check
 from ..analysis.fit_test import SampleNoise, fit_test, sample_noise
-from ..analysis.readings import scale_reading
+from ..analysis.inversion import InversionVerdict
+from ..analysis.observability import Observability
+from ..analysis.readings import OrderContradiction, ScaleReading, scale_reading
 from ..analysis.robust import consensus_share, longest_disagreement
 from ..analysis.selection import Selection
 from ..analysis.stream_noise import stream_noise
-from ..analysis.subspace import observable_subspace
+from ..analysis.subspace import Subspace, observable_subspace
 from ..config import load_options
 from ..errors import HandEyeError
 from ..geometry import dualquat
@@ -59,12 +60,14 @@ __all__ = ["calibrate", "calibrate_files", "calibrate_read"]
 @dataclass(frozen=True, eq=False)
 class _Solved:
     """The weighted solve of a reading's pairs: the solution, the α used, the per-pair weights (the selection's,
-    times ``robust``'s inlier mask; None: unweighted) and ``--robust``'s RANSAC."""
+    times ``robust``'s inlier mask; None: unweighted), ``--robust``'s RANSAC and α auto's source (the noise model's
+    choice, or the selection whose α it is; None for a given α)."""
 
     solution: Solution
     alpha: float
     weights: np.ndarray | None
     robust: RobustResult | None
+    alpha_auto: AlphaChoice | Selection | None
 
 
 def calibrate_read(stream_a: PoseStream, stream_b: PoseStream, opts: Options, *,
@@ -95,73 +98,29 @@ def _calibrated(reading: Reading, opts: Options, inputs: Inputs, scale_by_fit: b
                 noise_of: NoiseOf, checks: Checks) -> Calibration:
     """The calibration under ``reading`` (:func:`calibrate_read`'s steps after the reading); a refused fit's retry
     with outliers rejected runs it again on the same reading, which does not depend on ``robust``."""
-    a, b, prior, paired = reading.stream_a, reading.stream_b, reading.prior, reading.paired
-    findings, diagnostics = list(reading.findings), _reading_sections(reading)
-    scale = None
-    if opts.solver.scale == "auto":
-        paired, scale = scaled(a, b, paired, opts, reading.offset_ns, prior, noise_of)
-        diagnostics["scale"] = scale.as_dict()
-    solved = _solve_and_analyse(paired.pairs, opts, prior, paired.selection, diagnostics)
-    verdict, contradiction = None, None
-    if checks.inversion:                                      # its thresholds are set at α 1
-        verdict, refused = inversion(paired, opts, 1.0 if opts.solver.alpha == "auto" else solved.alpha, inputs)
-        findings += [refused] if refused else []
-    if verdict is None:
-        contradiction, refused = order_contradiction(a, b, paired, opts)
-        findings += [refused] if refused else []
-    _decided(findings, opts)                                  # a misread stream is refused before any more work
-    if contradiction is not None:
-        diagnostics["interpretation"] = {**diagnostics.get("interpretation", {}), **contradiction.as_dict()}
-    if verdict is not None:
-        diagnostics["inversion"] = verdict.as_dict()
-    elif scale_by_fit and opts.solver.scale == 1.0 and prior is None:   # inverted streams also fit "better scaled"
-        paired, solved, scale = _scale_by_fit(a, b, reading, paired, solved, opts, diagnostics, findings, noise_of)
-    drifting = drift_warning(scale)
-    if drifting:
-        findings.append(Finding.warning("scale_drift", drifting))
-    pairs = paired.pairs
-    A, B, ij = pairs.A, pairs.B, (pairs.i, pairs.j)
-    if prior is not None:                                     # the prior only where the data leave something open
-        free = _solve_and_analyse(pairs, opts, None, paired.selection, {})
-        free_obs = assess_observability(A, B, free.solution.matrix, alpha=free.alpha, weights=free.weights,
-                                        samples=ij)
-        if free_obs.ok:
-            solved, prior = free, None
-            diagnostics["prior"] = "not used: the motion determines every degree of freedom"
-    solution, alpha, weights = solved.solution, solved.alpha, solved.weights
-    obs = assess_observability(A, B, solution.matrix, alpha=alpha, prior=prior, weights=weights, samples=ij)
-    findings += [Finding.warning("observability", str(w)) for w in obs.warnings]
-    findings += [Finding.warning("certificate", w) for w in solution.warnings]     # a failed optimality certificate
-    diagnostics["observability"] = obs.as_dict()
-    subspace = observable_subspace(A, B, solution.matrix, obs, weights=weights,
-                                   nominal=None if prior is None else prior.T_a_b)
-    if subspace.axis_a is not None:                           # planar: the reduced in-plane solve
-        solution = replace(solution, matrix=subspace.matrix, problem=None, dual_quaternion=None,
-                           optimum=solution)                 # its certificate: of the full solve (cost 8)
-        findings += [Finding.warning("subspace", w) for w in
-                     [f"not estimated: {k} ({v})" for k, v in subspace.skipped.items()] + list(subspace.advice)]
-    diagnostics["degrees_of_freedom"] = subspace.as_dict()
+    a, b, prior, findings = reading.stream_a, reading.stream_b, reading.prior, list(reading.findings)
+    paired, scale = scaled(a, b, reading.paired, opts, reading.offset_ns, prior, noise_of) \
+        if opts.solver.scale == "auto" else (reading.paired, None)
+    solved = _weighted_solve(paired, opts, prior)
+    verdict, contradiction = _reading_checked(a, b, paired, solved, opts, inputs, checks, findings)
+    found = None
+    if verdict is None and scale_by_fit and opts.solver.scale == 1.0 and prior is None:  # inverted: "better scaled" too
+        paired, solved, scale, found = _scale_by_fit(reading, paired, solved, opts, findings, noise_of)
+    findings += [Finding.warning("scale_drift", w) for w in (drift_warning(scale),) if w]
+    pairs, weighed = paired.pairs, solved          # the document's robust and α: this solve's, whether or not
+    solved, prior = _prior_needed(paired, solved, opts, prior)                           # the prior is then used
+    solution, obs, subspace = _observed(pairs, solved, prior, findings)
     noise = sample_noise(a, b if scale is None else b.scaled(scale.scale), paired.synced, paired.stations,
                          opts.sync.sync, noise_of)
-    refinement = None
-    if opts.solver.refine:
-        solution, refinement, skipped = _refined(solution, paired, pairs, weights, noise, reduced=subspace.axis_a
-                                                 is not None)
-        findings += [Finding.warning("refinement", skipped)] if skipped else []
-    if checks.uncertainty and len(A) > 2 * TIME_BLOCKS:      # σ from independent samples beside σ from blocks (drift)
-        check = drift_check(A, B, solution.matrix, time_blocks(pairs.t_i_ns, pairs.t_j_ns), alpha=alpha,
-                            prior=prior, weights=weights, samples=ij)
-        diagnostics["uncertainty_check"] = check.as_dict()
-        if check.overconfident:
-            findings.append(Finding.warning("uncertainty", check.warning()))
-    res = pair_residuals(A, B, solution.matrix)
-    diagnostics["residuals"] = res.summary(None if weights is None else weights > 0).as_dict()
-    fit = fit_test(pairs, res, solution.matrix, noise, mask=None if weights is None else weights > 0)   # refuses
-    diagnostics["fit_test"] = fit.as_dict()                                         # what no rigid rig gives
+    solution, refinement = _refined(solution, paired, solved.weights, noise, opts, subspace, findings)
+    check = _uncertainty_check(pairs, solution, solved, prior, checks, findings)
+    res = pair_residuals(pairs.A, pairs.B, solution.matrix)
+    used = None if solved.weights is None else solved.weights > 0
+    fit = fit_test(pairs, res, solution.matrix, noise, mask=used)            # refuses what no rigid rig gives
     misfit = fit_refusal(fit, opts, paired, inverted=verdict is not None)
     moved = None if misfit or paired.stations is None or opts.analysis.robust else moved_mount(
-        paired, res, opts, alpha, prior)                      # a mount that slipped between two stations
-    findings += [f for f in (misfit, moved, suspect_data(verdict, res, weights, paired)) if f is not None]
+        paired, res, opts, solved.alpha, prior)                  # a mount that slipped between two stations
+    findings += [f for f in (misfit, moved, suspect_data(verdict, res, solved.weights, paired)) if f is not None]
     outcome = policy(findings, accept_poor_fit=opts.analysis.accept_poor_fit, robust=opts.analysis.robust)
     if outcome.error is not None:
         recovered = _robust_retry(reading, opts, inputs, scale_by_fit, misfit, noise_of, checks) \
@@ -169,40 +128,115 @@ def _calibrated(reading: Reading, opts: Options, inputs: Inputs, scale_by_fit: b
         if recovered is None:
             raise outcome.error
         return recovered
-    if moved:                                                 # kept on request: the fit test failed, exit 3
-        diagnostics["fit_test"] = {**diagnostics["fit_test"], "passed": False, "extrinsic_changed": moved.message}
-    boot = None
-    if opts.analysis.bootstrap > 0:
-        boot = bootstrap(A, B, opts.analysis.bootstrap, alpha=alpha, prior=prior, weights=weights,
-                         samples=ij, seed=opts.pairs.seed,
-                         estimate=solution.matrix if opts.solver.method == "dqopt" else None)   # the same solve
-        diagnostics["uncertainty"] = {"method": "bootstrap over pose samples", **boot.as_dict()}
-    found = Diagnostics(MappingProxyType(diagnostics), fit=fit, observability=obs, subspace=subspace,
-                        selection=paired.selection, scale=scale, poor_fit_accepted=bool(outcome.accepted))
+    boot = _bootstrap(pairs, solution, solved, prior, opts)
+    sampling = reading.paired.synced if reading.paired.stations is None else reading.paired.stations
+    diagnostics = Diagnostics(
+        time_offset=reading.time_offset, order=reading.order, contradiction=contradiction, sampling=sampling,
+        scale=scale, scale_found=found, robust=weighed.robust, pair_stamps_ns=(pairs.t_i_ns, pairs.t_j_ns),
+        selection=paired.selection, alpha_auto=weighed.alpha_auto, inversion=verdict,
+        prior_unused=prior is None and reading.prior is not None, observability=obs, subspace=subspace,
+        uncertainty_check=check, residuals=res.summary(used), fit=fit, mount_moved=None if moved is None else
+        moved.message, bootstrap=boot, poor_fit_accepted=bool(outcome.accepted))
     return Calibration(solution, a, b, paired.synced, pairs, paired.samples, opts, res,
-                       warnings=list(outcome.warnings), diagnostics=found, inputs=inputs,
-                       weights=weights, robust=solved.robust, bootstrap=boot, refinement=refinement)
+                       warnings=list(outcome.warnings), diagnostics=diagnostics, inputs=inputs,
+                       weights=solved.weights, robust=solved.robust, bootstrap=boot, refinement=refinement)
 
 
-def _refined(solution: Solution, paired: Paired, pairs: Pairs, weights: np.ndarray | None, noise: SampleNoise, *,
-             reduced: bool) -> tuple[Solution, Refinement | None, str]:
-    """The optimum ``solution`` refined by maximum likelihood (:func:`~handeye_cli.analysis.refinement.
-    refine_calibration`): the refined solution (``optimum``: the one it started from, cost (8) at the refined
-    pose), its account, and "" — or the solution as it was, None and why it was not refined (planar motion's
-    reduced solve; samples too few or a noise model that says nothing)."""
-    if reduced:
-        return solution, None, ("not refined: planar motion leaves directions the likelihood cannot see (the "
-                                "reduced in-plane solve is the result)")
+def _reading_checked(a: PoseStream, b: PoseStream, paired: Paired, solved: _Solved, opts: Options, inputs: Inputs,
+                     checks: Checks, findings: list[Finding]) -> tuple[InversionVerdict | None,
+                                                                       OrderContradiction | None]:
+    """The reading's checks on the solved pairs: the inversion check (its thresholds set at α 1), else the check of
+    each quaternion order that was given; their refusals added to ``findings``, and a misread stream refused here,
+    before any more work (:func:`_decided`). Returns the inversion verdict and the order contradiction."""
+    verdict, contradiction = None, None
+    if checks.inversion:
+        verdict, refused = inversion(paired, opts, 1.0 if opts.solver.alpha == "auto" else solved.alpha, inputs)
+        findings += [refused] if refused else []
+    if verdict is None:
+        contradiction, refused = order_contradiction(a, b, paired, opts)
+        findings += [refused] if refused else []
+    _decided(findings, opts)
+    return verdict, contradiction
+
+
+def _prior_needed(paired: Paired, solved: _Solved, opts: Options, prior: Prior | None) -> tuple[_Solved, Prior | None]:
+    """The prior only where the data leave something open: the solve without it, and no prior, when the motion
+    determines every degree of freedom; else ``solved`` and ``prior`` as they were."""
+    if prior is None:
+        return solved, prior
+    free = _weighted_solve(paired, opts, None)
+    pairs = paired.pairs
+    free_obs = assess_observability(pairs.A, pairs.B, free.solution.matrix, alpha=free.alpha, weights=free.weights,
+                                    samples=(pairs.i, pairs.j))
+    return (free, None) if free_obs.ok else (solved, prior)
+
+
+def _observed(pairs: Pairs, solved: _Solved, prior: Prior | None,
+              findings: list[Finding]) -> tuple[Solution, Observability, Subspace]:
+    """Observability and the degrees of freedom at the solution, their warnings (and a failed optimality
+    certificate's) added to ``findings``: the solution (planar motion: the reduced in-plane solve, its certificate
+    the full solve's), the observability and the subspace."""
+    solution, ij = solved.solution, (pairs.i, pairs.j)
+    obs = assess_observability(pairs.A, pairs.B, solution.matrix, alpha=solved.alpha, prior=prior,
+                               weights=solved.weights, samples=ij)
+    findings += [Finding.warning("observability", str(w)) for w in obs.warnings]
+    findings += [Finding.warning("certificate", w) for w in solution.warnings]     # a failed optimality certificate
+    subspace = observable_subspace(pairs.A, pairs.B, solution.matrix, obs, weights=solved.weights,
+                                   nominal=None if prior is None else prior.T_a_b)
+    if subspace.axis_a is not None:                           # planar: the reduced in-plane solve
+        solution = replace(solution, matrix=subspace.matrix, problem=None, dual_quaternion=None,
+                           optimum=solution)                 # its certificate: of the full solve (cost 8)
+        findings += [Finding.warning("subspace", w) for w in
+                     [f"not estimated: {k} ({v})" for k, v in subspace.skipped.items()] + list(subspace.advice)]
+    return solution, obs, subspace
+
+
+def _uncertainty_check(pairs: Pairs, solution: Solution, solved: _Solved, prior: Prior | None, checks: Checks,
+                       findings: list[Finding]) -> DriftCheck | None:
+    """σ from independent samples beside σ from blocks of time (drift), where asked and the pairs are enough; an
+    overconfident σ's warning added to ``findings``."""
+    if not checks.uncertainty or len(pairs.A) <= 2 * TIME_BLOCKS:
+        return None
+    check = drift_check(pairs.A, pairs.B, solution.matrix, time_blocks(pairs.t_i_ns, pairs.t_j_ns), alpha=solved.alpha,
+                        prior=prior, weights=solved.weights, samples=(pairs.i, pairs.j))
+    if check.overconfident:
+        findings.append(Finding.warning("uncertainty", check.warning()))
+    return check
+
+
+def _bootstrap(pairs: Pairs, solution: Solution, solved: _Solved, prior: Prior | None,
+               opts: Options) -> BootstrapResult | None:
+    """``--bootstrap N``'s resampling of the pose samples (dqopt's: the same solve, started at the solution)."""
+    if opts.analysis.bootstrap <= 0:
+        return None
+    return bootstrap(pairs.A, pairs.B, opts.analysis.bootstrap, alpha=solved.alpha, prior=prior,
+                     weights=solved.weights, samples=(pairs.i, pairs.j), seed=opts.pairs.seed,
+                     estimate=solution.matrix if opts.solver.method == "dqopt" else None)
+
+
+def _refined(solution: Solution, paired: Paired, weights: np.ndarray | None, noise: SampleNoise, opts: Options,
+             subspace: Subspace, findings: list[Finding]) -> tuple[Solution, Refinement | None]:
+    """With ``--refine``, the optimum ``solution`` refined by maximum likelihood (:func:`~handeye_cli.analysis.
+    refinement.refine_calibration`): the refined solution (``optimum``: the one it started from, cost (8) at the
+    refined pose) and its account — or the solution as it was and None, and why it was not refined added to
+    ``findings`` (planar motion's reduced solve; samples too few or a noise model that says nothing)."""
+    if not opts.solver.refine:
+        return solution, None
+    if subspace.axis_a is not None:
+        findings.append(Finding.warning("refinement", "not refined: planar motion leaves directions the likelihood "
+                                        "cannot see (the reduced in-plane solve is the result)"))
+        return solution, None
     from ..analysis.refinement import refine_calibration  # scipy's optimiser and banded Cholesky: on request
 
     try:
-        refinement = refine_calibration(paired.synced, pairs, weights, noise, solution.matrix)
+        refinement = refine_calibration(paired.synced, paired.pairs, weights, noise, solution.matrix)
     except HandEyeError as e:
-        return solution, None, f"not refined: {e.what}; the optimum of cost (8) is the result"
+        findings.append(Finding.warning("refinement", f"not refined: {e.what}; the optimum of cost (8) is the result"))
+        return solution, None
     q, qd = dualquat.from_transforms(refinement.matrix)
     assert solution.problem is not None, "an optimum of cost (8) keeps its problem"
     return replace(solution, matrix=refinement.matrix, cost=solution.problem.cost(q, qd), problem=None,
-                   dual_quaternion=None, optimum=solution), refinement, ""
+                   dual_quaternion=None, optimum=solution), refinement
 
 
 def _decided(findings: list[Finding], opts: Options) -> None:
@@ -213,55 +247,39 @@ def _decided(findings: list[Finding], opts: Options) -> None:
         raise error
 
 
-def _reading_sections(reading: Reading) -> dict[str, Any]:
-    """The result's sections of the reading, in document order: ``time_offset``, ``interpretation`` (the
-    quaternion order's choice), ``stations`` or ``sync``."""
-    sections: dict[str, Any] = {"time_offset": reading.time_offset.as_dict()}
-    if reading.order is not None:
-        sections["interpretation"] = reading.order.as_dict()
-    paired = reading.paired
-    if paired.stations is not None:
-        sections["stations"] = paired.stations.as_dict()
-    else:
-        sections["sync"] = paired.synced.describe()
-    return sections
-
-
-def _scale_by_fit(a: PoseStream, b: PoseStream, reading: Reading, paired: Paired, solved: _Solved, opts: Options,
-                  diagnostics: dict[str, Any], findings: list[Finding], noise_of: NoiseOf
-                  ) -> tuple[Paired, _Solved, ScaleSolution | None]:
+def _scale_by_fit(reading: Reading, paired: Paired, solved: _Solved, opts: Options, findings: list[Finding],
+                  noise_of: NoiseOf) -> tuple[Paired, _Solved, ScaleSolution | None, ScaleReading | None]:
     """b's translations in other units, found by the fit (:func:`~handeye_cli.analysis.readings.scale_reading` at
     the solution of the pairs): decisively better scaled (monocular units), the scale is estimated with ``T_a_b``
     as ``--scale auto`` does and the pairs re-solved — returned, with the estimate; noticeably better (a SLAM scale
     off by percents), a warning naming ``--scale auto``; else the pairs and solve as they were (and no estimate).
-    ``diagnostics`` and ``findings`` are filled in."""
+    The fit's finding is returned where it is decisive or noticeable (else None); ``findings`` are filled in."""
     pairs = paired.pairs
     found = scale_reading(pairs.A, pairs.B, solved.solution.matrix)
     if found is None or not (found.decisive or found.noticeable):
-        return paired, solved, None
-    diagnostics.setdefault("interpretation", {})["scale"] = {**found.as_dict(), "applied": found.decisive}
+        return paired, solved, None, None
     if not found.decisive:
         findings.append(Finding.warning("scale", f"stream b's translations fit {found.gain:.3g}× better scaled by "
                                         f"{found.scale:.4g} (median residual {found.medians_m[0]:.3g} → "
                                         f"{found.medians_m[1]:.3g} m): if its scale is off (SLAM), pass "
                                         "⟦scale='auto'⟧"))
-        return paired, solved, None
-    paired, scale = scaled(a, b, paired, opts, reading.offset_ns, reading.prior, noise_of)
-    diagnostics["scale"] = scale.as_dict()
-    solved = _solve_and_analyse(paired.pairs, opts, reading.prior, paired.selection, diagnostics)
+        return paired, solved, None, found
+    paired, scale = scaled(reading.stream_a, reading.stream_b, paired, opts, reading.offset_ns, reading.prior,
+                           noise_of)
+    solved = _weighted_solve(paired, opts, reading.prior)
     findings.append(Finding.warning("scale", f"stream b's translations fit a rigid rig {found.gain:.3g}× better "
                                     f"scaled (median residual {found.medians_m[0]:.3g} m as given): its scale was "
                                     f"estimated with T_a_b, {scale.scale:.6g} ± {scale.scale_std:.2g} m per unit "
                                     "(⟦scale='auto'⟧); give it with ⟦scale=NUMBER⟧ to fix it"))
-    return paired, solved, scale
+    return paired, solved, scale, found
 
 
-def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None, selection: Selection | None,
-                       diagnostics: dict[str, Any]) -> _Solved:
-    """[robust: RANSAC inliers] → [α auto] → the weighted solve; diagnostics filled in place.
+def _weighted_solve(paired: Paired, options: Options, prior: Prior | None) -> _Solved:
+    """[robust: RANSAC inliers] → [α auto] → the weighted solve of ``paired``'s pairs.
 
     With the ``auto`` strategy the pairs carry the noise model's weights, and α auto is its ML α."""
-    A, B, solver = pairs.A, pairs.B, options.solver
+    pairs, selection, solver = paired.pairs, paired.selection, options.solver
+    A, B = pairs.A, pairs.B
     auto = solver.alpha == "auto"
     alpha = (selection.alpha if selection else 1.0) if auto else float(solver.alpha)
     weights = None if selection is None else selection.weights
@@ -269,19 +287,12 @@ def _solve_and_analyse(pairs: Pairs, options: Options, prior: Prior | None, sele
     if options.analysis.robust:
         robust = robust_solve(A, B, method=solver.method, alpha=alpha, prior=prior, seed=options.pairs.seed)
         weights = robust.inliers.astype(float) * (1.0 if weights is None else weights)
-        t0 = min(pairs.t_i_ns.min(), pairs.t_j_ns.min())    # readable: seconds since the first paired sample
-        diagnostics["robust"] = {**robust.as_dict(), "rejected_spans_since_start_s": [
-            [round((pairs.t_i_ns[k] - t0) / 1e9, 6), round((pairs.t_j_ns[k] - t0) / 1e9, 6)] for k in robust.rejected]}
-    if selection is not None:
-        diagnostics["noise_model"] = selection.as_dict()
+    choice: AlphaChoice | Selection | None = selection if auto else None
     if auto and selection is None:
         choice = noise_model_alpha(A, B, prior=prior, weights=weights, spans_s=(pairs.t_j_ns - pairs.t_i_ns) / 1e9)
         alpha = choice.alpha
-        diagnostics["alpha_auto"] = choice.as_dict()
-    elif auto:
-        diagnostics["alpha_auto"] = {"alpha": alpha, "method": "noise-model"}
     return _Solved(solve(A, B, method=solver.method, alpha=alpha, prior=prior, weights=weights), alpha, weights,
-                   robust)
+                   robust, choice)
 
 
 def _robust_retry(reading: Reading, opts: Options, inputs: Inputs, scale_by_fit: bool,

@@ -141,7 +141,7 @@ def solve_edges(streams: list[PoseStream], names: list[str], offsets: list[Clock
         except HandEyeError as refused:
             done[j, k] = None, [f"pair {names[j]}-{names[k]} left out: {refused}"]
             continue
-        if reference in (j, k) and "inversion" not in edge.calibration.diagnostics:
+        if reference in (j, k) and edge.calibration.diagnostics.inversion is None:
             cleared.add(k if j == reference else j)
         done[j, k] = edge, [f"pair {names[j]}-{names[k]}: {w}" for w in edge.calibration.warnings]
     return ([e for p in sorted(done) if (e := done[p][0]) is not None],

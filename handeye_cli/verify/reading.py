@@ -8,12 +8,11 @@ far b's clock is ahead of a's [ns]. The thresholds that decide it are in :mod:`.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..analysis.fit_test import fit_test, sample_noise
-from ..analysis.readings import MedianFit, OrderChoice, choose_quaternion_order, median_fit
+from ..analysis.readings import OffsetReading, OrderChoice, choose_quaternion_order, median_fit
 from ..analysis.residuals import pair_residuals
 from ..calibration.inputs import inverted_as_read, read_prior
 from ..calibration.pairing import Paired, pairs_of
@@ -25,55 +24,7 @@ from ..stages.sync import median_step_ns
 from ..streams import PoseStream
 from .policy import CONFIRMING_COVERAGE, CONFIRMING_GAIN, CONFIRMING_MIN_GAIN, LARGE_OFFSET_PERIODS, Finding
 
-if TYPE_CHECKING:
-    from ..stages.timeoffset import TimeOffset
-
-__all__ = ["OffsetReading", "Reading", "decide_reading"]
-
-_NOT_ASKED = "not asked"     # OffsetReading.confirmed_by of an estimate the fit was not asked about (not applied)
-
-
-@dataclass(frozen=True, eq=False)
-class OffsetReading:
-    """b's clock offset as the reading decided it (the result's ``time_offset``, :meth:`as_dict`).
-
-    seconds: how far b's clock is ahead of a's [s], as applied (0 unless applied); method: ``fixed``, ``not
-    estimated`` or the estimator's; applied: whether an estimate is applied (None for a fixed value); reason: why
-    none could be estimated; estimate: the estimator's figures (:class:`~handeye_cli.stages.timeoffset.TimeOffset`)
-    and ``significant_sigma``, the σ it must be from 0; fits: the median fits (and samples) of the pairs with the
-    estimate and without an offset, where the fit was asked; confirmed_by: ``fit``, ``no pairs without it`` or None
-    (the fit did not confirm it)."""
-
-    seconds: float
-    method: str
-    applied: bool | None = None
-    reason: str = ""
-    estimate: TimeOffset | None = None
-    significant_sigma: float = 0.0
-    fits: tuple[tuple[MedianFit, int], tuple[MedianFit, int]] | None = None
-    confirmed_by: str | None = _NOT_ASKED
-
-    @property
-    def offset_ns(self) -> int:
-        return int(round(self.seconds * 1e9))
-
-    def as_dict(self) -> dict[str, Any]:
-        if self.applied is None:
-            return {"seconds": self.seconds, "method": self.method}
-        if self.estimate is None:
-            return {"seconds": self.seconds, "method": self.method, "applied": self.applied, "reason": self.reason}
-        est = self.estimate
-        out: dict[str, Any] = {"seconds": self.seconds, "applied": self.applied,
-                               "estimated_seconds": est.offset_ns / 1e9, "std_seconds": est.std_ns / 1e9,
-                               "coarse_seconds": est.coarse_ns / 1e9, "correlation": est.correlation,
-                               "method": est.method, "significant_sigma": self.significant_sigma}
-        if self.fits is not None:
-            out["fit_median"] = {name: {"rotation_deg": f.rotation_deg, "translation_m": f.translation_m,
-                                        "samples": n} for name, (f, n) in zip(("applied", "none"), self.fits,
-                                                                             strict=True)}
-        if self.confirmed_by != _NOT_ASKED:
-            out["confirmed_by"] = self.confirmed_by
-        return out
+__all__ = ["Reading", "decide_reading"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,9 +34,8 @@ class Reading:
     stream_a, stream_b: the streams as used — quaternion order chosen, inverted where the options say so, b scaled
     by a fixed ``scale`` — before the clock offset; order: the quaternion order's choice or check (None when
     nothing was open); offset_ns: b's clock offset applied [ns]; time_offset: how it was decided
-    (:class:`OffsetReading`); prior: the options' prior (eq 26), read once; paired: sync, gates and pairs at
-    ``offset_ns``;
-    findings: the warnings of the readers and of the reading."""
+    (:class:`~handeye_cli.analysis.readings.OffsetReading`); prior: the options' prior (eq 26), read once; paired:
+    sync, gates and pairs at ``offset_ns``; findings: the warnings of the readers and of the reading."""
 
     stream_a: PoseStream
     stream_b: PoseStream

@@ -33,25 +33,13 @@ def rig():
 
 @pytest.fixture(scope="module")
 def full(rig):
-    """The calibration with two warnings, three pairs rejected by --robust and more diagnostic sections: the report
-    reads the typed calibration, so that is what is given."""
+    """The calibration with two warnings, pairs rejected by --robust and more diagnostic sections (a bootstrap):
+    the report reads the typed calibration, so that is what is given."""
     from dataclasses import replace
-    from types import MappingProxyType
-
-    from handeye_cli.analysis.robust import RobustResult
 
     _, _, cal = rig
-    inliers = np.ones(len(cal.pairs), dtype=bool)
-    inliers[[0, 5, 9]] = False
-    sections = {**cal.diagnostics,
-                "residuals": {"rotation_median_deg": 0.1, "rotation_p95_deg": 0.3, "translation_median_m": 0.002},
-                "uncertainty": {"bootstrap": {"replicates": 200, "rotation_std_deg": [0.01, 0.02, 0.03],
-                                              "translation_interval_m": [[-1e-3] * 3, [1e-3] * 3]}},
-                "robust": {"inliers": len(cal.pairs) - 3, "rejected": [0, 5, 9]},
-                "observability": {"rank": 6, "spread_deg": 41.0}}
-    robust = RobustResult(cal.solution, inliers, np.array([0, 5, 9]), 1.0, 0.01, cal.residuals, 1, 1)
-    return replace(cal, warnings=[WARNING, "second warning"], robust=robust,
-                   diagnostics=replace(cal.diagnostics, sections=MappingProxyType(sections)))
+    robust = calibrate(cal.stream_a, cal.stream_b, robust=True, bootstrap=20)
+    return replace(robust, warnings=[WARNING, "second warning"])
 
 
 @pytest.fixture(scope="module")
