@@ -107,8 +107,8 @@ def _calibrated(reading: Reading, opts: Options, inputs: Inputs, scale_by_fit: b
     if verdict is None and scale_by_fit and opts.solver.scale == 1.0 and prior is None:  # inverted: "better scaled" too
         paired, solved, scale, found = _scale_by_fit(reading, paired, solved, opts, findings, noise_of)
     findings += [Finding.warning("scale_drift", w) for w in (drift_warning(scale),) if w]
-    pairs, weighed = paired.pairs, solved          # the document's robust and α: this solve's, whether or not
-    solved, prior = _prior_needed(paired, solved, opts, prior)                           # the prior is then used
+    pairs = paired.pairs
+    solved, prior = _prior_needed(paired, solved, opts, prior)     # the solve the result is: with the prior or not
     solution, obs, subspace = _observed(pairs, solved, prior, findings)
     noise = sample_noise(a, b if scale is None else b.scaled(scale.scale), paired.synced, paired.stations,
                          opts.sync.sync, noise_of)
@@ -132,8 +132,8 @@ def _calibrated(reading: Reading, opts: Options, inputs: Inputs, scale_by_fit: b
     sampling = reading.paired.synced if reading.paired.stations is None else reading.paired.stations
     diagnostics = Diagnostics(
         time_offset=reading.time_offset, order=reading.order, contradiction=contradiction, sampling=sampling,
-        scale=scale, scale_found=found, robust=weighed.robust, pair_stamps_ns=(pairs.t_i_ns, pairs.t_j_ns),
-        selection=paired.selection, alpha_auto=weighed.alpha_auto, inversion=verdict,
+        scale=scale, scale_found=found, robust=solved.robust, pair_stamps_ns=(pairs.t_i_ns, pairs.t_j_ns),
+        selection=paired.selection, alpha_auto=solved.alpha_auto, inversion=verdict,
         prior_unused=prior is None and reading.prior is not None, observability=obs, subspace=subspace,
         uncertainty_check=check, residuals=res.summary(used), fit=fit, mount_moved=None if moved is None else
         moved.message, bootstrap=boot, poor_fit_accepted=bool(outcome.accepted))

@@ -103,6 +103,12 @@ def test_a_prior_does_not_pull_what_near_planar_motion_determines():
     # pulled the yaw to 0.012-0.067° on the benchmark's cars); the result is the one without a prior.
     alone = calibrate(car.base, car.sensor, name_a="base_link", name_b="camera")
     assert np.abs(dof_values(c.matrix) - dof_values(alone.matrix)).max() < 1e-4
+    # ... and the document describes that solve: with --robust its rejected pairs are the result's (it listed the
+    # solve with the prior's, 15 where the result had dropped 10), and its α the one the result was solved at
+    r = calibrate(car.base, car.sensor, prior=stp, name_a="base_link", name_b="camera", robust=True)
+    assert r.diagnostics["prior"].startswith("not used") and r.robust is not None
+    assert r.diagnostics["robust"]["rejected"] == [int(k) for k in r.robust.rejected]
+    assert r.diagnostics["alpha_auto"]["alpha"] == r.solution.alpha
 
 
 def test_the_prior_reads_the_same_from_every_nominal_kind(diff_drive, tmp_path):
