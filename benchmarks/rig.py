@@ -209,7 +209,7 @@ def timing(minutes: float, repeat: int) -> None:
         specs = [parse_stream(s) for s in STREAMS]
         read_rig(str(log), specs[:2])                                  # warm: readers, page cache
         read = list(read_rig(str(log), specs).values())
-        offsets = clock_offsets(read, 0, {}, None)
+        offsets = clock_offsets(read, 0, {}, Options())
         out = ["-q", "-o", str(Path(d) / "out.yaml")]
         rig_cli = ["rig", str(log), *[a for s in STREAMS for a in ("--stream", s)], *out]
         one_cli = ["calibrate", str(log), "--topic-a", "/cam0/pose", "--topic-b", "/cam1/pose", "--time-offset",
@@ -220,7 +220,7 @@ def timing(minutes: float, repeat: int) -> None:
                                     for spec in specs[1:]]),
             ("rig", lambda: calibrate_rig_files(str(log), specs, RigOptions())),
             ("one", lambda: calibrate_files(log, topic_a="/cam0/pose", topic_b="/cam1/pose", time_offset="auto")),
-            ("offsets", lambda: clock_offsets(read, 0, {}, None)),
+            ("offsets", lambda: clock_offsets(read, 0, {}, Options())),
             ("edges", lambda: solve_edges(read, [s.name for s in specs], offsets, Options())),
             ("pairs", lambda: [calibrate_files(log, topic_a="/cam0/pose", topic_b=spec.topic, frames_b=spec.frames,
                                                time_offset="auto") for spec in specs[1:]]),

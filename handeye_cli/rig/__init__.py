@@ -224,8 +224,7 @@ def calibrate_rig(streams: Mapping[str, PoseStream], options: RigOptions | None 
     cfg = opts.options
     inverted = [name in opts.invert for name in names]
     used = [s.inverted() if inv else s for s, inv in zip(streams.values(), inverted, strict=True)]
-    offsets = clock_offsets(used, ref, {names.index(k): v for k, v in given["time_offsets"].items()},
-                            cfg.sync.max_time_offset)
+    offsets = clock_offsets(used, ref, {names.index(k): v for k, v in given["time_offsets"].items()}, cfg)
     used, scales = _scaled(used, names, ref, given["scales"], offsets, cfg)
     chosen = [name in opts.invert or name in opts.not_inverted for name in names]
     edges, warnings = solve_edges(used, names, offsets, cfg, chosen, ref)

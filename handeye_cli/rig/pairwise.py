@@ -22,6 +22,7 @@ from ..errors import ConfigError, HandEyeError
 from ..options import Options
 from ..solvers.problem import pair_forms
 from ..streams import PoseStream, StreamMemo
+from ..verify.reading import confirm_offset
 
 __all__ = ["ClockOffset", "Edge", "clock_offsets", "solve_edges"]
 
@@ -30,9 +31,10 @@ __all__ = ["ClockOffset", "Edge", "clock_offsets", "solve_edges"]
 class ClockOffset:
     """How far a stream's clock is ahead of the reference's: ``offset_ns`` [ns] (the one the pairs use), its 1-σ
     ``std_ns`` (None when fixed), and ``method`` (``fixed``, ``reference`` or the estimator's). An estimated
-    offset also has ``estimated_ns`` and ``applied``: whether the estimate is applied
-    (:attr:`~handeye_cli.stages.timeoffset.TimeOffset.applicable`, calibrate's rule: significant and
-    unambiguous); one that is not leaves ``offset_ns`` 0."""
+    offset also has ``estimated_ns`` and ``applied``: whether the estimate is applied — calibrate's rule,
+    significant, unambiguous and confirmed by the fit of the stream's pairs with the reference
+    (:func:`~handeye_cli.verify.reading.confirm_offset`; ``confirmed_by`` says how) — one that is not leaves
+    ``offset_ns`` 0."""
 
     offset_ns: int
     std_ns: float | None
@@ -40,6 +42,7 @@ class ClockOffset:
     warnings: tuple[str, ...] = ()
     estimated_ns: int | None = None
     applied: bool = True
+    confirmed_by: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"seconds": self.offset_ns / 1e9, "method": self.method}
@@ -47,6 +50,8 @@ class ClockOffset:
             out["std_seconds"] = self.std_ns / 1e9
         if self.estimated_ns is not None:
             out.update(applied=self.applied, estimated_seconds=self.estimated_ns / 1e9)
+        if self.confirmed_by is not None:
+            out["confirmed_by"] = self.confirmed_by
         return out
 
 
@@ -70,11 +75,13 @@ class Edge:
         return self.calibration.matrix
 
 
-def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int, float | str],
-                  max_offset_s: float | str | None = None) -> list[ClockOffset]:
+def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int, float | str], options: Options
+                  ) -> list[ClockOffset]:
     """Each stream's clock offset to the reference: ``given[k]`` seconds, or estimated (``'auto'``,
-    the default) from the angular velocities of stream k and the reference, and applied where ``calibrate``
-    would apply it (:attr:`~handeye_cli.stages.timeoffset.TimeOffset.applicable`), else 0."""
+    the default) from the angular velocities of stream k and the reference (within ``options``'
+    ``max_time_offset``), and applied where ``calibrate`` would apply it — significant, unambiguous and confirmed
+    by the fit of the pairs it gives (:func:`~handeye_cli.verify.reading.confirm_offset`, paired with ``options``)
+    — else 0."""
     from ..stages.timeoffset import estimate_time_offset, grid_of
 
     out, grid = [], StreamMemo(grid_of)                # the reference's ω grid once, not once per stream
@@ -83,9 +90,11 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
         if k == reference:
             out.append(ClockOffset(0, None, "reference"))
         elif isinstance(value, str) and value.strip().lower() == "auto":
-            est = estimate_time_offset(streams[reference], stream, max_offset_s=max_offset_s, grid=grid)
-            out.append(ClockOffset(est.offset_ns if est.applicable else 0, est.std_ns, est.method,
-                                   tuple(est.warnings), est.offset_ns, est.applicable))
+            est = estimate_time_offset(streams[reference], stream, max_offset_s=options.sync.max_time_offset,
+                                       grid=grid)
+            reading = confirm_offset(streams[reference], stream, options, est)
+            out.append(ClockOffset(reading.offset_ns, est.std_ns, est.method, tuple(est.warnings), est.offset_ns,
+                                   bool(reading.applied), reading.confirmed_by if est.applicable else None))
         else:
             try:
                 out.append(ClockOffset(int(round(float(value) * 1e9)), None, "fixed"))

@@ -8,6 +8,7 @@ far b's clock is ahead of a's [ns]. The thresholds that decide it are in :mod:`.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,7 +25,10 @@ from ..stages.sync import median_step_ns
 from ..streams import PoseStream
 from .policy import CONFIRMING_COVERAGE, CONFIRMING_GAIN, CONFIRMING_MIN_GAIN, LARGE_OFFSET_PERIODS, Finding
 
-__all__ = ["Reading", "decide_reading"]
+if TYPE_CHECKING:
+    from ..stages.timeoffset import TimeOffset
+
+__all__ = ["Reading", "confirm_offset", "decide_reading", "estimated"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,7 +101,7 @@ def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, O
     value = options.sync.time_offset
     if value != "auto":
         return int(round(float(value) * 1e9)), OffsetReading(float(value), "fixed"), []
-    from ..stages.timeoffset import SIGNIFICANT_SIGMA, estimate_time_offset, overlap_offsets_ns
+    from ..stages.timeoffset import estimate_time_offset, overlap_offsets_ns
 
     lo, hi = overlap_offsets_ns(a, b) if len(a) and len(b) else (0, 0)
     try:
@@ -110,13 +114,35 @@ def _time_offset(a: PoseStream, b: PoseStream, options: Options) -> tuple[int, O
                             f"({e.what})", "time offset", "give the offset with ⟦time_offset=SECONDS⟧, or widen "
                             "⟦max_time_offset⟧") from None
         return 0, OffsetReading(0.0, "not estimated", applied=False, reason=e.line()), []
-    applied = est.applicable
-    report = OffsetReading(est.offset_ns / 1e9 if applied else 0.0, est.method, applied=applied, estimate=est,
-                           significant_sigma=SIGNIFICANT_SIGMA)
+    report = estimated(est)
     warnings = [f"a clock offset of {est.offset_ns / 1e9:.6g} ± {est.std_ns / 1e9:.2g} s was estimated but not "
                 f"applied ({'; '.join(est.warnings)}): if it is right, pass ⟦time_offset={est.offset_ns / 1e9:.6g}⟧"
                 ] if est.significant and est.warnings else []
-    return (est.offset_ns if applied else 0), report, warnings
+    return report.offset_ns, report, warnings
+
+
+def estimated(estimate: TimeOffset) -> OffsetReading:
+    """The reading of an estimate before the fit is asked: applied where it is significant and unambiguous
+    (:attr:`~handeye_cli.stages.timeoffset.TimeOffset.applicable`), else 0."""
+    from ..stages.timeoffset import SIGNIFICANT_SIGMA
+
+    applied = estimate.applicable
+    return OffsetReading(estimate.offset_ns / 1e9 if applied else 0.0, estimate.method, applied=applied,
+                         estimate=estimate, significant_sigma=SIGNIFICANT_SIGMA)
+
+
+def confirm_offset(a: PoseStream, b: PoseStream, options: Options, estimate: TimeOffset) -> OffsetReading:
+    """b's clock offset to a's as ``calibrate`` decides it from an ``estimate`` made already (a rig's, of a
+    stream against its reference): applied only when significant, unambiguous and confirmed by the fit of the
+    pairs it gives (:func:`_confirmed_offset`, the thresholds of :mod:`.policy`); the reading says which."""
+    report = estimated(estimate)
+    if not report.applied:
+        return report
+    try:
+        paired = pairs_of(a, b, options, report.offset_ns, None)
+    except HandEyeError:                      # no pairs at the estimate: nothing confirms it
+        return replace(report, seconds=0.0, applied=False, confirmed_by=None)
+    return _confirmed_offset(a, b, options, None, report, paired)[1]
 
 
 def _large_offset_warning(a: PoseStream, b: PoseStream, report: OffsetReading) -> str | None:

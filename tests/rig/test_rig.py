@@ -407,7 +407,7 @@ def test_inversion_checked_against_the_reference_and_where_it_is_not_cleared(mon
                         lambda paired, *a: checked.append(len(paired.synced)) or inversion(paired, *a))
     streams = simulate_streams(_sensors(_mounts(0)), duration_s=40, seed=0)
     names, given = list(streams), {k: KNOWN_OFFSETS[n] for k, n in enumerate(streams) if n in KNOWN_OFFSETS}
-    offsets = clock_offsets(list(streams.values()), 0, given)
+    offsets = clock_offsets(list(streams.values()), 0, given, Options())
     edges, _ = solve_edges(list(streams.values()), names, offsets, Options(), reference=0)
     assert len(edges) == 6 and len(checked) == 3
     streams["lidar"] = streams["lidar"].inverted()            # recorded as T_sensor_world, not said
@@ -450,9 +450,10 @@ def test_synchronise_recovers_consistent_graph() -> None:
 
 def test_an_insignificant_clock_offset_estimate_is_not_applied_and_the_result_says_so() -> None:
     """Issue 37: ``clock_offsets`` applied every estimate; ``calibrate`` applies one only when it is significant
-    against its σ and unambiguous (``TimeOffset.applicable``). cam1 shares the reference's clock here: its
-    estimate (≈ 1.7 ± 0.7 ms) is noise and is not applied (offset 0, as calibrate's would be), the offsets that
-    are there (−40 ms, 70 ms) are; the result records, for each estimate, whether it was applied."""
+    against its σ and unambiguous (``TimeOffset.applicable``) and the fit confirms it (``confirmed_by``). cam1
+    shares the reference's clock here: its estimate (≈ 1.7 ± 0.7 ms) is noise and is not applied (offset 0, as
+    calibrate's would be), the offsets that are there (−40 ms, 70 ms) are, confirmed by the fit; the result
+    records, for each estimate, whether it was applied."""
     T = _mounts(0)
     sensors = _sensors(T)
     sensors[1] = replace(sensors[1], time_offset_ns=0)
@@ -466,6 +467,7 @@ def test_an_insignificant_clock_offset_estimate_is_not_applied_and_the_result_sa
     assert streams["cam1"]["applied"] is False and streams["cam1"]["seconds"] == 0.0
     assert streams["cam1"]["estimated_seconds"] == cam1.estimated_ns / 1e9
     assert streams["lidar"]["applied"] is True and "applied" not in streams["cam0"]          # the reference's
+    assert streams["lidar"]["confirmed_by"] == "fit" and "confirmed_by" not in streams["cam1"]   # as calibrate's
     for k in (1, 2, 3):
         rot, trans = pose_error(res.matrices[k], T[k])
         assert rot < 0.2 and trans < 0.01, (res.names[k], rot, trans)
