@@ -3,7 +3,8 @@
 A calibration's pairs (and weights, at its α) are solved by every solver of
 :data:`~handeye_cli.solvers.METHODS` — the optimal dqopt, the paper's approximations, Daniilidis and the
 classical Tsai–Lenz, Park–Martin, Horaud–Dornaika, Andreff — and its synchronised absolute poses by the
-robot-world methods. Each :class:`MethodResult` holds that method's ``T_a_b``, its cost (8) on the pairs at
+robot-world methods; with ``refine`` also the calibration's maximum-likelihood refinement of dqopt's optimum
+(``dqopt refined``). Each :class:`MethodResult` holds that method's ``T_a_b``, its cost (8) on the pairs at
 the same α, the residual medians, its difference to dqopt and the time taken.
 """
 from __future__ import annotations
@@ -61,6 +62,8 @@ def compare_methods(cal: Calibration) -> list[MethodResult]:
         t0 = time.perf_counter()
         X = robot_world(cal.synced.T_a, cal.synced.T_b, method=method, alpha=alpha).X
         solved[f"{method} (robot-world)"] = (X, time.perf_counter() - t0)
+    if cal.refinement is not None:                     # --refine: the calibration's own estimate, from dqopt's
+        solved["dqopt refined"] = (cal.refinement.matrix, cal.refinement.seconds)
     best = solved["dqopt"][0]
     problem = build_problem(A, B, alpha, weights=w)
     mask = None if w is None else w > 0

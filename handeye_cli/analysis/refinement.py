@@ -23,6 +23,7 @@ degrees in the result document; quaternions x-y-z-w.
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -52,7 +53,8 @@ class Refinement:
     """The refinement of one calibration: ``refined`` (:class:`~handeye_cli.solvers.refine.Refined`: the matrix,
     its costs, iterations, covariance of ``(ω [rad], v [m])`` in frame b), the chain's ``samples`` and ``motions``,
     the fitted noise per stream (per-axis σ, median over the samples, rotation [rad], translation [m]) and the
-    drift variances per second [rad²/s, m²/s], and the optimum it started from (4, 4)."""
+    drift variances per second [rad²/s, m²/s], the optimum it started from (4, 4), and the time it took [s] (the
+    noise model's fit and the refinement)."""
 
     refined: Refined
     samples: int
@@ -61,6 +63,7 @@ class Refinement:
     sigma_b: tuple[float, float]
     drift: tuple[float, float]
     optimum: FloatArray
+    seconds: float
 
     @property
     def matrix(self) -> FloatArray:
@@ -108,6 +111,7 @@ def refine_calibration(synced: Synced, pairs: Pairs, weights: FloatArray | None,
                        optimum: FloatArray) -> Refinement:
     """Refine ``optimum`` (4, 4), the certified optimum of the pairs' cost (8), by the maximum likelihood of the
     synced samples the pairs use, under the noise model fitted to them (module docstring)."""
+    start = time.perf_counter()
     rows = _chain_rows(synced, pairs, weights)
     T_a = se3.from_xyz_quat(synced.xyz_a[rows], synced.quat_a[rows])
     T_b = se3.from_xyz_quat(synced.xyz_b[rows], synced.quat_b[rows])
@@ -127,7 +131,7 @@ def refine_calibration(synced: Synced, pairs: Pairs, weights: FloatArray | None,
     median = [float(np.median(np.sqrt(theta[k]) * s[rows])) for k, s in
               enumerate((noise.rot_a, noise.trans_a, noise.rot_b, noise.trans_b))]
     return Refinement(refined, len(rows), len(chain.A), (median[0], median[1]), (median[2], median[3]),
-                      (theta[4] * base_r, theta[5] * base_t), optimum)
+                      (theta[4] * base_r, theta[5] * base_t), optimum, time.perf_counter() - start)
 
 
 def _fitted_scales(chain: Chain, X: FloatArray, whites: list[FloatArray], drifts: list[FloatArray], *,

@@ -74,3 +74,18 @@ def test_planar_motion_is_not_refined_and_says_so() -> None:
     cal = calibrate(rec.base, rec.sensor, refine=True)
     assert cal.refinement is None and cal.diagnostics.subspace.axis_a is not None
     assert any(w.startswith("not refined: planar motion") for w in cal.warnings)
+
+
+def test_compare_shows_the_refined_estimate_beside_the_optimum(capsys) -> None:
+    """``handeye compare --refine``: the table has the calibration's refined estimate as its own row (without the
+    flag it has none), and the optimum's row is dqopt's as before."""
+    import json
+
+    code, out, _ = run(capsys, "compare", "sample_data/rig_a.tum", "sample_data/rig_b.tum", "--refine", "--format",
+                       "json")
+    assert code == 0
+    rows = {r["method"]: r for r in json.loads(out)["methods"]}
+    assert "dqopt refined" in rows and rows["dqopt"]["vs_dqopt_deg"] == 0.0
+    assert 0 < rows["dqopt refined"]["vs_dqopt_deg"] < 0.1 and rows["dqopt refined"]["milliseconds"] > 0
+    code, out, _ = run(capsys, "compare", "sample_data/rig_a.tum", "sample_data/rig_b.tum", "--format", "json")
+    assert code == 0 and "dqopt refined" not in {r["method"] for r in json.loads(out)["methods"]}
