@@ -229,24 +229,29 @@ class RangeHandler(http.server.BaseHTTPRequestHandler):
         path, start, stop = target
         with open(path, "rb") as f, contextlib.suppress(ConnectionError):
             f.seek(start)
+            rate = float(getattr(self.server, "bandwidth", 0.0))
             while start < stop and (piece := f.read(min(1 << 20, stop - start))):
                 self.wfile.write(piece)
                 start += len(piece)
+                if rate > 0:                                     # one connection's throughput [B/s]
+                    time.sleep(len(piece) / rate)
 
     def log_message(self, *args: object) -> None:
         pass
 
 
 @contextlib.contextmanager
-def http_server(root: Path, latency: float = 0.0, handler: type[RangeHandler] = RangeHandler
-                ) -> Iterator[http.server.ThreadingHTTPServer]:
+def http_server(root: Path, latency: float = 0.0, handler: type[RangeHandler] = RangeHandler,
+                bandwidth: float = 0.0) -> Iterator[http.server.ThreadingHTTPServer]:
     """The files in ``root`` served on 127.0.0.1 (by ``handler``: :class:`RangeHandler`), each answer
-    ``latency`` [s] late (tests/io/test_remote.py serves with it too); shut down and its socket closed on exit
-    (a socket left open is a ResourceWarning wherever its last reference goes, in another test)."""
+    ``latency`` [s] late and each connection's body at most ``bandwidth`` [B/s] (0: as fast as the loopback
+    goes) (tests/io/test_remote.py serves with it too); shut down and its socket closed on exit (a socket left
+    open is a ResourceWarning wherever its last reference goes, in another test)."""
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
     server.daemon_threads = True
     server.root = str(root)                 # type: ignore[attr-defined]
     server.latency = latency                # type: ignore[attr-defined]
+    server.bandwidth = bandwidth            # type: ignore[attr-defined]
     server.lock, server.active, server.log = threading.Lock(), 0, []     # type: ignore[attr-defined]
     serving = threading.Thread(target=server.serve_forever, daemon=True)
     serving.start()
@@ -318,6 +323,9 @@ def main() -> None:
     parser.add_argument("--logs", type=int, default=100, help="logs in the batch comparison")
     parser.add_argument("--latency-ms", type=float, default=30.0,
                         help="the plain HTTP server's delay before each answer [ms] (an object store's first byte)")
+    parser.add_argument("--bandwidth-mb-s", type=float, default=0.0,
+                        help="the plain HTTP server's throughput per connection [MB/s] (0: the loopback's, several "
+                             "hundred MB/s; an object store serves one connection about 50-100 MB/s)")
     args = parser.parse_args()
     logging.getLogger("werkzeug").setLevel(logging.ERROR)      # moto's server: no line per request
     import boto3
@@ -337,7 +345,7 @@ def main() -> None:
     served = tmp / "served"
     served.mkdir()
     closing = contextlib.ExitStack()             # the plain HTTP server, shut down and closed at the end
-    web = closing.enter_context(http_server(served, args.latency_ms / 1e3))
+    web = closing.enter_context(http_server(served, args.latency_ms / 1e3, bandwidth=args.bandwidth_mb_s * 1e6))
     base = f"http://127.0.0.1:{web.server_address[1]}"
 
     def one_get(url: str, to: Path) -> None:
@@ -363,7 +371,8 @@ def main() -> None:
         print(f"load average: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} (1, 5 min); {os.cpu_count()} cores")
         print("moto's server reads the whole object for every request (FakeKey.value, under a lock), so its "
               "requests cost in proportion to the object, not to the bytes asked, and do not overlap; the plain "
-              f"HTTP server reads only the bytes asked, as object stores do, answering {args.latency_ms:g} ms late")
+              f"HTTP server reads only the bytes asked, as object stores do, answering {args.latency_ms:g} ms late"
+              + (f", {args.bandwidth_mb_s:g} MB/s a connection" if args.bandwidth_mb_s else ""))
         for fmt, own in (("mcap", True), ("mcap", False), ("bag", True), ("bag", False)):
             layout = "poses in own chunks" if own else "poses interleaved in every chunk"
             write = write_image_log if fmt == "mcap" else write_image_bag
