@@ -6,7 +6,9 @@ The motions are ``A_k = T_a(t_i)⁻¹ T_a(t_j)``, ``B_k`` likewise, with ``A_k X
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -41,8 +43,29 @@ class Paired:
     selection: Selection | None
 
 
+_KNOWN: weakref.WeakKeyDictionary[PoseStream, weakref.WeakKeyDictionary[PoseStream, dict[tuple[Any, ...], Paired]]] \
+    = weakref.WeakKeyDictionary()
+"""Each pair of streams' pairings without a prior or a selection to follow, by clock offset and the options they
+read, while the streams live: ``handeye rig`` confirms a stream's clock offset with the fit of its pairs with the
+reference (:func:`~handeye_cli.verify.reading.confirm_offset`), then calibrates that same pair at that offset."""
+
+
 def pairs_of(stream_a: PoseStream, stream_b: PoseStream, options: Options, offset_ns: int,
              prior: Prior | None, like: Selection | None = None) -> Paired:
+    """Sync, gates and pair formation at b's clock offset ``offset_ns`` [ns] (:func:`_paired`), made once per pair of
+    streams, offset and the options it reads where neither a ``prior`` nor ``like`` is given."""
+    if prior is not None or like is not None:
+        return _paired(stream_a, stream_b, options, offset_ns, prior, like)
+    key = (int(offset_ns), options.sync.sync, options.sync.max_dt_ns, options.gates, options.pairs,
+           options.solver.min_pairs, options.solver.method)
+    known = _KNOWN.setdefault(stream_a, weakref.WeakKeyDictionary()).setdefault(stream_b, {})
+    if key not in known:
+        known[key] = _paired(stream_a, stream_b, options, offset_ns, prior, like)
+    return known[key]
+
+
+def _paired(stream_a: PoseStream, stream_b: PoseStream, options: Options, offset_ns: int,
+            prior: Prior | None, like: Selection | None = None) -> Paired:
     """Sync, gates and pair formation at b's clock offset ``offset_ns`` [ns]. ``prior`` is the options'
     prior, read once by the caller (:func:`~.inputs.read_prior`). ``like``: for the ``auto`` strategy, the pairs of
     that selection's strides instead of a selection (None: no weights to solve with; a comparison's pairs).
