@@ -229,7 +229,7 @@ class RangeHandler(http.server.BaseHTTPRequestHandler):
         path, start, stop = target
         with open(path, "rb") as f, contextlib.suppress(ConnectionError):
             f.seek(start)
-            rate = float(getattr(self.server, "bandwidth", 0.0))
+            rate = float(self.server.bandwidth)       # type: ignore[attr-defined]  # set by http_server
             while start < stop and (piece := f.read(min(1 << 20, stop - start))):
                 self.wfile.write(piece)
                 start += len(piece)

@@ -108,9 +108,9 @@ def motion_covariances(T_i: FloatArray, T_j: FloatArray, sigma_rotation: float, 
 
     The motion's noise (module docstring's ``(ε_rot, ε_tra)`` order) is ``ε_rot = φ_j − R_Mᵀ φ_i`` and
     ``ε_tra = [t_M]× φ_i − δ_i + R_M δ_j``: pose i's rotation noise turns the motion's translation by its
-    lever, correlated with the motion's rotation noise. ``extra`` adds per pair a covariance of its own
-    (drift that grows with the span): (N, 6, 6) as is, or (N, 2) per-axis variances [rad², m²] added to
-    the rotation and translation diagonals.
+    lever, correlated with the motion's rotation noise (the maps of :func:`_chain_maps`). ``extra`` adds per pair a
+    covariance of its own (drift that grows with the span): (N, 6, 6) as is, or (N, 2) per-axis variances [rad²,
+    m²] added to the rotation and translation diagonals.
     """
     T_i, T_j = (np.asarray(T, dtype=np.float64) for T in (T_i, T_j))
     if T_i.ndim != 3 or T_i.shape[1:] != (4, 4) or T_j.shape != T_i.shape:
@@ -122,17 +122,11 @@ def motion_covariances(T_i: FloatArray, T_j: FloatArray, sigma_rotation: float, 
     if not (np.isfinite(sigmas).all() and (sigmas >= 0).all()):
         raise ConfigError(f"noise σ {sigmas.tolist()}", "sigma_rotation, sigma_translation",
                           "give finite per-axis standard deviations ≥ 0 (rad, m)")
-    var_r, var_t = sigmas ** 2
-    M = se3.relative(T_i, T_j)
-    R, lever = M[:, :3, :3], _skew(M[:, :3, 3])
-    eye = np.eye(3)
-    cov = np.zeros((len(M), 6, 6))
-    cov[:, :3, :3] = 2.0 * var_r * eye
-    cov[:, :3, 3:] = var_r * np.swapaxes(R, 1, 2) @ lever
-    cov[:, 3:, :3] = np.swapaxes(cov[:, :3, 3:], 1, 2)
-    cov[:, 3:, 3:] = -var_r * lever @ lever + 2.0 * var_t * eye
+    pose = np.diag(np.repeat(sigmas ** 2, 3))
+    S, E = _chain_maps(se3.relative(T_i, T_j))
+    cov = S @ pose @ np.swapaxes(S, 1, 2) + E @ pose @ np.swapaxes(E, 1, 2)
     if extra is not None:
-        cov += _extra(np.asarray(extra, dtype=np.float64), len(M))
+        cov += _extra(np.asarray(extra, dtype=np.float64), len(cov))
     return cov
 
 
@@ -209,15 +203,22 @@ def residual_covariances(motions_a: FloatArray, motions_b: FloatArray, X: FloatA
 
 def _checked(motions_a: FloatArray, motions_b: FloatArray, X0: FloatArray, cov_a: FloatArray, cov_b: FloatArray,
              scale: float | None) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, float]:
+    """Checked motions, start (:func:`_start`) and motion covariances, as (N, …) arrays."""
     A, B, _ = validate_motions(motions_a, motions_b)
+    X, s = _start(X0, scale)
+    covs = [_covariances(c, len(A), name) for name, c in (("cov_a", cov_a), ("cov_b", cov_b))]
+    return A, B, X, covs[0], covs[1], s
+
+
+def _start(X0: FloatArray, scale: float | None) -> tuple[FloatArray, float]:
+    """The start ``X0`` (4, 4) and scale (1 when None), checked."""
     X = np.asarray(X0, dtype=np.float64)
     if X.shape != (4, 4) or not np.isfinite(X).all() or not se3.is_rotation(X[:3, :3]):
         raise DataError("the start X0 is not a finite rigid transform (4, 4)", "X0", "pass dqopt's T_a_b")
-    covs = [_covariances(c, len(A), name) for name, c in (("cov_a", cov_a), ("cov_b", cov_b))]
     s = 1.0 if scale is None else float(scale)
     if not (np.isfinite(s) and s > 0):
         raise ConfigError(f"scale {scale!r}", "scale", "start the scale at a finite number > 0, or pass None")
-    return A, B, X, covs[0], covs[1], s
+    return X, s
 
 
 def _moved(X: FloatArray, s: float, step: FloatArray) -> tuple[FloatArray, float]:
@@ -432,15 +433,14 @@ def refine_poses(chain: Chain, X0: FloatArray, noise_a: FloatArray, noise_b: Flo
     scale, max_iterations, tolerance:
         As :func:`refine`.
     """
-    pose_noise = [_covariances(c, chain.samples, name) for name, c in (("noise_a", noise_a), ("noise_b", noise_b))]
-    extras = [None if d is None else _extra(np.asarray(d, dtype=np.float64), len(chain.A)) for d in (drift_a, drift_b)]
-    A, B, X, _, _, s = _checked(chain.A, chain.B, X0, np.eye(6), np.eye(6), scale)
+    noise_a, noise_b = _covariances(noise_a, chain.samples, "noise_a"), _covariances(noise_b, chain.samples, "noise_b")
+    X, s = _start(X0, scale)                  # the chain's motions are checked already (Chain.of)
 
     def weigh(Ja: FloatArray, Jb: FloatArray) -> _Precision:
-        factor = band_factor(*chain.blocks(Ja, Jb, *pose_noise, *extras))
+        factor = band_factor(*chain.blocks(Ja, Jb, noise_a, noise_b, drift_a, drift_b))
         return lambda M: np.asarray(cho_solve_banded((factor, True), M), dtype=np.float64)
 
-    return _minimise(A, B, X, s, scale is not None, weigh, max_iterations, tolerance)
+    return _minimise(chain.A, chain.B, X, s, scale is not None, weigh, max_iterations, tolerance)
 
 
 def _covariances(c: FloatArray, n: int, name: str) -> FloatArray:
