@@ -199,9 +199,9 @@ class Calibration:
     writes flags); diagnostics: what the analyses found (:class:`Diagnostics`: typed,
     and the result's diagnostic keys: time offset, residuals…);
     inputs: what was read (:class:`~.inputs.Inputs`); residuals: per-pair residuals at the solution; weights: per-pair
-    weights used (inlier mask with ``robust``, else None); robust, bootstrap: those analyses; refinement: the
-    maximum-likelihood refinement whose matrix ``solution`` holds (``solution.optimum``: the optimum it started
-    from), or None.
+    weights used (inlier mask with ``robust``, else None); robust, bootstrap: those analyses (the diagnostics'
+    own); refinement: the maximum-likelihood refinement whose matrix ``solution`` holds (``solution.optimum``: the
+    optimum it started from), or None.
     """
 
     solution: Solution
@@ -216,11 +216,19 @@ class Calibration:
     diagnostics: Diagnostics = field(default_factory=Diagnostics)
     inputs: Inputs = field(default_factory=Inputs)
     weights: np.ndarray | None = None
-    robust: RobustResult | None = None
-    bootstrap: BootstrapResult | None = None
     refinement: Refinement | None = None
     config_file: str | None = None
     preset: str | None = None
+
+    @property
+    def robust(self) -> RobustResult | None:
+        """``--robust``'s RANSAC (the weighted solve's, as the document's ``robust`` describes it), or None."""
+        return self.diagnostics.robust
+
+    @property
+    def bootstrap(self) -> BootstrapResult | None:
+        """``--bootstrap N``'s replicates (the document's ``uncertainty``), or None."""
+        return self.diagnostics.bootstrap
 
     @property
     def matrix(self) -> np.ndarray:

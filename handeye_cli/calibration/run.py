@@ -139,7 +139,7 @@ def _calibrated(reading: Reading, opts: Options, inputs: Inputs, scale_by_fit: b
         moved.message, bootstrap=boot, poor_fit_accepted=bool(outcome.accepted))
     return Calibration(solution, a, b, paired.synced, pairs, paired.samples, opts, res,
                        warnings=list(outcome.warnings), diagnostics=diagnostics, inputs=inputs,
-                       weights=solved.weights, robust=solved.robust, bootstrap=boot, refinement=refinement)
+                       weights=solved.weights, refinement=refinement)
 
 
 def _reading_checked(a: PoseStream, b: PoseStream, paired: Paired, solved: _Solved, opts: Options, inputs: Inputs,
