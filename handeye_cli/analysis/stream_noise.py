@@ -10,14 +10,16 @@ evaluated at ``t_i`` (Lagrange weights ``w`` from the actual stamps, so uneven s
 positions directly, orientations as rotation vectors ``log(q_i⁻¹ q_k)`` of the neighbours relative
 to sample i (0 for i itself). A smooth motion is predicted to 4th order, so what is left is the
 noise: ``e_i = x_i - Σ w_k x_k`` has variance ``σ² (1 + Σ w_k²)`` for white noise σ, and σ is
-the robust scale (1.4826 × median |e| / √(1 + Σ w²)) over samples and axes. Samples whose window
+the robust scale (1.4826 × median |e| / √(1 + Σ w²)) over the samples of each axis, the three axes'
+combined as their root mean square (the isotropic σ of the same total variance: a planar stream's
+rotation noise is all about one axis, which a median pooled over the axes would read as 0). Samples whose window
 spans a gap longer than ``_MAX_GAP_STEPS`` median steps, or turns by more than ``_MAX_TURN_RAD``,
 are not used.
 
 Bounded work: at most ``MAX_WINDOWS`` windows, their centres spread evenly over the stream (every
-window of a shorter stream). σ is a median over three axes of them, whose relative standard error for
-normal noise is ≈ 1.16 / √(3 · windows): 0.5 % at 20,000 windows, where the fit test's allowance is
-15×; an hour at 100 Hz (360,000 samples) costs what 3 minutes do.
+window of a shorter stream). σ combines a median over them per axis, whose relative standard error for
+isotropic normal noise is ≈ 1.16 / √(3 · windows) once the three axes are combined: 0.5 % at 20,000
+windows, where the fit test's allowance is 15×; an hour at 100 Hz (360,000 samples) costs what 3 minutes do.
 
 The estimate needs neither the other stream nor the extrinsic, so the fit test
 (:mod:`handeye_cli.analysis.fit_test`) can judge the residuals at ``X`` by it. It sees only what
@@ -116,6 +118,14 @@ def stream_noise(stream: PoseStream) -> StreamNoise | None:
     step_rot = rel[use][:, 2]                                                # sample i → i+1
     bend_rot = rel[use][:, 2] + rel[use][:, 1]                              # (i+1 − i) − (i − (i−1))
     step_pos, bend_pos = xyz[:, 3] - xyz[:, 2], xyz[:, 3] - 2 * xyz[:, 2] + xyz[:, 1]
-    med = [float(np.median(np.abs(v))) for v in (e_rot, e_pos, step_rot, step_pos, bend_rot, bend_pos)]
+    med = [_per_axis(v) for v in (e_rot, e_pos, step_rot, step_pos, bend_rot, bend_pos)]
     return StreamNoise(_MAD * med[0], _MAD * med[1], int(np.count_nonzero(use)), *med[2:])
+
+
+def _per_axis(v: FloatArray) -> float:
+    """The median of ``|v|`` (N, 3) on each axis, combined as their root mean square: the isotropic per-axis
+    value of the same total variance. A planar stream (wheel odometry, a 2-D localiser) moves and errs about
+    one rotation axis and along two translation axes only; a median pooled over the axes would read its
+    rotation noise as 0 where all of it is about the vertical."""
+    return float(np.sqrt(np.mean(np.median(np.abs(v), axis=0) ** 2)))
 

@@ -57,6 +57,22 @@ def test_jitter_recovers_the_white_noise_of_a_moving_stream():
     assert quiet is not None and quiet.sigma_rotation_rad < 0.02 * sigma_r and quiet.sigma_translation_m < 2e-5
 
 
+def test_a_planar_stream_has_its_jitter_about_one_axis_counted():
+    """Wheel odometry or a 2-D localiser errs in yaw only: the isotropic σ of the same total variance is
+    σ_yaw/√3 per axis (a median pooled over the three axes read it as 0, and the fit test refused a
+    localiser against lidar odometry whose residuals were its yaw noise)."""
+    rng = np.random.default_rng(4)
+    t = np.arange(3000) / 20.0
+    yaw = 0.5 * np.sin(0.2 * t) + np.deg2rad(0.3) * rng.normal(size=len(t))
+    xyz = np.c_[np.cos(0.1 * t), np.sin(0.1 * t), np.zeros_like(t)] + np.c_[rng.normal(0, 0.01, (len(t), 2)),
+                                                                              np.zeros_like(t)]
+    quat = np.c_[np.zeros((len(t), 2)), np.sin(yaw / 2), np.cos(yaw / 2)]
+    noise = stream_noise(PoseStream((t * 1e9).astype(np.int64), xyz, quat))
+    assert noise is not None
+    assert noise.sigma_rotation_rad == pytest.approx(np.deg2rad(0.3) / np.sqrt(3), rel=0.1)
+    assert noise.sigma_translation_m == pytest.approx(0.01 * np.sqrt(2 / 3), rel=0.1)
+
+
 def test_a_sparse_stream_has_no_jitter_estimate():
     a, _ = _stations(0, sparse=True)
     assert stream_noise(a) is None
