@@ -203,17 +203,18 @@ Value = TypeVar("Value")
 
 
 class StreamMemo(Generic[Value]):
-    """``compute(stream)`` of each stream computed once: a rig's stream is in several pairs (its jitter
-    for their fit tests) and its reference in every clock offset (its orientations on the ω grid).
-    Streams are told apart by identity; the memo holds them, so no two of them share an ``id`` while it
-    lives."""
+    """``compute(stream, *args)`` of each stream and arguments computed once: a rig's stream is in several pairs
+    (its jitter for their fit tests) and its reference in every clock offset (its orientations on the ω grid, at
+    each grid step). Streams are told apart by identity; the memo holds them, so no two of them share an ``id``
+    while it lives (a memo lives as long as one rig's stage: bounded by its streams)."""
 
-    def __init__(self, compute: Callable[[PoseStream], Value]) -> None:
+    def __init__(self, compute: Callable[..., Value]) -> None:
         self._compute = compute
-        self._seen: dict[int, tuple[PoseStream, Value]] = {}
+        self._seen: dict[tuple[int, tuple[Any, ...]], tuple[PoseStream, Value]] = {}
 
-    def __call__(self, stream: PoseStream) -> Value:
-        hit = self._seen.get(id(stream))
+    def __call__(self, stream: PoseStream, *args: Any) -> Value:
+        key = id(stream), args
+        hit = self._seen.get(key)
         if hit is None or hit[0] is not stream:
-            hit = self._seen[id(stream)] = (stream, self._compute(stream))
+            hit = self._seen[key] = (stream, self._compute(stream, *args))
         return hit[1]

@@ -84,7 +84,7 @@ def clock_offsets(streams: list[PoseStream], reference: int, given: Mapping[int,
     — else 0."""
     from ..stages.timeoffset import estimate_time_offset, grid_of
 
-    out, grid = [], StreamMemo(grid_of)                # the reference's ω grid once, not once per stream
+    out, grid = [], StreamMemo(grid_of)                # the reference's ω grid once per step, not once per stream
     for k, stream in enumerate(streams):
         value = given.get(k, "auto")
         if k == reference:

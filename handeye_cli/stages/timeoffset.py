@@ -646,7 +646,7 @@ def _check_reachable(a: PoseStream, b: PoseStream, max_ns: int | None, auto: boo
 
 
 def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | str | None = None,
-                         grid: Callable[[PoseStream], Grid] = grid_of) -> TimeOffset:
+                         grid: Callable[..., Grid] = grid_of) -> TimeOffset:
     """Estimate how far b's clock is ahead of a's (see the module docstring for the method).
 
     Parameters
@@ -654,9 +654,10 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
     a, b: pose streams of two rigidly attached sensors (any frames; the extrinsic is not needed).
     max_offset_s: optional bound [s] on |offset|; ``"auto"`` the shorter stream's span (the default of
         ``--max-time-offset``, :func:`search_bound_ns`); ``None`` searches every lag.
-    grid: each stream's orientations on the ω grid (:func:`grid_of`, or a
+    grid: each stream's orientations on the ω grid, called as :func:`grid_of` (``grid(stream)`` at
+        ``_GRID_NS``, ``grid(stream, step_ns)`` on a long recording's coarse level), or a
         :class:`~handeye_cli.streams.StreamMemo` of it that a rig shares between the estimates against its
-        reference).
+        reference (the windows of a long recording's refinement are each pair's own: not shared).
 
     Raises
     ------
@@ -686,7 +687,7 @@ def estimate_time_offset(a: PoseStream, b: PoseStream, *, max_offset_s: float | 
         ref, bracket_ns = _Refiners([_Refiner(sa, sb, coarse_ns)]), _BRACKET_NS
     else:                                               # bounded work: a coarser grid, then windows at full rate
         step = _GRID_NS * -(-longest // (MAX_GRID_POINTS * _GRID_NS))
-        on_step = lambda stream: grid_of(stream, step)      # noqa: E731 - the coarse level's grid
+        on_step = lambda stream: grid(stream, step)         # noqa: E731 - the coarse level's grid
         wide = -(-window // (2 * step)) * 2 * step
         sa, sb = (angular_velocity(s, wide, max(smooth, step), on_step) for s in (a, b))
         coarse_ns, corr, warnings = _coarse(sa, sb, max_ns)

@@ -118,20 +118,22 @@ def test_repetitive_motion_is_flagged_as_ambiguous() -> None:
     assert abs(periods - round(periods)) * 2e9 < MS          # right, or off by whole 2 s periods
 
 
-def test_a_shared_grid_changes_no_estimate(monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("duration_s", [12, 400])
+def test_a_shared_grid_changes_no_estimate(monkeypatch: pytest.MonkeyPatch, duration_s: float) -> None:
     """A rig's estimates against one reference share its grid (a StreamMemo of grid_of): each stream's grid
-    is computed once, and every estimate is the one without the memo, to the nanosecond."""
+    is computed once (a long recording's: its coarse level's, at that level's step), and every estimate is the
+    one without the memo, to the nanosecond."""
     from handeye_cli.stages import timeoffset as to
 
     offsets = (15_000_000, -40_000_000)
-    rigs = [simulate_rig(Rig(random_transform(np.random.default_rng(k), 0.3), offset), duration_s=12, rate_a=30,
-                         rate_b=rate, sigma_r=np.deg2rad(0.2), sigma_t=0.002, seed=5)
+    rigs = [simulate_rig(Rig(random_transform(np.random.default_rng(k), 0.3), offset), duration_s=duration_s,
+                         rate_a=30, rate_b=rate, sigma_r=np.deg2rad(0.2), sigma_t=0.002, seed=5)
             for k, (offset, rate) in enumerate(zip(offsets, (20, 10), strict=True))]
     ref = rigs[0][0]                                          # seed 5: one trajectory, one reference stream
     alone = [to.estimate_time_offset(ref, b) for _, b in rigs]
     made: list[int] = []
     grid_of = to.grid_of
-    monkeypatch.setattr(to, "grid_of", lambda stream: made.append(id(stream)) or grid_of(stream))
+    monkeypatch.setattr(to, "grid_of", lambda stream, *step: made.append(id(stream)) or grid_of(stream, *step))
     from handeye_cli.streams import StreamMemo
 
     memo = StreamMemo(to.grid_of)
