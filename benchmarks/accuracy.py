@@ -19,7 +19,8 @@ translation (goal: ≤ 1.2 for both). The α chosen by the defaults and the nois
 
 Ground robots (:mod:`handeye_cli.simulation.ground`: ``diff-drive`` wheel vs lidar odometry,
 ``car`` ground truth vs visual odometry; the diff-drive also with a 5 Hz lidar and 20 Hz wheel odometry,
-a 20 Hz lidar and 100 Hz wheels, and straighter runs with a turn in place every 90 s), per degree of
+a 20 Hz lidar and 100 Hz wheels, and straighter runs with a turn in place every 90 s; ``localiser``: the 1.5 Hz
+localiser with jumps, AMCL-like, against the 10 Hz lidar odometry), per degree of
 freedom: the defaults plus ``--prior`` (a nominal that is wrong where the data see: yaw +1°, pitch +1°,
 y +2 cm; right in z) against every
 fixed strategy through the same observable-subspace solve (:mod:`handeye_cli.analysis.subspace`),
@@ -27,10 +28,12 @@ the best in hindsight per degree of freedom, the worst seed's yaw error, and whe
 unobservable degrees of freedom equal the prior exactly. Beside the defaults' yaw per seed, *the data's*: the
 least-squares fit of every consecutive pair (no cap) with z and the tilt at the truth, what the translations
 determine (issue 22's "≤ 0.05° on every seed" is bounded by it: a seed whose data put yaw 0.049° off cannot be
-brought within 0.05° by any pair selection).
+brought within 0.05° by any pair selection). 24 ground seeds by default: the best of seven strategies in
+hindsight is the minimum of seven noisy means, biased low on few seeds (at 8 seeds the car's best was stride:90,
+at 24 stride:15, and its ratio 1.23 fell to 1.14 with the defaults unchanged).
 
     python benchmarks/accuracy.py [--seeds 12] [--duration 60] [--scenarios vio-vio,arm]
-        [--ground diff-drive,car,diff-drive-5hz,diff-drive-20hz,diff-drive-straight] [--ground-seeds 8]
+        [--ground diff-drive,car,diff-drive-5hz,diff-drive-20hz,diff-drive-straight,localiser] [--ground-seeds 24]
         [--ground-duration 240]
 """
 from __future__ import annotations
@@ -113,24 +116,26 @@ def _stp(T: np.ndarray) -> str:
             + " ".join(repr(float(np.deg2rad(a))) for a in v[5:2:-1]) + " base_link sensor 100")
 
 
-GROUND_VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {     # name: (kind, simulate_ground options)
-    "diff-drive": ("diff-drive", {}),
-    "car": ("car", {}),
-    "diff-drive-5hz": ("diff-drive", {"base_rate": 20.0, "sensor_rate": 5.0}),
-    "diff-drive-20hz": ("diff-drive", {"base_rate": 100.0, "sensor_rate": 20.0}),
-    "diff-drive-straight": ("diff-drive", {"turning": 0.3, "spin_period_s": 90.0}),
+GROUND_VARIANTS: dict[str, tuple[str, dict[str, Any], str]] = {
+    # name: (kind, simulate_ground options, stream a: the base's odometry or the localiser; b is the sensor)
+    "diff-drive": ("diff-drive", {}, "base"),
+    "car": ("car", {}, "base"),
+    "diff-drive-5hz": ("diff-drive", {"base_rate": 20.0, "sensor_rate": 5.0}, "base"),
+    "diff-drive-20hz": ("diff-drive", {"base_rate": 100.0, "sensor_rate": 20.0}, "base"),
+    "diff-drive-straight": ("diff-drive", {"turning": 0.3, "spin_period_s": 90.0}, "base"),
+    "localiser": ("diff-drive", {}, "localiser"),
 }
 
 
 def run_ground(variant: str, seed: int, duration: float) -> tuple[np.ndarray, np.ndarray, float, bool, float]:
     """(default errors (3,), fixed errors (strategies, 3), default signed yaw error [deg], unobservable = prior,
     the data's signed yaw error [deg]) on a :data:`GROUND_VARIANTS` log."""
-    kind, options = GROUND_VARIANTS[variant]
+    kind, options, a = GROUND_VARIANTS[variant]
     g = simulate_ground(kind, seed=seed, duration_s=duration, **options)
     v = dof_values(g.truth)
     v[[5, 4, 1]] += (1.0, 1.0, 0.02)                       # wrong where the data see, right in z
     wrong = from_values(v)
-    cal = calibrate(g.base, g.sensor, prior=_stp(wrong), name_a="base_link", name_b="sensor")
+    cal = calibrate(getattr(g, a), g.sensor, prior=_stp(wrong), name_a="base_link", name_b="sensor")
     dofs = cal.diagnostics["degrees_of_freedom"]
     got = dof_values(cal.matrix)
     exact = all(got[k] == v[k] or abs(got[k] - v[k]) < 1e-9 for k, n in enumerate(DOF_NAMES)
@@ -186,7 +191,7 @@ def main() -> None:
     parser.add_argument("--scenarios", default=",".join(SCENARIOS))
     parser.add_argument("--ground", default=",".join(GROUND_VARIANTS),
                         help="ground variants ('' for none): " + ", ".join(GROUND_VARIANTS))
-    parser.add_argument("--ground-seeds", type=int, default=8)
+    parser.add_argument("--ground-seeds", type=int, default=24)
     parser.add_argument("--ground-duration", type=float, default=240.0)
     args = parser.parse_args()
     t0 = time.perf_counter()
