@@ -30,7 +30,8 @@ least-squares fit of every consecutive pair (no cap) with z and the tilt at the 
 determine (issue 22's "≤ 0.05° on every seed" is bounded by it: a seed whose data put yaw 0.049° off cannot be
 brought within 0.05° by any pair selection). 24 ground seeds by default: the best of seven strategies in
 hindsight is the minimum of seven noisy means, biased low on few seeds (at 8 seeds the car's best was stride:90,
-at 24 stride:15, and its ratio 1.23 fell to 1.14 with the defaults unchanged).
+at 24 stride:15, and its ratio 1.23 fell to 1.14 with the defaults unchanged); beside each ratio, the paired test
+of the defaults against that best strategy over the seeds (the one tests/rig uses).
 
     python benchmarks/accuracy.py [--seeds 12] [--duration 60] [--scenarios vio-vio,arm]
         [--ground diff-drive,car,diff-drive-5hz,diff-drive-20hz,diff-drive-straight,localiser] [--ground-seeds 24]
@@ -39,7 +40,9 @@ at 24 stride:15, and its ratio 1.23 fell to 1.14 with the defaults unchanged).
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -51,6 +54,9 @@ from handeye_cli.simulation.ground import simulate_ground
 from handeye_cli.simulation.recordings import SCENARIOS, scenario
 from handeye_cli.solvers import solve
 from handeye_cli.stages.pairs import make_pairs
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from _util import signed_rank_p  # the tests' paired test, one home
 
 STRATEGIES = ("keyframes", "all", "consecutive", "stride:5", "stride:15", "stride:30", "stride:90")
 ALPHAS = np.array([0.03, 0.1, 0.3, 1.0, 3.0, 10.0])
@@ -174,6 +180,13 @@ def report_ground(kind: str, runs: list[tuple[np.ndarray, np.ndarray, float, boo
     ratio = np.asarray(default / best, dtype=float)
     yaw = np.array([r[2] for r in runs])
     print("  ratio defaults / best: " + "  ".join(f"{e} {r:.2f}" for e, r in zip(GROUND_ERRORS, ratio, strict=True)))
+    errors, each = np.array([r[0] for r in runs]), np.array([r[1] for r in runs])      # (seeds, 3), (seeds, S, 3)
+    paired = []
+    for k, name in enumerate(GROUND_ERRORS):
+        b = int(np.nanargmin(fixed[:, k]))
+        d = errors[:, k] - each[:, b, k]
+        paired.append(f"{name} vs {STRATEGIES[b]}: better on {int(np.sum(d < 0))}/{len(d)}, p {signed_rank_p(d):.3f}")
+    print("  paired over the seeds (one-sided Wilcoxon signed-rank, small p: the defaults worse): " + "; ".join(paired))
     print(f"  defaults' yaw error per seed [deg]: {np.array2string(yaw, precision=4)}; worst |{np.abs(yaw).max():.4f}|"
           f"; from_prior DOFs equal the prior exactly on every seed: {all(r[3] for r in runs)}")
     data = np.array([r[4] for r in runs])
