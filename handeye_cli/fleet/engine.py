@@ -252,17 +252,18 @@ def _local(jobs: Sequence[Job], workers: int, on_done: OnDone) -> None:
     """Run the jobs in this process (one worker), else in up to ``workers`` worker processes. A
     worker that dies is its job's error record; one that overruns its job's time limit (and a
     grace) is killed; both are replaced. A finished job's worker gets its next job before
-    ``on_done`` runs for the record, so the parent's work overlaps the workers'. Every worker is
-    killed and reaped when this returns or raises (an error, SIGINT, SIGTERM, SIGHUP)."""
+    ``on_done`` runs for the record, so the parent's work overlaps the workers'. Each worker imports
+    the calibration library and the log readers its inputs need itself, the workers at once
+    (importing the library in the parent before the fork took as long: benchmarks/batch.py). Every
+    worker is killed and reaped when this returns or raises (an error, SIGINT, SIGTERM, SIGHUP)."""
     if workers <= 1 or len(jobs) <= 1:
         for i, job in enumerate(jobs):
             on_done(i, run_job(job))
         return
     context: Any = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods()
                                                else "spawn")
-    if context.get_start_method() == "fork":       # import once here, shared by every forked worker, rather
-        from .. import calibration  # noqa: F401  # than in each (0.3 s of CPU a worker, benchmarks/batch.py)
-        gc.freeze()     # what is imported stays put: no collection in a worker touches (copies) those pages
+    if context.get_start_method() == "fork":    # what the parent imported stays put: no collection in
+        gc.freeze()                             # a worker touches (copies) those pages
     waiting = list(range(len(jobs)))[::-1]
     pool: list[_Worker] = []
     finished: list[tuple[int, Record]] = []     # handed to on_done once the idle workers have new jobs
