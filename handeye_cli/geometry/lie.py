@@ -1,5 +1,5 @@
-"""Lie-group helpers on SO(3) and SE(3): the one projection onto SO(3), the adjoint, and the log of
-transforms near the identity (the error coordinates of the analysis and the rig).
+"""Lie-group helpers on SO(3) and SE(3): the one projection onto SO(3), the cross-product matrix, the adjoint,
+and the log of transforms near the identity (the error coordinates of the analysis and the rig).
 
 Twists and errors are ordered ``(ω, v)``: rotation vector [rad] first, then translation [m].
 Perturbations are on the left: ``T = Exp(ξ) T̂``.
@@ -11,7 +11,7 @@ import numpy as np
 from .._typing import FloatArray
 from . import dualquat as dq
 
-__all__ = ["nearest_rotation", "adjoint", "log_errors"]
+__all__ = ["nearest_rotation", "skew", "adjoint", "log_errors"]
 
 
 def nearest_rotation(H: FloatArray, up_to_sign: bool = False) -> FloatArray:
@@ -42,15 +42,20 @@ def nearest_rotation(H: FloatArray, up_to_sign: bool = False) -> FloatArray:
     return np.asarray(U @ Vt, dtype=np.float64)
 
 
+def skew(v: FloatArray) -> FloatArray:
+    """Cross-product matrices ``[v]×`` (…, 3, 3) of vectors (…, 3): ``[v]× u = v × u``."""
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return out
+
+
 def adjoint(T: FloatArray) -> FloatArray:
     """``Ad_T`` (N, 6, 6) of transforms T (N, 4, 4) on twists ``(ω, v)``: ``T Exp(ξ) T⁻¹ = Exp(Ad_T ξ)``."""
-    R, t = T[:, :3, :3], T[:, :3, 3]
-    tx = np.zeros_like(R)
-    tx[:, 0, 1], tx[:, 0, 2], tx[:, 1, 2] = -t[:, 2], t[:, 1], -t[:, 0]
-    tx -= np.swapaxes(tx, 1, 2)
+    R = T[:, :3, :3]
     Ad = np.zeros((len(T), 6, 6))
     Ad[:, :3, :3] = Ad[:, 3:, 3:] = R
-    Ad[:, 3:, :3] = tx @ R
+    Ad[:, 3:, :3] = skew(T[:, :3, 3]) @ R
     return Ad
 
 

@@ -41,9 +41,8 @@ from numpy.typing import NDArray
 from ..analysis.covariance import constrained_hessian
 from ..geometry import dualquat as dq
 from ..geometry import se3
-from ..geometry.lie import log_errors
+from ..geometry.lie import log_errors, skew
 from ..numeric.chi2 import chi2_log_sf, chi2_sf
-from ..solvers.classical import _skew
 from ..solvers.problem import split_forms
 from .graph import connected
 
@@ -161,10 +160,10 @@ def _jacobian(problem: JointProblem, T: Array, free: NDArray[np.bool_], edges: N
         u = Rj_t @ (T[k, :3, 3] - T[j, :3, 3]) - G @ s
         if free[j]:
             c = 6 * column[j]
-            out[r, :3, c:c + 3], out[r, 3:, c:c + 3], out[r, 3:, c + 3:c + 6] = -eye, _skew(u), -Rj_t
+            out[r, :3, c:c + 3], out[r, 3:, c:c + 3], out[r, 3:, c + 3:c + 6] = -eye, skew(u), -Rj_t
         if free[k]:
             c = 6 * column[k]
-            out[r, :3, c:c + 3], out[r, 3:, c:c + 3], out[r, 3:, c + 3:c + 6] = Xe[:3, :3], G @ _skew(s), Rj_t
+            out[r, :3, c:c + 3], out[r, 3:, c:c + 3], out[r, 3:, c + 3:c + 6] = Xe[:3, :3], G @ skew(s), Rj_t
     return out.reshape(6 * len(kept), -1)
 
 

@@ -33,20 +33,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..geometry import dualquat as dq
-from ..geometry.lie import nearest_rotation
+from ..geometry.lie import nearest_rotation, skew
 from .problem import eigh, pair_blocks
 
 __all__ = ["CLASSICAL", "tsai", "park", "horaud", "andreff"]
 
 Array = NDArray[np.float64]
-
-
-def _skew(v: Array) -> Array:
-    """Cross-product matrices ``[v]×`` of vectors (N, 3) as (N, 3, 3)."""
-    out = np.zeros(v.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
-    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
-    return out
 
 
 def _weighted_lstsq(M: Array, y: Array, w: Array) -> Array:
@@ -77,7 +69,7 @@ def _unit_quaternions(T: Array) -> Array:
 def tsai(A: Array, B: Array, w: Array) -> Array:
     """Tsai–Lenz: ``X = T_a_b`` (4x4) from motions ``A_i X = X B_i`` (N, 4, 4) and weights (N,)."""
     pa, pb = 2.0 * _unit_quaternions(A)[:, :3], 2.0 * _unit_quaternions(B)[:, :3]
-    p_ = _weighted_lstsq(_skew(pa + pb), pb - pa, w)
+    p_ = _weighted_lstsq(skew(pa + pb), pb - pa, w)
     half = p_ / np.sqrt(1.0 + p_ @ p_)              # p_X / 2 = sin(θ/2) n: the quaternion's vector part
     R = dq.to_matrix(np.r_[half, np.sqrt(max(1.0 - float(half @ half), 0.0))])
     return _transform(R, _translation(A, B, R, w))

@@ -53,7 +53,7 @@ from .._typing import BoolArray, FloatArray, IntArray
 from ..errors import ConfigError, DataError, UnderdeterminedError
 from ..geometry import dualquat as dq
 from ..geometry import se3
-from .classical import _skew
+from ..geometry.lie import skew
 from .problem import validate_motions
 
 __all__ = ["Chain", "Refined", "band_factor", "gaussian_terms", "motion_covariances", "refine", "refine_poses",
@@ -151,7 +151,7 @@ def _inverse_jacobian(phi: FloatArray) -> FloatArray:
     th = np.where(small, 1.0, theta)
     c = np.where(small, 1.0 / 12.0 + theta ** 2 / 720.0,
                  1.0 / th ** 2 - (1.0 + np.cos(th)) / (2.0 * th * np.sin(th)))
-    K = _skew(phi)
+    K = skew(phi)
     return np.asarray(np.eye(3) - 0.5 * K + c[:, None, None] * (K @ K), dtype=np.float64)
 
 
@@ -168,12 +168,12 @@ def _model(A: FloatArray, B: FloatArray, X: FloatArray, s: float
     eye = np.eye(3)
     J = np.zeros((len(A), 6, 7))
     J[:, :3, :3] = Jinv @ (C - eye)
-    J[:, 3:, :3] = s * R @ _skew(tb)
+    J[:, 3:, :3] = s * R @ skew(tb)
     J[:, 3:, 3:6] = (Ra - eye) @ R
     J[:, 3:, 6] = -s * tb @ R.T
     Ja, Jb = np.zeros((len(A), 6, 6)), np.zeros((len(A), 6, 6))
     Ja[:, :3, :3] = Jinv @ R.T @ Ra
-    Ja[:, 3:, :3] = -Ra @ _skew(np.broadcast_to(t, ta.shape))
+    Ja[:, 3:, :3] = -Ra @ skew(np.broadcast_to(t, ta.shape))
     Ja[:, 3:, 3:] = eye
     Jb[:, :3, :3] = -np.swapaxes(Jinv, 1, 2) @ Rb
     Jb[:, 3:, 3:] = -s * R
@@ -321,7 +321,7 @@ def _chain_maps(M: FloatArray) -> tuple[FloatArray, FloatArray]:
     R = M[:, :3, :3]
     S, E = np.zeros((len(M), 6, 6)), np.zeros((len(M), 6, 6))
     S[:, :3, :3] = -np.swapaxes(R, 1, 2)
-    S[:, 3:, :3] = _skew(M[:, :3, 3])
+    S[:, 3:, :3] = skew(M[:, :3, 3])
     S[:, 3:, 3:] = -np.eye(3)
     E[:, :3, :3] = np.eye(3)
     E[:, 3:, 3:] = R
