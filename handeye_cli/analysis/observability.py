@@ -38,6 +38,7 @@ PRIOR_HINT = "pass ⟦prior=FILE⟧ (a known approximate extrinsic) to fix it"
 PRIOR_GIVEN = "rely on the given prior, which alone determines it"
 MIN_ROTATION_DEG = 1.0          # motions below this count as not rotating
 MAX_AXIS_SPREAD_DEG = 2.0       # rotation axes spread less than this: one common axis (single_axis / planar)
+NOISE_SPREAD = 4.0              # ... or spread across it by at most this many times a's rotation noise energy
 
 
 @dataclass(frozen=True)
@@ -280,10 +281,10 @@ def _covariance_warnings(cov: LinearCovariance, R_x: FloatArray, max_rot_deg: fl
 
 
 def _rotation_checks(A: FloatArray, rotvec: FloatArray, angles: FloatArray, rotating: BoolArray,
-                     R_x: FloatArray, small_rotation_deg: float, max_axis_spread_deg: float,
+                     noise: FloatArray | None, R_x: FloatArray, small_rotation_deg: float, max_axis_spread_deg: float,
                      fixed_line_tolerance: float) -> tuple[FloatArray | None, float, list[ObservabilityWarning]]:
     """The principal rotation axis, its spread [deg] and the warnings about how the motions rotate:
-    not at all, too little, or about a single axis."""
+    not at all, too little, or about a single axis (``noise``: a's per-pair rotation variance, or None)."""
     if not rotating.any():
         return None, float("nan"), _pure_translation(A, angles, max_axis_spread_deg, R_x)
     found: list[ObservabilityWarning] = []
@@ -293,9 +294,21 @@ def _rotation_checks(A: FloatArray, rotvec: FloatArray, angles: FloatArray, rota
                               f"{100 * np.mean(angles < small_rotation_deg):.0f}% below {small_rotation_deg:g}°): "
                               "the extrinsic is sensitive to noise", "pair samples further apart in time, "
                               "or rotate the rig more"))
-    if spread < max_axis_spread_deg:
+    if spread < max_axis_spread_deg or (noise is not None and _spread_is_noise(rotvec[rotating], axis,
+                                                                                noise[rotating])):
         found += _single_axis(A[rotating], len(A), axis, spread, max_axis_spread_deg, fixed_line_tolerance, R_x)
     return axis, spread, found
+
+
+def _spread_is_noise(rotvec: FloatArray, axis: FloatArray, noise: FloatArray) -> bool:
+    """Whether the rotating motions' spread about ``axis`` is a's rotation noise: the median energy [rad²] of a's
+    rotation vectors ``rotvec`` across the axis within :data:`NOISE_SPREAD` times the median of what a's noise puts
+    there, ``2 · noise`` (``noise``: each pair's per-axis variance of a's rotation [rad²], from the stream's own
+    jitter; two axes across). Small rotations about one axis (consecutive samples) spread by their noise by degrees:
+    an arm turned about one joint, paired sample by sample at 10 Hz with 0.2° of noise, spread 7–14° about it,
+    and the translation along it, which the motion does not determine, was left unnamed, 45 mm off."""
+    across = rotvec - np.outer(rotvec @ axis, axis)
+    return bool(np.median(np.sum(across * across, axis=1)) <= NOISE_SPREAD * np.median(2.0 * noise))
 
 
 def assess_observability(motions_a: FloatArray, motions_b: FloatArray, T_a_b: FloatArray | None = None, *,
@@ -304,7 +317,8 @@ def assess_observability(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Fl
                          small_rotation_deg: float = 2.0, max_axis_spread_deg: float = MAX_AXIS_SPREAD_DEG,
                          fixed_line_tolerance: float = 0.02,
                          max_rotation_std_deg: float = 1.0, max_translation_std_m: float = 0.05,
-                         samples: tuple[IntArray, IntArray] | None = None) -> Observability:
+                         samples: tuple[IntArray, IntArray] | None = None,
+                         rotation_noise: FloatArray | None = None) -> Observability:
     """Detect degenerate motion and name the unobservable directions of ``T_a_b``.
 
     Parameters
@@ -329,6 +343,9 @@ def assess_observability(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Fl
     samples:
         Optional ``(i, j)`` pose-sample indices of each pair, for the dyadic-robust covariance
         when pairs share samples (see :func:`.linear_covariance`).
+    rotation_noise:
+        Optional per-pair per-axis variance of a's rotation [rad²] (its samples' jitter): axes spread by no
+        more than it (:data:`NOISE_SPREAD`) are one axis too, whatever ``max_axis_spread_deg`` says.
 
     Returns
     -------
@@ -337,6 +354,7 @@ def assess_observability(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Fl
     A, B, w = validate_motions(motions_a, motions_b, weights)
     keep = w > 0
     A, B, w = A[keep], B[keep], w[keep]
+    noise = None if rotation_noise is None else np.asarray(rotation_noise, dtype=np.float64)[keep]
     samples = select_samples(samples, keep)
     X = np.asarray(T_a_b, dtype=np.float64) if T_a_b is not None else _estimate(A, B, alpha, prior, w)
     R_x = X[:3, :3]
@@ -345,7 +363,7 @@ def assess_observability(motions_a: FloatArray, motions_b: FloatArray, T_a_b: Fl
     if len(A) < min_pairs:
         found.append(_warning("too_few_pairs", f"only {len(A)} motion pairs", "record more motion, or pair "
                               f"more samples (at least {min_pairs} pairs are advised)"))
-    axis, spread, rotation_warnings = _rotation_checks(A, rotvec, angles, rotating, R_x, small_rotation_deg,
+    axis, spread, rotation_warnings = _rotation_checks(A, rotvec, angles, rotating, noise, R_x, small_rotation_deg,
                                                        max_axis_spread_deg, fixed_line_tolerance)
     found += rotation_warnings
     try:

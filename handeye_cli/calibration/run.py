@@ -44,7 +44,7 @@ from ..solvers import Prior, Solution, solve
 from ..solvers.scale import ScaleSolution, drift_warning
 from ..stages.pairs import Pairs
 from ..streams import PoseStream
-from ..verify.findings import fit_refusal, inversion, moved_mount, order_contradiction, suspect_data
+from ..verify.findings import fit_refusal, inversion, moved_mount, order_contradiction, suspect_data, undetermined
 from ..verify.policy import Finding, policy, retry_kept
 from ..verify.reading import Reading, decide_reading
 from .inputs import Inputs, Source, check_samples, inverted, read_streams, refuse_unread, stream_specs
@@ -108,10 +108,11 @@ def _calibrated(reading: Reading, opts: Options, inputs: Inputs, scale_by_fit: b
         paired, solved, scale, found = _scale_by_fit(reading, paired, solved, opts, findings, noise_of)
     findings += [Finding.warning("scale_drift", w) for w in (drift_warning(scale),) if w]
     pairs = paired.pairs
-    solved, prior = _prior_needed(paired, solved, opts, prior)     # the solve the result is: with the prior or not
-    solution, obs, subspace = _observed(pairs, solved, prior, findings)
     noise = sample_noise(a, b if scale is None else b.scaled(scale.scale), paired.synced, paired.stations,
                          opts.sync.sync, noise_of)
+    jitter = noise.rot_a[pairs.i] ** 2 + noise.rot_a[pairs.j] ** 2        # per pair: a's rotation variance [rad²]
+    solved, prior = _prior_needed(paired, solved, opts, prior, jitter)  # the solve the result is, with or without
+    solution, obs, subspace = _observed(pairs, solved, prior, findings, jitter)
     solution, refinement = _refined(solution, paired, solved.weights, noise, opts, subspace, findings)
     check = _uncertainty_check(pairs, solution, solved, prior, checks, findings)
     res = pair_residuals(pairs.A, pairs.B, solution.matrix)
@@ -120,7 +121,8 @@ def _calibrated(reading: Reading, opts: Options, inputs: Inputs, scale_by_fit: b
     misfit = fit_refusal(fit, opts, paired, inverted=verdict is not None)
     moved = None if misfit or paired.stations is None or opts.analysis.robust else moved_mount(
         paired, res, opts, solved.alpha, prior)                  # a mount that slipped between two stations
-    findings += [f for f in (misfit, moved, suspect_data(verdict, res, solved.weights, paired)) if f is not None]
+    findings += [f for f in (undetermined(obs, prior), misfit, moved, suspect_data(verdict, res, solved.weights,
+                                                                                paired)) if f is not None]
     outcome = policy(findings, accept_poor_fit=opts.analysis.accept_poor_fit, robust=opts.analysis.robust)
     if outcome.error is not None:
         recovered = _robust_retry(reading, opts, inputs, scale_by_fit, misfit, noise_of, checks) \
@@ -159,26 +161,28 @@ def _reading_checked(a: PoseStream, b: PoseStream, paired: Paired, solved: _Solv
     return verdict, contradiction
 
 
-def _prior_needed(paired: Paired, solved: _Solved, opts: Options, prior: Prior | None) -> tuple[_Solved, Prior | None]:
+def _prior_needed(paired: Paired, solved: _Solved, opts: Options, prior: Prior | None,
+                  jitter: np.ndarray) -> tuple[_Solved, Prior | None]:
     """The prior only where the data leave something open: the solve without it, and no prior, when the motion
-    determines every degree of freedom; else ``solved`` and ``prior`` as they were."""
+    determines every degree of freedom; else ``solved`` and ``prior`` as they were (``jitter``: a's per-pair
+    rotation variance [rad²], see :func:`~handeye_cli.analysis.observability.assess_observability`)."""
     if prior is None:
         return solved, prior
     free = _weighted_solve(paired, opts, None)
     pairs = paired.pairs
     free_obs = assess_observability(pairs.A, pairs.B, free.solution.matrix, alpha=free.alpha, weights=free.weights,
-                                    samples=(pairs.i, pairs.j))
+                                    samples=(pairs.i, pairs.j), rotation_noise=jitter)
     return (free, None) if free_obs.ok else (solved, prior)
 
 
-def _observed(pairs: Pairs, solved: _Solved, prior: Prior | None,
-              findings: list[Finding]) -> tuple[Solution, Observability, Subspace]:
+def _observed(pairs: Pairs, solved: _Solved, prior: Prior | None, findings: list[Finding],
+              jitter: np.ndarray) -> tuple[Solution, Observability, Subspace]:
     """Observability and the degrees of freedom at the solution, their warnings (and a failed optimality
     certificate's) added to ``findings``: the solution (planar motion: the reduced in-plane solve, its certificate
     the full solve's), the observability and the subspace."""
     solution, ij = solved.solution, (pairs.i, pairs.j)
     obs = assess_observability(pairs.A, pairs.B, solution.matrix, alpha=solved.alpha, prior=prior,
-                               weights=solved.weights, samples=ij)
+                               weights=solved.weights, samples=ij, rotation_noise=jitter)
     findings += [Finding.warning("observability", str(w)) for w in obs.warnings]
     findings += [Finding.warning("certificate", w) for w in solution.warnings]     # a failed optimality certificate
     subspace = observable_subspace(pairs.A, pairs.B, solution.matrix, obs, weights=solved.weights,

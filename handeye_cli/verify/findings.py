@@ -1,7 +1,7 @@
 """The checks of a solved calibration, each turned into :class:`~.policy.Finding` objects for the policy: the
-inversion check, a given quaternion order's check, the fit test, a station capture's moved mount, and the
-suspect-data warning. Each check's numbers live in :mod:`handeye_cli.analysis`; what they mean for exit 0 is
-decided once, by :func:`~.policy.policy`.
+inversion check, a given quaternion order's check, what the motion leaves undetermined, the fit test, a station
+capture's moved mount, and the suspect-data warning. Each check's numbers live in :mod:`handeye_cli.analysis`; what
+they mean for exit 0 is decided once, by :func:`~.policy.policy`.
 
 ``X`` is ``T_a_b`` (maps points from b to a); rotations [deg] in messages, translations [m].
 """
@@ -13,6 +13,7 @@ from ..analysis import Residuals
 from ..analysis.diagnosis import data_warning
 from ..analysis.fit_test import FitTest
 from ..analysis.inversion import InversionVerdict, check_inversion
+from ..analysis.observability import Observability
 from ..analysis.readings import OrderContradiction, contradicted_order
 from ..calibration.inputs import Inputs
 from ..calibration.pairing import Paired, checked_poses
@@ -22,7 +23,7 @@ from ..solvers import Prior
 from ..streams import PoseStream
 from .policy import Finding
 
-__all__ = ["fit_refusal", "inversion", "moved_mount", "order_contradiction", "suspect_data"]
+__all__ = ["fit_refusal", "inversion", "moved_mount", "order_contradiction", "suspect_data", "undetermined"]
 
 
 def inversion(paired: Paired, options: Options, alpha: float,
@@ -51,6 +52,20 @@ def order_contradiction(stream_a: PoseStream, stream_b: PoseStream, paired: Pair
     found = contradicted_order(*checked_poses(paired), (orders[0], orders[1]),
                                inverted=(bool(read.invert_a), bool(read.invert_b)))
     return found, (None if found is None else Finding.refusal("order", found.refusal(), found.message()))
+
+
+UNDETERMINED = ("pure_translation", "unobservable")
+"""The observability findings a result cannot leave with unless a prior fixes what they name: no motion rotates
+(the translation is open along every axis), or cost (8) is flat in a direction. Motion about one axis is the
+subspace's (:mod:`handeye_cli.analysis.subspace`: a ground robot's z from the prior or marked unobservable, an
+oblique axis refused), a direction merely poorly determined a warning."""
+
+
+def undetermined(obs: Observability, prior: Prior | None) -> Finding | None:
+    """The refusal of a result that rests on what the motion does not determine (the first of :data:`UNDETERMINED`
+    that ``obs`` found), None with a ``prior`` (which determines it) or when there is none."""
+    found = next((w for w in obs.warnings if w.code in UNDETERMINED), None)
+    return None if found is None or prior is not None else Finding.refusal("undetermined", found.refusal(), str(found))
 
 
 def fit_refusal(fit: FitTest, options: Options, paired: Paired, *, inverted: bool) -> Finding | None:

@@ -11,15 +11,17 @@ them into one :class:`Outcome`:
   2. ``order``: a quaternion order that was given (a log's fields, ``--wxyz-*``, a stream in memory) is
      contradicted by the other order fitting decisively better
      (:func:`handeye_cli.analysis.readings.contradicted_order`);
-  3. ``fit``: the residuals are beyond what the streams' own jitter predicts (the fit test,
+  3. ``undetermined``: the motion does not determine part of the extrinsic and no prior fixes it (no motion
+     rotates, or cost (8) is flat in a direction: :func:`.findings.undetermined`);
+  4. ``fit``: the residuals are beyond what the streams' own jitter predicts (the fit test,
      :mod:`handeye_cli.analysis.fit_test`, its limit ``THRESHOLD`` there) — **retried** first with outliers
      rejected, unless ``robust`` was asked for: the retry is kept only by :func:`retry_kept`;
-  4. ``moved``: a station capture whose stations before one stamp fit another extrinsic than those after
+  5. ``moved``: a station capture whose stations before one stamp fit another extrinsic than those after
      (:func:`handeye_cli.analysis.robust.moved_during`, each part ``MOVED_GAIN`` × better).
 
 * **accept an override** — with ``accept_poor_fit`` every refusal is kept instead; the result is a poor fit
-  accepted (``handeye calibrate`` exits 3) and, for ``order``, ``fit`` and ``moved``, the first warnings say so
-  (an inversion's own message is the first warning after them).
+  accepted (``handeye calibrate`` exits 3) and, for ``order``, ``undetermined``, ``fit`` and ``moved``, the first
+  warnings say so (an inversion's own message is the first warning after them).
 
 * **warn** — every other finding is a warning, exit 0 (``--strict`` makes a warning fail). The warnings come out
   in :data:`WARNING_ORDER`: first what the user must act on (an accepted override, a suspect stream, a reading
@@ -75,7 +77,7 @@ recording, whose consensus is one period's extrinsic; CI must see it refused. (A
 half-way through a rig's stream was kept as 'outliers rejected'.)"""
 
 # --- refusals and warnings ----------------------------------------------------------------------------------------
-REFUSALS = ("inversion", "order", "fit", "moved")
+REFUSALS = ("inversion", "order", "undetermined", "fit", "moved")
 """The refusals, in the order they are decided: the first one found is the error."""
 
 WARNING_ORDER = (
@@ -131,7 +133,7 @@ class Outcome:
     warnings: tuple[str, ...]
 
 
-_ACCEPTED_NOTE = ("order", "fit", "moved")   # refusals whose acceptance is a first warning of its own
+_ACCEPTED_NOTE = ("order", "undetermined", "fit", "moved")   # refusals whose acceptance is a first warning of its own
 
 
 def policy(findings: Sequence[Finding], *, accept_poor_fit: bool, robust: bool) -> Outcome:
