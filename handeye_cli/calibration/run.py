@@ -44,7 +44,7 @@ from ..solvers import Prior, Solution, solve
 from ..solvers.scale import ScaleSolution, drift_warning
 from ..stages.pairs import Pairs
 from ..streams import PoseStream
-from ..verify.findings import fit_refusal, inversion, moved_mount, order_contradiction, suspect_data, undetermined
+from ..verify.findings import fit_refusal, inversion, moved_mount, observability, order_contradiction, suspect_data
 from ..verify.policy import Finding, policy, retry_kept
 from ..verify.reading import Reading, decide_reading
 from .inputs import Inputs, Source, check_samples, inverted, read_streams, refuse_unread, stream_specs
@@ -121,8 +121,7 @@ def _calibrated(reading: Reading, opts: Options, inputs: Inputs, scale_by_fit: b
     misfit = fit_refusal(fit, opts, paired, inverted=verdict is not None)
     moved = None if misfit or paired.stations is None or opts.analysis.robust else moved_mount(
         paired, res, opts, solved.alpha, prior)                  # a mount that slipped between two stations
-    findings += [f for f in (undetermined(obs, prior), misfit, moved, suspect_data(verdict, res, solved.weights,
-                                                                                paired)) if f is not None]
+    findings += [f for f in (misfit, moved, suspect_data(verdict, res, solved.weights, paired)) if f is not None]
     outcome = policy(findings, accept_poor_fit=opts.analysis.accept_poor_fit, robust=opts.analysis.robust)
     if outcome.error is not None:
         recovered = _robust_retry(reading, opts, inputs, scale_by_fit, misfit, noise_of, checks) \
@@ -177,13 +176,13 @@ def _prior_needed(paired: Paired, solved: _Solved, opts: Options, prior: Prior |
 
 def _observed(pairs: Pairs, solved: _Solved, prior: Prior | None, findings: list[Finding],
               jitter: np.ndarray) -> tuple[Solution, Observability, Subspace]:
-    """Observability and the degrees of freedom at the solution, their warnings (and a failed optimality
-    certificate's) added to ``findings``: the solution (planar motion: the reduced in-plane solve, its certificate
+    """Observability and the degrees of freedom at the solution, their warnings (or the refusal of what the motion
+    leaves open and no prior fixes; and a failed optimality certificate's warnings) added to ``findings``: the solution (planar motion: the reduced in-plane solve, its certificate
     the full solve's), the observability and the subspace."""
     solution, ij = solved.solution, (pairs.i, pairs.j)
     obs = assess_observability(pairs.A, pairs.B, solution.matrix, alpha=solved.alpha, prior=prior,
                                weights=solved.weights, samples=ij, rotation_noise=jitter)
-    findings += [Finding.warning("observability", str(w)) for w in obs.warnings]
+    findings += observability(obs, prior)                    # what the motion leaves open: warned, or refused
     findings += [Finding.warning("certificate", w) for w in solution.warnings]     # a failed optimality certificate
     subspace = observable_subspace(pairs.A, pairs.B, solution.matrix, obs, weights=solved.weights,
                                    nominal=None if prior is None else prior.T_a_b)

@@ -23,7 +23,7 @@ from ..solvers import Prior
 from ..streams import PoseStream
 from .policy import Finding
 
-__all__ = ["fit_refusal", "inversion", "moved_mount", "order_contradiction", "suspect_data", "undetermined"]
+__all__ = ["fit_refusal", "inversion", "moved_mount", "observability", "order_contradiction", "suspect_data"]
 
 
 def inversion(paired: Paired, options: Options, alpha: float,
@@ -61,11 +61,13 @@ subspace's (:mod:`handeye_cli.analysis.subspace`: a ground robot's z from the pr
 oblique axis refused), a direction merely poorly determined a warning."""
 
 
-def undetermined(obs: Observability, prior: Prior | None) -> Finding | None:
-    """The refusal of a result that rests on what the motion does not determine (the first of :data:`UNDETERMINED`
-    that ``obs`` found), None with a ``prior`` (which determines it) or when there is none."""
-    found = next((w for w in obs.warnings if w.code in UNDETERMINED), None)
-    return None if found is None or prior is not None else Finding.refusal("undetermined", found.refusal(), str(found))
+def observability(obs: Observability, prior: Prior | None) -> list[Finding]:
+    """The observability findings as the policy reads them: each a warning, except, without a ``prior`` (which
+    determines it), the first of :data:`UNDETERMINED`: the refusal ``undetermined`` of a result that rests on what
+    the motion does not determine, its text said once (as the accepted note under ``accept_poor_fit``)."""
+    refused = None if prior is not None else next((w for w in obs.warnings if w.code in UNDETERMINED), None)
+    return [Finding.refusal("undetermined", w.refusal(), str(w)) if w is refused
+            else Finding.warning("observability", str(w)) for w in obs.warnings]
 
 
 def fit_refusal(fit: FitTest, options: Options, paired: Paired, *, inverted: bool) -> Finding | None:

@@ -12,7 +12,7 @@ them into one :class:`Outcome`:
      contradicted by the other order fitting decisively better
      (:func:`handeye_cli.analysis.readings.contradicted_order`);
   3. ``undetermined``: the motion does not determine part of the extrinsic and no prior fixes it (no motion
-     rotates, or cost (8) is flat in a direction: :func:`.findings.undetermined`);
+     rotates, or cost (8) is flat in a direction: :func:`.findings.observability`);
   4. ``fit``: the residuals are beyond what the streams' own jitter predicts (the fit test,
      :mod:`handeye_cli.analysis.fit_test`, its limit ``THRESHOLD`` there) — **retried** first with outliers
      rejected, unless ``robust`` was asked for: the retry is kept only by :func:`retry_kept`;

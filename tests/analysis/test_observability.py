@@ -233,6 +233,7 @@ def test_motions_that_do_not_rotate_are_refused_unless_a_prior_fixes_the_transla
     assert not (tmp_path / "r.yaml").exists()
     code, out, err = run(capsys, "calibrate", fa, fb, "--pairs", "consecutive", "--accept-poor-fit", "-q")
     assert code == 3 and "poor fit accepted with --accept-poor-fit: translation of the extrinsic" in out + err
+    assert err.count("unobservable along all axes") == 1                              # said once, as accepted
     c = calibrate(a, b, pairs="consecutive", prior=_nominal(tmp_path / "n.yaml", X))
     assert "pure_translation" in [w["code"] for w in c.diagnostics["observability"]["warnings"]]
     assert np.abs(c.matrix[:3, 3] - X[:3, 3]).max() < 0.01
