@@ -177,8 +177,9 @@ def _prior_needed(paired: Paired, solved: _Solved, opts: Options, prior: Prior |
 def _observed(pairs: Pairs, solved: _Solved, prior: Prior | None, findings: list[Finding],
               jitter: np.ndarray) -> tuple[Solution, Observability, Subspace]:
     """Observability and the degrees of freedom at the solution, their warnings (or the refusal of what the motion
-    leaves open and no prior fixes; and a failed optimality certificate's warnings) added to ``findings``: the solution (planar motion: the reduced in-plane solve, its certificate
-    the full solve's), the observability and the subspace."""
+    leaves open and no prior fixes; and a failed optimality certificate's warnings) added to ``findings``: the
+    solution (planar motion: the reduced in-plane solve, its certificate the full solve's), the observability and
+    the subspace."""
     solution, ij = solved.solution, (pairs.i, pairs.j)
     obs = assess_observability(pairs.A, pairs.B, solution.matrix, alpha=solved.alpha, prior=prior,
                                weights=solved.weights, samples=ij, rotation_noise=jitter)
